@@ -1,0 +1,1 @@
+"""Phase-space systems and their time integrators."""

@@ -1,0 +1,1 @@
+"""Particle systems, force objects, tracers and emitters."""
