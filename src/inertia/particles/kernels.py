@@ -56,12 +56,12 @@ def affine_kick_drift(x, v, inv_mass, gravity, force, damping, h):
 
 @njit(cache=True, parallel=True)
 def gather_acceleration(f, inv_mass, out):
-    """a_i = f_i / m_i (0 for pinned particles)."""
+    """a_i = f_i / m_i; exactly 0 for pinned particles (even when f_i overflowed)."""
     n, d = f.shape
     for i in prange(n):
         w = inv_mass[i]
         for c in range(d):
-            out[i, c] = f[i, c] * w
+            out[i, c] = 0.0 if w == 0.0 else f[i, c] * w
 
 
 # --- individual forces --------------------------------------------------------------------------
