@@ -24,7 +24,7 @@ import numpy as np
 from . import _validate as V
 from .errors import SimulationDiverged
 from .ode import integrators as _integrators
-from .ode.kernels import finite_check
+from .ode.kernels import all_finite
 
 __all__ = ["Simulation", "SimulationState"]
 
@@ -91,8 +91,7 @@ class Simulation:
         self.t = self.start_time + self.step_count * dt
         s.t = self.t
         if self.check_finite:
-            bad = finite_check(s.state)
-            if bad >= 0:
+            if not all_finite(s.state):
                 self._diverged(t)
         t4 = clock()
         p = self.profile

@@ -147,6 +147,8 @@ class RK4(Integrator):
 
     def step(self, t, dt):
         s, y, ys = self.system, self.system.state, self.y_stage
+        if getattr(s, "fused_rk4", None) is not None and s.fused_rk4(t, dt):
+            return
         k1, k2, k3, k4 = self.k
         s.derivative(y, t, k1)
         K.axpy_into(y, k1, 0.5 * dt, ys)
@@ -306,7 +308,7 @@ class SemiImplicitEuler(Integrator):
 
     def step(self, t, dt):
         s = self.system
-        if s.kick_drift(t, dt):
+        if getattr(s, "kick_drift", None) is not None and s.kick_drift(t, dt):
             return
         x, v = self._split(s.state)
         s.acceleration(x, v, t, self.a)

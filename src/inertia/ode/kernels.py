@@ -88,13 +88,13 @@ def verlet_advance(x, x_prev, v, a, a_prev, h):
         a_prev[i] = a[i]
 
 
-@njit(cache=True)
-def finite_check(y):
-    """Index of the first non-finite entry of y, or -1."""
-    for i in range(y.shape[0]):
-        if not np.isfinite(y[i]):
-            return i
-    return -1
+@njit(cache=True, parallel=True)
+def all_finite(y):
+    """True when every entry of y is finite: sum(y * 0) is 0, or NaN as soon as one entry is NaN/inf."""
+    acc = 0.0
+    for i in prange(y.shape[0]):
+        acc += y[i] * 0.0
+    return acc == 0.0
 
 
 # ---------------------------------------------------------------------------------------

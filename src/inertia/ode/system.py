@@ -23,6 +23,8 @@ Optional capabilities, probed by the integrators that can use them:
 ``kick_drift(t, dt)``
     a fused semi-implicit Euler step over the system's own state; returns False when the
     system cannot fuse its current forces (the integrator then falls back to the generic path).
+``fused_rk4(t, dt)``
+    the same for the classical RK4 step (possible when every particle's ODE is independent).
 ``jacobian_pattern``, ``evaluate_with_jacobians(x, v, t, f, dfdx, dfdv)``, ``node_mass``
     the force and its block-sparse Jacobians, for ``implicit_euler``.
 
@@ -66,6 +68,9 @@ class PhaseSpaceSystem:
 
     # The optional capabilities default to "absent".
     def kick_drift(self, t: float, dt: float) -> bool:
+        return False
+
+    def fused_rk4(self, t: float, dt: float) -> bool:
         return False
 
 

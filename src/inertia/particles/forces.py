@@ -215,11 +215,16 @@ class Springs(Force):
     def bind_jacobian(self, pattern):
         super().bind_jacobian(pattern)
         self.incident_slot = pattern.slot_of(self._incident_end, self.incident_other)
+        d = self.system.dim
+        self._block_x = np.zeros((self.spring_count, d, d))
+        self._block_v = np.zeros((self.spring_count, d, d))
 
     def add_jacobians(self, x, v, t, dfdx, dfdv):
-        K.add_springs_jacobian(x, v, self.incident_start, self.incident_other, self.incident_spring,
-                               self.incident_slot, self.diag_slot, self.stiffness, self.damping,
-                               self.rest_lengths, dfdx, dfdv)
+        # one 3x3 block pair per spring, then gathered row by row (parallel and deterministic)
+        K.spring_jacobian_blocks(x, v, self.pairs, self.stiffness, self.damping, self.rest_lengths,
+                                 self._block_x, self._block_v)
+        K.gather_spring_jacobian(self.incident_start, self.incident_spring, self.incident_slot,
+                                 self.diag_slot, self._block_x, self._block_v, dfdx, dfdv)
 
 
 class AnchorSprings(Force):

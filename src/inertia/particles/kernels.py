@@ -55,6 +55,33 @@ def affine_kick_drift(x, v, inv_mass, gravity, force, damping, h):
 
 
 @njit(cache=True, parallel=True)
+def affine_rk4(x, v, inv_mass, gravity, force, damping, h):
+    """Classical RK4 for affine forces, particle by particle in registers (one pass over memory).
+
+    Each particle's ODE x' = v, v' = g + (F - k v) / m is independent of the others, so the four
+    stages need no scratch arrays. Pinned particles (1/m = 0) do not move.
+    """
+    n, d = x.shape
+    for i in prange(n):
+        w = inv_mass[i]
+        if w == 0.0:
+            continue
+        for c in range(d):
+            base = gravity[c] + force[c] * w
+            kw = damping * w
+            v0 = v[i, c]
+            a1 = base - kw * v0
+            v1 = v0 + 0.5 * h * a1
+            a2 = base - kw * v1
+            v2 = v0 + 0.5 * h * a2
+            a3 = base - kw * v2
+            v3 = v0 + h * a3
+            a4 = base - kw * v3
+            x[i, c] += h / 6.0 * (v0 + 2.0 * v1 + 2.0 * v2 + v3)
+            v[i, c] = v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+
+
+@njit(cache=True, parallel=True)
 def gather_acceleration(f, inv_mass, out):
     """a_i = f_i / m_i; exactly 0 for pinned particles (even when f_i overflowed)."""
     n, d = f.shape
@@ -216,27 +243,35 @@ def _spring_blocks(xi, xj, vi, vj, k, c, rest, bx, bv):
 
 
 @njit(cache=True, parallel=True)
-def add_springs_jacobian(x, v, incident_start, incident_other, incident_spring, incident_slot,
-                         diag_slot, stiffness, damping, rest_length, dfdx, dfdv):
-    """Add spring Jacobian blocks, gathered per row: (i,i) += B, (i,j) -= B for each spring at i."""
-    n_particles, dim = x.shape
-    for i in prange(n_particles):
-        bx = np.empty((dim, dim))
-        bv = np.empty((dim, dim))
+def spring_jacobian_blocks(x, v, pairs, stiffness, damping, rest_length, block_x, block_v):
+    """Per spring s = (i, j): block_x[s] = df_i/dx_i, block_v[s] = df_i/dv_i (see _spring_blocks).
+
+    The other blocks follow: df_i/dx_j = -B, df_j/dx_j = B, df_j/dx_i = -B. Zero-length springs get 0.
+    """
+    for s in prange(pairs.shape[0]):
+        i, j = pairs[s, 0], pairs[s, 1]
+        if not _spring_blocks(x[i], x[j], v[i], v[j], stiffness[s], damping[s], rest_length[s],
+                              block_x[s], block_v[s]):
+            block_x[s, :, :] = 0.0
+            block_v[s, :, :] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def gather_spring_jacobian(incident_start, incident_spring, incident_slot, diag_slot, block_x,
+                           block_v, dfdx, dfdv):
+    """Per row i: (i, i) += B_s and (i, j) -= B_s over the springs at i. Row-disjoint writes."""
+    dim = dfdx.shape[1]
+    for i in prange(diag_slot.shape[0]):
         di = diag_slot[i]
         for e in range(incident_start[i], incident_start[i + 1]):
-            j = incident_other[e]
             s = incident_spring[e]
-            if not _spring_blocks(x[i], x[j], v[i], v[j], stiffness[s], damping[s],
-                                  rest_length[s], bx, bv):
-                continue
             o = incident_slot[e]
             for r in range(dim):
                 for q in range(dim):
-                    dfdx[di, r, q] += bx[r, q]
-                    dfdv[di, r, q] += bv[r, q]
-                    dfdx[o, r, q] -= bx[r, q]
-                    dfdv[o, r, q] -= bv[r, q]
+                    dfdx[di, r, q] += block_x[s, r, q]
+                    dfdv[di, r, q] += block_v[s, r, q]
+                    dfdx[o, r, q] -= block_x[s, r, q]
+                    dfdv[o, r, q] -= block_v[s, r, q]
 
 
 @njit(cache=True)

@@ -205,6 +205,14 @@ class ParticleSystem(PhaseSpaceSystem):
         K.affine_kick_drift(self.x, self.v, self.inv_mass, affine[0], affine[1], affine[2], dt)
         return True
 
+    def fused_rk4(self, t, dt) -> bool:
+        """Fused RK4 step when all forces are affine per particle (each particle is independent)."""
+        affine = self._affine_terms()
+        if affine is None:
+            return False
+        K.affine_rk4(self.x, self.v, self.inv_mass, affine[0], affine[1], affine[2], dt)
+        return True
+
     # implicit integration -------------------------------------------------------
     @property
     def node_mass(self) -> np.ndarray:
