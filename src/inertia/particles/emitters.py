@@ -138,7 +138,37 @@ def _as_velocity(value, name):
 
 
 @njit(cache=True)
-def _age_and_retire(owner, active, age, lifetime, v, inv_mass, emitter_id, dt):
+def _find_free_slots(active, count, out):
+    """Write the indices of the first `count` inactive particles into out; return how many were found."""
+    found = 0
+    for i in range(active.shape[0]):
+        if found == count:
+            break
+        if not active[i]:
+            out[found] = i
+            found += 1
+    return found
+
+
+@njit(cache=True)
+def _spawn(slots, positions, velocities, lifetimes, emitter_id, x, v, active, owner, age, lifetime,
+           mass, inv_mass, node_free):
+    """Activate the particles in `slots` with their drawn initial state."""
+    for k in range(slots.shape[0]):
+        i = slots[k]
+        for c in range(x.shape[1]):
+            x[i, c] = positions[k, c]
+            v[i, c] = velocities[k, c]
+        active[i] = True
+        owner[i] = emitter_id
+        age[i] = 0.0
+        lifetime[i] = lifetimes[k]
+        inv_mass[i] = 1.0 / mass[i]
+        node_free[i] = inv_mass[i] > 0.0
+
+
+@njit(cache=True)
+def _age_and_retire(owner, active, age, lifetime, v, inv_mass, node_free, emitter_id, dt):
     """Age this emitter's live particles; retire those whose age reached their lifetime."""
     retired = 0
     for i in range(owner.shape[0]):
@@ -148,6 +178,7 @@ def _age_and_retire(owner, active, age, lifetime, v, inv_mass, emitter_id, dt):
         if age[i] >= lifetime[i]:
             active[i] = False
             inv_mass[i] = 0.0
+            node_free[i] = False
             owner[i] = -1
             for c in range(v.shape[1]):
                 v[i, c] = 0.0
@@ -199,6 +230,7 @@ class Emitter:
         self._positions = np.zeros((n, d))
         self._velocities = np.zeros((n, d))
         self._lifetimes = np.zeros(n)
+        self._slots = np.zeros(n, dtype=np.int64)
 
     def begin_step(self, system, t, dt):
         pass
@@ -206,30 +238,25 @@ class Emitter:
     def end_step(self, system, t, dt):
         s = system
         retired = _age_and_retire(s._emitter_owner, s.active, s.particle_age, s.particle_lifetime,
-                                  s.v, s.inv_mass, self.id, dt)
-        t_end = t + dt
-        window = max(0.0, min(t_end, self.stop) - max(t, self.start))
+                                  s.v, s.inv_mass, s.node_free, self.id, dt)
+        # emit rate * (the part of this step inside [start, stop]); the fraction carries over
+        window = max(0.0, min(t + dt, self.stop) - max(t, self.start))
         self.carry += self.rate * window
-        count = int(self.carry)
-        self.carry -= count
+        wanted = int(self.carry)
+        self.carry -= wanted
+        count = _find_free_slots(s.active, wanted, self._slots) if wanted else 0
+        self.dropped += wanted - count
         if count:
-            free = np.flatnonzero(~s.active)
-            if free.size < count:
-                self.dropped += count - free.size
-                count = free.size
-        if count:
-            slots = free[:count]
             self.position.draw(self.rng, self._positions[:count])
             self.velocity.draw(self.rng, self._velocities[:count])
             lo, hi = self.lifetime
-            self._lifetimes[:count] = lo if lo == hi else self.rng.uniform(lo, hi, count)
-            s.x[slots] = self._positions[:count]
-            s.v[slots] = self._velocities[:count]
-            s.active[slots] = True
-            s._emitter_owner[slots] = self.id
-            s.particle_age[slots] = 0.0
-            s.particle_lifetime[slots] = self._lifetimes[:count]
-            s.refresh_masses()
+            if lo == hi:
+                self._lifetimes[:count] = lo
+            else:
+                self._lifetimes[:count] = self.rng.uniform(lo, hi, count)
+            _spawn(self._slots[:count], self._positions[:count], self._velocities[:count],
+                   self._lifetimes[:count], self.id, s.x, s.v, s.active, s._emitter_owner,
+                   s.particle_age, s.particle_lifetime, s.mass, s.inv_mass, s.node_free)
         if count or retired:
             s.state_modified()
 
