@@ -414,7 +414,7 @@ class ImplicitEuler(Integrator):
     """Linearised backward Euler (Baraff & Witkin 1998). First order, unconditionally stable for springs.
 
     Solves (M - h df/dv - h^2 df/dx) dv = h (f0 + h df/dx v0), then v += dv, x += h v,
-    by Jacobi-preconditioned conjugate gradients with pinned particles filtered out.
+    by block-Jacobi preconditioned conjugate gradients with pinned particles filtered out.
 
     Options: ``cg_tolerance`` (relative residual, 1e-8 default; 1e-4 is plenty for visuals),
     ``cg_max_iterations`` (1000). ``last_cg_iterations`` reports the latest solve.
@@ -434,7 +434,8 @@ class ImplicitEuler(Integrator):
         self.f = np.zeros(n)
         self.rhs = np.zeros(n)
         self.dv = np.zeros(n)
-        self.cg_scratch = [np.zeros(n) for _ in range(5)]
+        self.cg_scratch = [np.zeros(n) for _ in range(4)]
+        self.inv_blocks = None
         self.partial = np.zeros(K.REDUCTION_CHUNKS)
         self.pattern = None
         self.last_cg_iterations = 0
@@ -447,6 +448,7 @@ class ImplicitEuler(Integrator):
             self.dfdx = np.zeros((pattern.nnz, d, d))
             self.dfdv = np.zeros((pattern.nnz, d, d))
             self.matrix = np.zeros((pattern.nnz, d, d))
+            self.inv_blocks = np.zeros((pattern.row_start.shape[0] - 1, d, d))
             self.dv[:] = 0.0
         return pattern
 
@@ -469,10 +471,10 @@ class ImplicitEuler(Integrator):
         K.bsr_matvec(p.row_start, p.columns, self.dfdx, v, self.rhs)
         K.axpy_into(self.f, self.rhs, dt, self.rhs)
         self.rhs *= dt
-        r, z, pp, q, inv_diag = self.cg_scratch
+        r, z, pp, q = self.cg_scratch
         # the previous step's dv is the initial guess (it is part of the saved state)
         self.last_cg_iterations = K.pcg_solve(
             p.row_start, p.columns, self.matrix, p.diag_slot, self.rhs, s.node_free, self.dv,
-            self.cg_tolerance, self.cg_max_iterations, r, z, pp, q, inv_diag, self.partial)
+            self.cg_tolerance, self.cg_max_iterations, r, z, pp, q, self.inv_blocks, self.partial)
         K.axpy_inplace(v, self.dv, 1.0)
         K.axpy_inplace(x, v, dt)

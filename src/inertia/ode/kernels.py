@@ -164,33 +164,82 @@ def _filter(u, free, d):
                 u[i * d + r] = 0.0
 
 
+@njit(cache=True, parallel=True)
+def invert_diagonal_blocks(blocks, diag_slot, free, out):
+    """out[i] = inverse of the diagonal block (i, i) for free nodes, 0 for filtered ones (block Jacobi)."""
+    d = blocks.shape[1]
+    for i in prange(diag_slot.shape[0]):
+        if not free[i]:
+            out[i, :, :] = 0.0
+            continue
+        a = blocks[diag_slot[i]]
+        if d == 2:
+            det = a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]
+            out[i, 0, 0] = a[1, 1] / det
+            out[i, 0, 1] = -a[0, 1] / det
+            out[i, 1, 0] = -a[1, 0] / det
+            out[i, 1, 1] = a[0, 0] / det
+        else:
+            c00 = a[1, 1] * a[2, 2] - a[1, 2] * a[2, 1]
+            c01 = a[1, 2] * a[2, 0] - a[1, 0] * a[2, 2]
+            c02 = a[1, 0] * a[2, 1] - a[1, 1] * a[2, 0]
+            det = a[0, 0] * c00 + a[0, 1] * c01 + a[0, 2] * c02
+            out[i, 0, 0] = c00 / det
+            out[i, 1, 0] = c01 / det
+            out[i, 2, 0] = c02 / det
+            out[i, 0, 1] = (a[0, 2] * a[2, 1] - a[0, 1] * a[2, 2]) / det
+            out[i, 1, 1] = (a[0, 0] * a[2, 2] - a[0, 2] * a[2, 0]) / det
+            out[i, 2, 1] = (a[0, 1] * a[2, 0] - a[0, 0] * a[2, 1]) / det
+            out[i, 0, 2] = (a[0, 1] * a[1, 2] - a[0, 2] * a[1, 1]) / det
+            out[i, 1, 2] = (a[0, 2] * a[1, 0] - a[0, 0] * a[1, 2]) / det
+            out[i, 2, 2] = (a[0, 0] * a[1, 1] - a[0, 1] * a[1, 0]) / det
+
+
+@njit(cache=True, parallel=True)
+def _apply_block_diagonal(inv_blocks, r, z):
+    d = inv_blocks.shape[1]
+    for i in prange(inv_blocks.shape[0]):
+        for a in range(d):
+            acc = 0.0
+            for b in range(d):
+                acc += inv_blocks[i, a, b] * r[i * d + b]
+            z[i * d + a] = acc
+
+
+@njit(cache=True, parallel=True)
+def _cg_update(x, r, p, q, alpha):
+    for i in prange(x.shape[0]):
+        x[i] += alpha * p[i]
+        r[i] -= alpha * q[i]
+
+
+@njit(cache=True, parallel=True)
+def _cg_direction(p, z, beta):
+    for i in prange(p.shape[0]):
+        p[i] = z[i] + beta * p[i]
+
+
 @njit(cache=True)
 def pcg_solve(row_start, columns, blocks, diag_slot, b, free, x, tolerance, max_iterations,
-              r, z, p, q, inv_diag, partial):
-    """Solve A x = b by Jacobi-preconditioned conjugate gradients, with pinned nodes filtered.
+              r, z, p, q, inv_blocks, partial):
+    """Solve A x = b by block-Jacobi preconditioned conjugate gradients, pinned nodes filtered.
 
-    `x` holds the initial guess and receives the solution. Stops when |r| <= tolerance * |b|.
-    Returns the number of iterations taken.
+    `x` holds the initial guess and receives the solution; `b` is overwritten (filtered).
+    Stops when |r| <= tolerance * |b|. Returns the number of iterations taken.
     """
     d = blocks.shape[1]
-    n = free.shape[0]
-    # Jacobi preconditioner from the diagonal blocks.
-    for i in range(n):
-        for k in range(d):
-            a = blocks[diag_slot[i], k, k]
-            inv_diag[i * d + k] = 1.0 / a if (free[i] and a > 0.0) else 0.0
+    invert_diagonal_blocks(blocks, diag_slot, free, inv_blocks)
     _filter(x, free, d)
     bsr_matvec(row_start, columns, blocks, x, q)
     for i in range(b.shape[0]):
         r[i] = b[i] - q[i]
     _filter(r, free, d)
-    _filter(b, free, d)  # b is scratch owned by the caller; pinned rows carry no equation
+    _filter(b, free, d)  # pinned rows carry no equation
     b_norm = np.sqrt(_chunked_dot(b, b, partial))
     if b_norm == 0.0:
         b_norm = 1.0
-    for i in range(r.shape[0]):
-        z[i] = inv_diag[i] * r[i]
-        p[i] = z[i]
+    _apply_block_diagonal(inv_blocks, r, z)
+    p[:] = z
     rz = _chunked_dot(r, z, partial)
     it = 0
     while it < max_iterations:
@@ -202,14 +251,10 @@ def pcg_solve(row_start, columns, blocks, diag_slot, b, free, x, tolerance, max_
         if pq <= 0.0:
             break
         alpha = rz / pq
-        for i in range(x.shape[0]):
-            x[i] += alpha * p[i]
-            r[i] -= alpha * q[i]
-            z[i] = inv_diag[i] * r[i]
+        _cg_update(x, r, p, q, alpha)
+        _apply_block_diagonal(inv_blocks, r, z)
         rz_new = _chunked_dot(r, z, partial)
-        beta = rz_new / rz
+        _cg_direction(p, z, rz_new / rz)
         rz = rz_new
-        for i in range(p.shape[0]):
-            p[i] = z[i] + beta * p[i]
         it += 1
     return it
