@@ -26,13 +26,29 @@ from .simulation import Simulation, SimulationState
 __all__ = [
     "ParticleSystem", "Tracers", "Simulation", "SimulationState", "SimulationDiverged",
     "Emitter", "PointSource", "BoxSource", "SphereSource", "DiskSource", "Cone",
-    "forces", "integrators", "colliders", "fields", "__version__",
+    "forces", "integrators", "colliders", "fields", "load_scene", "load_states", "World",
+    "__version__",
 ]
+
+
+def load_scene(path, **overrides):
+    """Read, validate and build a scene file (TOML or JSON) into a `World` (see `inertia.scene`)."""
+    from .scene import load_scene as _load_scene
+    return _load_scene(path, **overrides)
+
+
+def load_states(path, **options):
+    """Read a state file written by a run (see `inertia.io`)."""
+    from .io import load_states as _load_states
+    return _load_states(path, **options)
 
 
 def __getattr__(name):
     # Layers built on the core are imported on first use, so `import inertia` stays light.
-    if name in ("colliders", "fields", "render", "io", "viewer", "scene"):
+    if name == "World":
+        from .world import World
+        return World
+    if name in ("colliders", "fields", "render", "io", "viewer", "scene", "world"):
         import importlib
         module = importlib.import_module(f".{name}", __name__)
         globals()[name] = module

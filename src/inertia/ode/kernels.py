@@ -10,26 +10,28 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .._jit import parallel_kernel
+
 # Fixed chunk count for reductions: the chunking, hence the rounding, is the same at any
 # thread count, which keeps runs bit-identical at 1 and at N threads.
 REDUCTION_CHUNKS = 64
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def axpy_into(y, k, a, out):
     """out = y + a * k."""
     for i in prange(y.shape[0]):
         out[i] = y[i] + a * k[i]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def axpy_inplace(y, k, a):
     """y += a * k."""
     for i in prange(y.shape[0]):
         y[i] += a * k[i]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def rk_stage(y, stages, coefficients, count, h, out):
     """out = y + h * sum_j coefficients[j] * stages[j] for j < count (explicit Runge-Kutta stage)."""
     n = y.shape[0]
@@ -42,7 +44,7 @@ def rk_stage(y, stages, coefficients, count, h, out):
         out[i] = y[i] + h * acc
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def rk4_finish(y, k1, k2, k3, k4, h):
     """y += h/6 (k1 + 2 k2 + 2 k3 + k4)."""
     s = h / 6.0
@@ -62,7 +64,7 @@ def scaled_error_norm(y0, y1, err, atol, rtol, h):
     return np.sqrt(acc / max(n, 1))
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def kick_drift(x, v, a, h):
     """Semi-implicit Euler: v += h a; x += h v (new velocity)."""
     for i in prange(x.shape[0]):
@@ -70,7 +72,7 @@ def kick_drift(x, v, a, h):
         x[i] += h * v[i]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def verlet_advance(x, x_prev, v, a, a_prev, h):
     """Position Verlet (Stormer): x_{n+1} = 2 x_n - x_{n-1} + h^2 a_n.
 
@@ -88,7 +90,7 @@ def verlet_advance(x, x_prev, v, a, a_prev, h):
         a_prev[i] = a[i]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def all_finite(y):
     """True when every entry of y is finite: sum(y * 0) is 0, or NaN as soon as one entry is NaN/inf."""
     acc = 0.0
@@ -103,7 +105,7 @@ def all_finite(y):
 # slot of block (i, i). Products are gathered per row, so they are parallel and deterministic.
 # ---------------------------------------------------------------------------------------
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def implicit_euler_matrix(node_mass, diag_slot, dfdx, dfdv, h, out):
     """out = M - h df/dv - h^2 df/dx, block by block (Baraff & Witkin 1998, eq. 6)."""
     nnz = out.shape[0]

@@ -199,6 +199,8 @@ class Emitter:
     seed : seed of this emitter's random generator (runs are deterministic).
     """
 
+    stage_order = 90  # after collision response: a new particle starts its first step unclipped
+
     def __init__(self, rate, position, velocity, lifetime=float("inf"), *, start=0.0,
                  stop=float("inf"), seed=0):
         self.rate = V.positive_scalar(rate, "Emitter rate")

@@ -12,10 +12,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from .._jit import parallel_kernel
+
 
 # --- fused path for per-particle affine forces: f = m g + F - k v -------------------------------
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def affine_acceleration(v, inv_mass, gravity, force, damping, out):
     """out_i = g + (F - k v_i) / m_i for free particles, 0 for pinned ones."""
     n, d = v.shape
@@ -29,7 +31,7 @@ def affine_acceleration(v, inv_mass, gravity, force, damping, out):
                 out[i, c] = gravity[c] + (force[c] - damping * v[i, c]) * w
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def affine_derivative(v, inv_mass, gravity, force, damping, out_x, out_v):
     """dy/dt = [v, a] for affine forces, in one pass."""
     n, d = v.shape
@@ -41,7 +43,7 @@ def affine_derivative(v, inv_mass, gravity, force, damping, out_x, out_v):
             out_v[i, c] = 0.0 if w == 0.0 else gravity[c] + (force[c] - damping * vc) * w
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def affine_kick_drift(x, v, inv_mass, gravity, force, damping, h):
     """Semi-implicit Euler for affine forces in one pass: reads x, v, 1/m; writes x, v."""
     n, d = x.shape
@@ -54,7 +56,7 @@ def affine_kick_drift(x, v, inv_mass, gravity, force, damping, h):
                 x[i, c] += h * vc
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def affine_rk4(x, v, inv_mass, gravity, force, damping, h):
     """Classical RK4 for affine forces, particle by particle in registers (one pass over memory).
 
@@ -81,7 +83,7 @@ def affine_rk4(x, v, inv_mass, gravity, force, damping, h):
             v[i, c] = v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def gather_acceleration(f, inv_mass, out):
     """a_i = f_i / m_i; exactly 0 for pinned particles (even when f_i overflowed)."""
     n, d = f.shape
@@ -93,7 +95,7 @@ def gather_acceleration(f, inv_mass, out):
 
 # --- individual forces --------------------------------------------------------------------------
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_gravity(mass, inv_mass, g, f):
     """f_i += m_i g (free particles only: a pinned particle's infinite mass is not multiplied)."""
     n, d = f.shape
@@ -103,7 +105,7 @@ def add_gravity(mass, inv_mass, g, f):
                 f[i, c] += mass[i] * g[c]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_linear_drag(v, k, f):
     """f_i += -k v_i."""
     n, d = f.shape
@@ -112,7 +114,7 @@ def add_linear_drag(v, k, f):
             f[i, c] -= k * v[i, c]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_quadratic_drag(v, coefficient, f):
     """f_i += -c |v_i| v_i."""
     n, d = f.shape
@@ -125,7 +127,7 @@ def add_quadratic_drag(v, coefficient, f):
             f[i, c] -= coefficient * speed * v[i, c]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_wind(v, wind, k, f):
     """f_i += k (w - v_i) for one wind velocity w."""
     n, d = f.shape
@@ -134,7 +136,7 @@ def add_wind(v, wind, k, f):
             f[i, c] += k * (wind[c] - v[i, c])
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_wind_field(v, wind, k, f):
     """f_i += k (w_i - v_i) for a sampled wind field w (N, D)."""
     n, d = f.shape
@@ -143,7 +145,7 @@ def add_wind_field(v, wind, k, f):
             f[i, c] += k * (wind[i, c] - v[i, c])
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_attractor(x, mass, inv_mass, center, strength, softening, f):
     """Softened point attractor (Plummer): f_i = s m_i (c - x_i) / (|c - x_i|^2 + eps^2)^(3/2)."""
     n, d = f.shape
@@ -173,7 +175,7 @@ def attractor_energy(x, mass, inv_mass, center, strength, softening):
     return e
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_springs_gathered(x, v, incident_start, incident_other, incident_spring,
                          stiffness, damping, rest_length, f):
     """Damped springs, gathered per particle.
@@ -242,7 +244,7 @@ def _spring_blocks(xi, xj, vi, vj, k, c, rest, bx, bv):
     return True
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def spring_jacobian_blocks(x, v, pairs, stiffness, damping, rest_length, block_x, block_v):
     """Per spring s = (i, j): block_x[s] = df_i/dx_i, block_v[s] = df_i/dv_i (see _spring_blocks).
 
@@ -256,7 +258,7 @@ def spring_jacobian_blocks(x, v, pairs, stiffness, damping, rest_length, block_x
             block_v[s, :, :] = 0.0
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def gather_spring_jacobian(incident_start, incident_spring, incident_slot, diag_slot, block_x,
                            block_v, dfdx, dfdv):
     """Per row i: (i, i) += B_s and (i, j) -= B_s over the springs at i. Row-disjoint writes."""
@@ -326,7 +328,7 @@ def anchor_energy(x, indices, anchors, stiffness, rest_length):
     return e
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_diagonal_jacobian(diag_slot, value, dfdv):
     """dfdv[(i,i)] += value * I (linear drag: value = -k)."""
     dim = dfdv.shape[1]
@@ -335,7 +337,7 @@ def add_diagonal_jacobian(diag_slot, value, dfdv):
             dfdv[diag_slot[i], r, r] += value
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def add_quadratic_drag_jacobian(v, diag_slot, coefficient, dfdv):
     """d(-c |v| v)/dv = -c (|v| I + v v^T / |v|)."""
     n, dim = v.shape
@@ -361,7 +363,7 @@ def _cell(u, count):
     return k, (u - k) if hi > 0 else 0.0
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def grid_sample_add_2d(x, values, origin, spacing, scale, mass, inv_mass, per_mass, f):
     """Bilinear interpolation of a (n0, n1, 2) grid at x (clamped at the border); f += scale * value."""
     n0, n1 = values.shape[0], values.shape[1]
@@ -378,7 +380,7 @@ def grid_sample_add_2d(x, values, origin, spacing, scale, mass, inv_mass, per_ma
             f[i, c] += w * ((1 - fb) * lo + fb * hi)
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel
 def grid_sample_add_3d(x, values, origin, spacing, scale, mass, inv_mass, per_mass, f):
     """Trilinear interpolation of a (n0, n1, n2, 3) grid at x (clamped at the border); f += scale * value."""
     n0, n1, n2 = values.shape[0], values.shape[1], values.shape[2]

@@ -116,8 +116,17 @@ class ParticleSystem(PhaseSpaceSystem):
         """Attach an `inertia.Emitter`; it spawns into inactive particles of this system."""
         emitter.bind(self)
         self.emitters.append(emitter)
-        self.stages.append(emitter)
+        self.add_stage(emitter)
         return emitter
+
+    def add_stage(self, stage) -> None:
+        """Insert a step stage, keeping ``stages`` sorted by ``stage.stage_order`` (default 50;
+        collisions 50, emitters 90: emitters spawn after collision response)."""
+        order = getattr(stage, "stage_order", 50)
+        position = len(self.stages)
+        while position > 0 and getattr(self.stages[position - 1], "stage_order", 50) > order:
+            position -= 1
+        self.stages.insert(position, stage)
 
     # ---- collisions: delegated to the collision layer (inertia.collision.particle_stage)
     def add_collider(self, collider, *, restitution=0.5, friction=0.0):
@@ -151,8 +160,12 @@ class ParticleSystem(PhaseSpaceSystem):
 
     # ------------------------------------------------------------------ phase-space interface
     def _affine_terms(self):
-        """Summed (g, F, k) when every force is affine per particle and no filter is active."""
-        if self.force_filters:
+        """Summed (g, F, k) when every force is affine per particle and every filter is fusable.
+
+        A force filter with ``fusable = True`` promises that its owner reproduces its effect after a
+        fused step (in its ``end_step``), so the fused kernels may skip it.
+        """
+        if any(not getattr(f, "fusable", False) for f in self.force_filters):
             return None
         if self._affine is None:
             g, F, k = np.zeros(self.dim), np.zeros(self.dim), 0.0
