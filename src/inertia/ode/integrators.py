@@ -443,13 +443,15 @@ class ImplicitEuler(Integrator):
     def _ensure_pattern(self):
         pattern = self.system.jacobian_pattern
         if pattern is not self.pattern:
+            had_pattern = self.pattern is not None
             self.pattern = pattern
             d = pattern.block_dim
             self.dfdx = np.zeros((pattern.nnz, d, d))
             self.dfdv = np.zeros((pattern.nnz, d, d))
             self.matrix = np.zeros((pattern.nnz, d, d))
             self.inv_blocks = np.zeros((pattern.row_start.shape[0] - 1, d, d))
-            self.dv[:] = 0.0
+            if had_pattern:
+                self.dv[:] = 0.0  # forces changed: the previous solution is no guess for the new system
         return pattern
 
     def reset(self):

@@ -1,0 +1,5 @@
+"""``python -m inertia.cli`` runs the `inertia` command."""
+
+from .main import app
+
+app(prog_name="inertia")

@@ -1,0 +1,650 @@
+"""The `inertia` command (typer + rich).
+
+    inertia run SCENE [--out DIR] [--duration S] [--fps N] [--seed N] [--resume] [--overwrite]
+    inertia validate SCENE
+    inertia render STATES [--out DIR] [--video mp4,gif] [--frames]
+    inertia view SCENE|STATES
+    inertia examples [--copy NAME DIR]
+    inertia warmup
+    inertia bench [NAME ...]
+    inertia schema [--out FILE]
+
+SCENE is a .toml/.json file or the name of a bundled example (``inertia run fountain``).
+
+Exit codes: 0 done; 1 an internal error (a bug: the message says to rerun with --debug for the
+traceback); 2 bad input (invalid scene, missing file, unwritable output directory, a checkpoint
+that does not match, a scene that diverges); 130 stopped by Ctrl-C (what was simulated is
+written and ``--resume`` continues it).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, ProgressColumn, TaskProgressColumn, TextColumn, TimeRemainingColumn
+from rich.table import Table
+from rich.text import Text
+
+_STARTED = time.perf_counter()
+
+app = typer.Typer(
+    name="inertia",
+    help="Physically based simulation for games and graphics: run, check, render and view scenes.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="rich",
+)
+
+console = Console(stderr=True, highlight=False)
+out_console = Console(highlight=False)
+
+EXIT_INPUT = 2
+EXIT_INTERRUPTED = 130
+
+
+class InputError(Exception):
+    """A problem with what the user asked for (exit code 2, no traceback)."""
+
+
+# ------------------------------------------------------------------------------------------------
+# error handling: one clear message, exit 2 for input errors, traceback only with --debug
+# ------------------------------------------------------------------------------------------------
+def _debug_enabled(kwargs) -> bool:
+    return bool(kwargs.get("debug")) or os.environ.get("INERTIA_DEBUG", "") not in ("", "0")
+
+
+def handle_errors(command):
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        from inertia.errors import SimulationDiverged
+        from inertia.scene.errors import SceneError
+
+        debug = _debug_enabled(kwargs)
+        try:
+            return command(*args, **kwargs)
+        except typer.Exit:
+            raise
+        except (SceneError, InputError) as exc:
+            if debug:
+                raise
+            _error(str(exc))
+            raise typer.Exit(EXIT_INPUT) from None
+        except SimulationDiverged as exc:
+            if debug:
+                raise
+            _error(str(exc))
+            raise typer.Exit(EXIT_INPUT) from None
+        except KeyboardInterrupt:
+            if debug:
+                raise
+            _error("interrupted")
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        except Exception as exc:  # noqa: BLE001 - the last resort: say what and how to see more
+            if debug:
+                raise
+            _error(f"internal error: {type(exc).__name__}: {exc}\n"
+                   "  This is a bug in inertia; rerun with --debug for the traceback.")
+            raise typer.Exit(1) from None
+
+    return wrapper
+
+
+def _error(message: str) -> None:
+    text = Text("error: ", style="bold red")
+    text.append(message)
+    console.print(text, soft_wrap=True)
+
+
+DebugOption = Annotated[bool, typer.Option("--debug", help="Show tracebacks.")]
+
+
+# ------------------------------------------------------------------------------------------------
+# finding scenes
+# ------------------------------------------------------------------------------------------------
+def examples_dir() -> Path:
+    return Path(__file__).resolve().parent.parent / "examples"
+
+
+def bundled_examples() -> dict[str, Path]:
+    return {p.stem: p for p in sorted(examples_dir().glob("*.toml"))}
+
+
+def resolve_scene(name: str) -> Path:
+    """A scene file path, or the bundled example of that name."""
+    from inertia.scene.errors import Issue, SceneError, did_you_mean
+
+    path = Path(name).expanduser()
+    if path.exists():
+        return path
+    examples = bundled_examples()
+    stem = path.stem if path.suffix in (".toml", ".json") else path.name
+    if path.parent == Path(".") and stem in examples:
+        return examples[stem]
+    hint = did_you_mean(stem, list(examples), show_allowed=False) if path.parent == Path(".") else ""
+    raise SceneError(path, [Issue("", "file not found" + (hint.replace("did you mean", "did you mean the example")
+                                                          if hint else "") +
+                                  (f" (bundled examples: {', '.join(examples)})" if path.parent == Path(".") else ""))])
+
+
+def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool) -> None:
+    """Create the output directory or say clearly why it cannot be used."""
+    from inertia.world import CHECKPOINT_NAME, STATES_NAME
+
+    if out.exists() and not out.is_dir():
+        raise InputError(f"output directory {out} exists and is not a directory")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InputError(f"cannot create output directory {out}: {exc.strerror or exc}") from None
+    if not os.access(out, os.W_OK | os.X_OK):
+        raise InputError(f"output directory {out} is not writable")
+    probe = out / f".inertia-write-test-{os.getpid()}"
+    try:
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise InputError(f"output directory {out} is not writable: {exc.strerror or exc}") from None
+    has_run = (out / CHECKPOINT_NAME).exists() or (out / STATES_NAME).exists()
+    if resume:
+        if not (out / CHECKPOINT_NAME).exists():
+            raise InputError(f"nothing to resume: {out} has no {CHECKPOINT_NAME} (run without --resume)")
+    elif has_run and not overwrite:
+        raise InputError(f"{out} already holds a run; pass --resume to continue it or --overwrite to replace it")
+    # temporary files left by a run that was killed mid-write (never the files themselves)
+    from inertia.io import remove_stale_partials
+    for directory in (out, out / STATES_NAME):
+        if directory.is_dir():
+            remove_stale_partials(directory)
+
+
+# ------------------------------------------------------------------------------------------------
+# progress display
+# ------------------------------------------------------------------------------------------------
+class _RateColumn(ProgressColumn):
+    def render(self, task):
+        rate = task.fields.get("rate")
+        return Text("" if not rate else f"{rate:,.0f} steps/s", style="cyan")
+
+
+class _SimColumn(ProgressColumn):
+    def render(self, task):
+        f = task.fields
+        return Text(f"t {task.completed:6.2f}/{task.total:g} s  frame {f.get('frame', 0)}/{f.get('frames', 0)}")
+
+
+def _progress(quiet: bool) -> Progress:
+    return Progress(TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+                    _SimColumn(), _RateColumn(), TimeRemainingColumn(), console=console,
+                    disable=quiet, transient=False)
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia run
+# ------------------------------------------------------------------------------------------------
+@app.command()
+@handle_errors
+def run(
+    scene: Annotated[str, typer.Argument(help="Scene file (.toml/.json) or a bundled example name.")],
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Output directory (default: out/NAME).")] = None,
+    duration: Annotated[Optional[float], typer.Option(help="Simulated seconds (overrides the scene).")] = None,
+    fps: Annotated[Optional[float], typer.Option(help="Output frames per second (overrides the scene).")] = None,
+    seed: Annotated[Optional[int], typer.Option(help="Random seed (overrides the scene).")] = None,
+    resume: Annotated[bool, typer.Option("--resume", help="Continue the run stopped in --out.")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", "-f", help="Replace a run already in --out.")] = False,
+    render: Annotated[bool, typer.Option("--render/--no-render", help="Write video/images/plots after the run.")] = True,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
+    debug: DebugOption = False,
+    stop_after: Annotated[Optional[int], typer.Option(hidden=True, help="Stop as if interrupted after N frames (tests).")] = None,
+):
+    """Run a scene: simulate, record the state file, then write video, plot and exports."""
+    from inertia.io import write_manifest
+    from inertia.scene import build, read_scene, with_overrides
+    from inertia.world import Run
+
+    t_start = time.perf_counter()
+    path = resolve_scene(scene)
+    loaded = with_overrides(read_scene(path), duration=duration, fps=fps, seed=seed)
+    model = loaded.model
+    out = Path(out) if out is not None else Path(model.output.directory or Path("out") / loaded.name)
+    _prepare_out_dir(out, resume=resume, overwrite=overwrite)
+    world = build(loaded)
+    sim = model.simulation
+    t_loaded = time.perf_counter()
+    metadata = {
+        "scene": loaded.text, "scene_format": loaded.format, "scene_path": str(path.resolve()),
+        "scene_name": loaded.name, "seed": sim.seed, "render": model.render.model_dump(mode="json"),
+    }
+    runner = Run(world, out, duration=sim.duration, fps=sim.fps, resume=resume, fingerprint=world.fingerprint,
+                 metadata=metadata, checkpoint_interval=model.output.checkpoint_interval,
+                 stop_after_frames=stop_after)
+    if not quiet:
+        groups = ", ".join(f"{g.name} ({g.particle_count} {g.kind}, {g.integrator})" for g in world.groups)
+        console.print(f"[bold]{loaded.name}[/]: {groups}; dt = {sim.dt:g} s x {sim.substeps} substeps, "
+                      f"{sim.duration:g} s at {sim.fps:g} fps -> {out}")
+    with _progress(quiet) as bar:
+        task = bar.add_task("simulating", total=sim.duration, frame=0, frames=runner.frame_count, rate=0.0)
+
+        def report(p):
+            bar.update(task, completed=min(p.time, sim.duration), frame=p.frame, frames=p.frame_count,
+                       rate=p.steps_per_second)
+
+        runner.progress = report
+        try:
+            result = runner.execute()
+        except ValueError as exc:       # a checkpoint that does not fit this scene
+            if "cannot resume" in str(exc):
+                raise InputError(str(exc)) from None
+            raise
+        bar.update(task, completed=min(world.t, sim.duration), frame=result.frame_count)
+    timings = {"load": t_loaded - t_start, **result.timings}
+    if result.first_frame_seconds is not None:
+        timings["first_frame"] = (t_loaded - _STARTED) + result.first_frame_seconds
+    outputs = {"states": result.states_path}
+    if result.checkpoint_path is not None:
+        outputs["checkpoint"] = result.checkpoint_path
+    dropped = {g.name: sum(e.dropped for e in g.system.emitters) for g in world.groups if getattr(g.system, "emitters", None)}
+    extra = {"status": result.status, "fingerprint": world.fingerprint, "dt": sim.dt, "substeps": sim.substeps,
+             "fps": sim.fps, "duration": sim.duration, "groups": [g.name for g in world.groups],
+             "integrators": [g.integrator for g in world.groups], "profile": dict(world.profile),
+             "emitter_dropped": dropped, "resumed": resume}
+
+    def manifest():
+        write_manifest(out / "manifest.json", scene=loaded.text, scene_path=path.resolve(), seed=sim.seed,
+                       step_count=result.step_count, frame_count=result.frame_count,
+                       simulated_time=result.time, timings=timings, outputs=outputs, extra=extra)
+
+    if result.status == "diverged":
+        manifest()
+        raise InputError(f"{path}: {result.error}\n  The {result.frame_count} frames before it are in "
+                         f"{result.states_path}.")
+    if result.status == "interrupted":
+        manifest()
+        console.print(f"[yellow]stopped[/] at t = {result.time:.4g} s after {result.frame_count} frames; "
+                      f"saved in {out}.\n  Continue with: inertia run {scene} --out {out} --resume"
+                      + (" (add the same --duration/--fps/--seed)" if any(v is not None for v in (duration, fps, seed)) else "")
+                      + f"\n  Render what is there with: inertia render {result.states_path}")
+        raise typer.Exit(EXIT_INTERRUPTED)
+    for name, count in dropped.items():
+        if count:
+            console.print(f"[yellow]warning[/]: the emitters of group {name!r} dropped {count} particles "
+                          "(pool full): raise its `capacity`")
+    if render:
+        t0 = time.perf_counter()
+        outputs.update(_write_outputs(result.states_path, out, model.output.model_dump(), model.render.model_dump(mode="json"),
+                                      world.colliders, quiet))
+        timings["outputs"] = time.perf_counter() - t0
+    manifest()
+    outputs["manifest"] = out / "manifest.json"
+    if not quiet:
+        _summary(outputs, result, timings)
+
+
+def _write_outputs(states_path, out, output, render, colliders, quiet) -> dict:
+    from inertia.io import load_states
+
+    from .outputs import write_outputs
+
+    states = load_states(states_path)
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
+                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
+                  console=console, disable=quiet) as bar:
+        task = bar.add_task("writing outputs", total=states.frame_count)
+        return write_outputs(states, out, output, render, colliders,
+                             progress=lambda stage, done, total: bar.update(task, completed=done))
+
+
+def _summary(outputs: dict, result, timings: dict) -> None:
+    table = Table(title=f"{result.frame_count} frames, {result.step_count} steps, t = {result.time:.4g} s",
+                  show_header=True, header_style="bold")
+    table.add_column("output")
+    table.add_column("path")
+    table.add_column("size", justify="right")
+    for kind, p in outputs.items():
+        p = Path(p)
+        size = sum(f.stat().st_size for f in p.rglob("*") if f.is_file()) if p.is_dir() else (p.stat().st_size if p.exists() else 0)
+        table.add_row(kind, str(p), _human(size))
+    console.print(table)
+    shown = ", ".join(f"{k} {v:.2f} s" for k, v in timings.items())
+    console.print(f"[dim]timings: {shown}[/]")
+
+
+def _human(size: int) -> str:
+    for unit in ("B", "KB", "MB", "GB"):
+        if size < 1024 or unit == "GB":
+            return f"{size:.0f} {unit}" if unit == "B" else f"{size:.1f} {unit}"
+        size /= 1024
+    return str(size)
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia validate
+# ------------------------------------------------------------------------------------------------
+@app.command()
+@handle_errors
+def validate(
+    scene: Annotated[str, typer.Argument(help="Scene file (.toml/.json) or a bundled example name.")],
+    build_scene: Annotated[bool, typer.Option("--build/--no-build", help="Also build the systems (checks indices, files, dimensions).")] = True,
+    debug: DebugOption = False,
+):
+    """Check a scene file and summarise it (exit code 2 and every problem if it is invalid)."""
+    from inertia.scene import build, read_scene
+    from inertia.world import frame_steps
+
+    path = resolve_scene(scene)
+    loaded = read_scene(path)
+    sim = loaded.model.simulation
+    if not build_scene:
+        out_console.print(f"[green]ok[/]: {path} is a valid scene (format_version {loaded.model.format_version})")
+        return
+    world = build(loaded)
+    table = Table(title=f"{loaded.name}: {sim.dim}-D, dt = {sim.dt:g} s x {sim.substeps}, {sim.duration:g} s at {sim.fps:g} fps")
+    for column in ("group", "kind", "particles", "integrator", "forces", "colliders"):
+        table.add_column(column)
+    for g in world.groups:
+        forces = ", ".join(type(f).__name__ for f in getattr(g.system, "forces", [])) or "-"
+        colliders = ", ".join(getattr(c, "name", type(c).__name__) for c in g.colliders) or "-"
+        table.add_row(g.name, g.kind, str(g.particle_count), g.integrator, forces, colliders)
+    out_console.print(table)
+    frames = int(sim.duration * sim.fps + 1e-6) + 1
+    steps = frame_steps(frames - 1, sim.fps, sim.dt)
+    period = 1.0 / (sim.fps * sim.dt)
+    note = "" if abs(period - round(period)) < 1e-6 else (
+        " [yellow](1/fps is not a whole number of steps: frames are taken at the first step after each frame time)[/]")
+    out_console.print(f"[green]ok[/]: {path}: {frames} frames, {steps} steps{note}")
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia render
+# ------------------------------------------------------------------------------------------------
+def _scene_colliders(states) -> list:
+    """Rebuild the colliders of a recorded run from the scene text in its header."""
+    meta = states.metadata
+    text = meta.get("scene")
+    if not text:
+        return []
+    from inertia.scene import parse_scene
+    from inertia.scene.builder import build_colliders
+
+    scene_path = meta.get("scene_path")
+    loaded = parse_scene(text, format=meta.get("scene_format", "toml"), source=scene_path)
+    base = Path(scene_path).parent if scene_path else None
+    return build_colliders(loaded.model, source=scene_path, base_dir=base)
+
+
+@app.command("render")
+@handle_errors
+def render_command(
+    states_path: Annotated[Path, typer.Argument(metavar="STATES", help="A state directory (OUT/states) or .npz state file.")],
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Output directory (default: the run directory holding STATES).")] = None,
+    video: Annotated[str, typer.Option(help="Video formats, comma separated: mp4, gif, or none.")] = "mp4",
+    frames: Annotated[bool, typer.Option("--frames", help="Also write a PNG per frame.")] = False,
+    plot: Annotated[bool, typer.Option("--plot/--no-plot", help="Energy and momentum plot.")] = True,
+    ply: Annotated[bool, typer.Option("--ply", help="PLY point files per frame.")] = False,
+    usd: Annotated[bool, typer.Option("--usd", help="Animated USD points (.usdc).")] = False,
+    width: Annotated[Optional[int], typer.Option(help="Image width in pixels.")] = None,
+    height: Annotated[Optional[int], typer.Option(help="Image height in pixels.")] = None,
+    color_by: Annotated[Optional[str], typer.Option(help="auto, speed, group or uniform.")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q")] = False,
+    debug: DebugOption = False,
+):
+    """Render a recorded run (video, frames, plot, PLY, USD) from its state file."""
+    from inertia.io import load_states
+
+    if not states_path.exists():
+        raise InputError(f"{states_path}: state file not found")
+    try:
+        states = load_states(states_path)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    kinds = [v.strip() for v in video.split(",") if v.strip() and v.strip() != "none"]
+    bad = [v for v in kinds if v not in ("mp4", "gif")]
+    if bad:
+        raise InputError(f"--video: unknown format {bad[0]!r}; allowed: mp4, gif, none")
+    if color_by is not None and color_by not in ("auto", "speed", "group", "uniform"):
+        raise InputError(f"--color-by must be one of auto, speed, group, uniform (got {color_by!r})")
+    out = out or (states_path.parent if states_path.is_dir() else states_path.parent)
+    _prepare_out_dir(out, resume=False, overwrite=True)
+    render = dict(states.metadata.get("render") or {})
+    for key, value in (("width", width), ("height", height), ("color_by", color_by)):
+        if value is not None:
+            render[key] = value
+    output = {"video": kinds, "frames": frames, "plot": plot, "ply": ply, "usd": usd}
+    try:
+        colliders = _scene_colliders(states)
+    except Exception as exc:  # noqa: BLE001 - drawing without colliders beats failing
+        console.print(f"[yellow]warning[/]: colliders not drawn ({exc})")
+        colliders = []
+    written = _write_outputs(states_path, out, output, render, colliders, quiet)
+    for kind, p in written.items():
+        out_console.print(f"{kind}: {p}")
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia view
+# ------------------------------------------------------------------------------------------------
+@app.command()
+@handle_errors
+def view(
+    target: Annotated[str, typer.Argument(metavar="SCENE|STATES", help="A scene (simulated first) or a recorded state file.")],
+    port: Annotated[int, typer.Option(help="Port of the web viewer (0: any free port).")] = 8080,
+    host: Annotated[str, typer.Option(help="Address to serve on (0.0.0.0 to reach it from elsewhere).")] = "127.0.0.1",
+    open_browser: Annotated[bool, typer.Option("--open", help="Open the page in the default browser.")] = False,
+    duration: Annotated[Optional[float], typer.Option(help="Simulated seconds (scenes only).")] = None,
+    debug: DebugOption = False,
+):
+    """Open the interactive viewer (play, pause, step, scrub, orbit) on a scene or a recorded run."""
+    import tempfile
+
+    from inertia.io import load_states
+
+    try:
+        import inertia.viewer as viewer_module
+    except ImportError as exc:
+        raise InputError(f"the viewer is not available: {exc}") from None
+    show = getattr(viewer_module, "view", None)
+    if show is None:
+        raise InputError("this installation of inertia has no viewer (inertia.viewer.view)")
+    path = Path(target)
+    if path.is_dir() or path.suffix == ".npz":
+        states = load_states(path)
+        colliders = _scene_colliders(states)
+    else:
+        from inertia.scene import build, read_scene, with_overrides
+        from inertia.world import Run
+
+        scene_path = resolve_scene(target)
+        loaded = with_overrides(read_scene(scene_path), duration=duration)
+        world = build(loaded)
+        sim = loaded.model.simulation
+        tmp = Path(tempfile.mkdtemp(prefix="inertia-view-"))
+        runner = Run(world, tmp, duration=sim.duration, fps=sim.fps, fingerprint=world.fingerprint,
+                     metadata={"scene": loaded.text, "scene_format": loaded.format,
+                               "scene_path": str(scene_path.resolve()), "scene_name": loaded.name})
+        with _progress(False) as bar:
+            task = bar.add_task("simulating", total=sim.duration, frame=0, frames=runner.frame_count, rate=0.0)
+            runner.progress = lambda p: bar.update(task, completed=min(p.time, sim.duration), frame=p.frame,
+                                                   frames=p.frame_count, rate=p.steps_per_second)
+            result = runner.execute()
+        if result.status == "diverged":
+            raise InputError(f"{scene_path}: {result.error}")
+        states = load_states(result.states_path)
+        colliders = world.colliders
+    render = states.metadata.get("render") or {}
+    show(states, colliders=colliders, port=port, host=host, open_browser=open_browser,
+         color_by=render.get("color_by", "auto"))
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia examples
+# ------------------------------------------------------------------------------------------------
+@app.command()
+@handle_errors
+def examples(
+    copy: Annotated[Optional[tuple[str, Path]], typer.Option("--copy", metavar="NAME DIR", help="Copy example NAME into DIR.")] = None,
+    debug: DebugOption = False,
+):
+    """List the bundled example scenes, or copy one out to edit it."""
+    import tomllib
+
+    found = bundled_examples()
+    if copy is not None:
+        name, directory = copy
+        name = name.removesuffix(".toml")
+        if name not in found:
+            from inertia.scene.errors import did_you_mean
+            raise InputError(f"no example named {name!r}" + did_you_mean(name, list(found)))
+        directory = Path(directory)
+        try:
+            directory.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InputError(f"cannot create {directory}: {exc.strerror or exc}") from None
+        target = directory / f"{name}.toml"
+        if target.exists():
+            raise InputError(f"{target} already exists")
+        try:
+            shutil.copyfile(found[name], target)
+        except OSError as exc:
+            raise InputError(f"cannot write {target}: {exc.strerror or exc}") from None
+        out_console.print(f"copied {name} to {target}; run it with: inertia run {target}")
+        return
+    table = Table(title="bundled examples (inertia run NAME)", show_header=True, header_style="bold")
+    table.add_column("name")
+    table.add_column("description")
+    for name, path in found.items():
+        try:
+            description = tomllib.loads(path.read_text()).get("description", "")
+        except (OSError, tomllib.TOMLDecodeError):
+            description = "(unreadable)"
+        table.add_row(name, description)
+    out_console.print(table)
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia warmup
+# ------------------------------------------------------------------------------------------------
+@app.command()
+@handle_errors
+def warmup(
+    only: Annotated[Optional[str], typer.Option(help="Only the warm-up scenes whose name contains this text.")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q")] = False,
+    debug: DebugOption = False,
+):
+    """Compile the Numba kernels ahead of time (into the on-disk cache) by running tiny scenes."""
+    from .warm import warm_all
+
+    started = time.perf_counter()
+    with _spinner(quiet) as report:
+        names = warm_all(report, only=only)
+    if not names:
+        raise InputError(f"no warm-up scene matches {only!r}")
+    if not quiet:
+        console.print(f"[green]warmed[/] {len(names)} scenes in {time.perf_counter() - started:.1f} s "
+                      f"(cache: {os.environ.get('NUMBA_CACHE_DIR') or 'beside the sources'})")
+
+
+class _spinner:
+    def __init__(self, quiet):
+        self.quiet = quiet
+
+    def __enter__(self):
+        self.status = None if self.quiet else console.status("warming up")
+        if self.status:
+            self.status.__enter__()
+        return self.report
+
+    def report(self, name):
+        if self.status:
+            self.status.update(f"warming up: {name}")
+
+    def __exit__(self, *exc):
+        if self.status:
+            self.status.__exit__(*exc)
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia bench
+# ------------------------------------------------------------------------------------------------
+def _benchmarks_dir(given: Path | None) -> Path:
+    candidates = [given] if given else [Path.cwd() / "benchmarks", Path(__file__).resolve().parents[3] / "benchmarks"]
+    for c in candidates:
+        if c is not None and c.is_dir():
+            return c
+    raise InputError("no benchmarks directory found" + (f" at {given}" if given else
+                                                        " (looked in ./benchmarks and beside the sources); pass --dir"))
+
+
+@app.command()
+@handle_errors
+def bench(
+    names: Annotated[Optional[list[str]], typer.Argument(help="Benchmarks to run (file names without .py); default all.")] = None,
+    directory: Annotated[Optional[Path], typer.Option("--dir", help="Directory of benchmark scripts.")] = None,
+    debug: DebugOption = False,
+):
+    """Run the benchmark scripts (benchmarks/*.py); each prints its ratios against a baseline."""
+    root = _benchmarks_dir(directory)
+    scripts = {p.stem: p for p in sorted(root.glob("*.py")) if not p.name.startswith("_")}
+    if not scripts:
+        raise InputError(f"{root} holds no benchmark scripts")
+    chosen = list(scripts) if not names else [n.removesuffix(".py") for n in names]
+    for n in chosen:
+        if n not in scripts:
+            from inertia.scene.errors import did_you_mean
+            raise InputError(f"no benchmark named {n!r}" + did_you_mean(n, list(scripts)))
+    failed = []
+    for n in chosen:
+        console.rule(f"[bold]{n}")
+        code = subprocess.call([sys.executable, str(scripts[n])], cwd=str(root.parent))
+        if code != 0:
+            failed.append(n)
+    if failed:
+        _error(f"benchmarks failed: {', '.join(failed)}")
+        raise typer.Exit(1)
+
+
+# ------------------------------------------------------------------------------------------------
+# inertia schema
+# ------------------------------------------------------------------------------------------------
+@app.command()
+@handle_errors
+def schema(
+    out: Annotated[Optional[Path], typer.Option("--out", "-o", help="Write to this file instead of printing.")] = None,
+    debug: DebugOption = False,
+):
+    """Print the JSON Schema of scene files (for editor autocompletion)."""
+    from inertia.scene import scene_schema
+
+    text = json.dumps(scene_schema(), indent=2) + "\n"
+    if out is None:
+        sys.stdout.write(text)
+    else:
+        from inertia.io import write_text_atomic
+        write_text_atomic(out, text)
+        out_console.print(f"wrote {out}")
+
+
+@app.callback(invoke_without_command=True)
+def _main(version: Annotated[bool, typer.Option("--version", help="Print the version and exit.")] = False):
+    """Inertia: physically based simulation for games and graphics."""
+    if version:
+        import inertia
+        out_console.print(f"inertia {inertia.__version__}")
+        raise typer.Exit(0)
+
+
+def main() -> None:  # pragma: no cover - console entry point alternative
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    app()

@@ -1,0 +1,164 @@
+"""Writing the outputs of a run from its state file: video, PNG frames, energy plot, PLY, USD.
+
+Every file goes through `inertia.io.atomic` (temporary file, then rename), so a run killed
+while writing leaves no truncated file. Frames are rendered once and handed to every image
+output (MP4, GIF, PNG): frames come from `inertia.render.Renderer` (camera from the scene's
+[render] table, group colours from the scene), videos are encoded by
+`inertia.render.VideoWriter` (ffmpeg from imageio-ffmpeg) and the plot drawn by
+`inertia.render.plot_energy` from the energies the run recorded.
+
+Limitations: GIFs are written at half resolution above 640 pixels wide (file size).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+__all__ = ["write_outputs", "render_frames", "plot_energy", "OUTPUT_NAMES", "renderer_for"]
+
+#: File names inside the output directory.
+OUTPUT_NAMES = {
+    "mp4": "movie.mp4", "gif": "movie.gif", "frames": "frames", "plot": "energy.png",
+    "ply": "ply", "usd": "points.usdc", "manifest": "manifest.json",
+}
+
+
+def renderer_for(states, render: dict | None, colliders=()):
+    """A `Renderer` set up from a scene's [render] table and framed on the whole run."""
+    from inertia.render.camera import Camera
+    from inertia.render.renderer import Renderer
+
+    render = dict(render or {})
+    camera = dict(render.get("camera") or {})
+    width = int(render.get("width", 960)) // 2 * 2
+    height = int(render.get("height", 540)) // 2 * 2
+    dim = states.dim
+    options = {}
+    for key, name in (("azimuth", "azimuth"), ("elevation", "elevation"), ("fov", "fov_y")):
+        if camera.get(key) is not None:
+            options[name] = float(camera[key])
+    renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
+                        theme=render.get("theme", "dark"), **options)
+    active = states.fields.get("active")
+    draw = colliders if render.get("draw_colliders", True) else ()
+    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active)
+    cam = renderer.camera
+    if dim == 2 and camera.get("height") is not None:
+        center = camera.get("target") or cam.target[:2]
+        renderer.camera = Camera.plane_2d(np.asarray(center, dtype=np.float64)[:2], float(camera["height"]))
+    elif camera.get("position") is not None or camera.get("target") is not None or camera.get("distance") is not None:
+        position = np.asarray(camera["position"], dtype=np.float64) if camera.get("position") is not None else cam.position
+        target = np.asarray(camera["target"], dtype=np.float64) if camera.get("target") is not None else cam.target
+        if camera.get("distance") is not None and camera.get("position") is None:
+            direction = cam.position - cam.target
+            position = target + direction / np.linalg.norm(direction) * float(camera["distance"])
+        renderer.camera = Camera(position=position, target=target, up=cam.up, fov_y=cam.fov_y,
+                                 projection=cam.projection, ortho_height=cam.ortho_height)
+    return renderer
+
+
+def _group_colors(states, renderer):
+    """(N, 3) colours when the scene names group colours and colours by group; else None."""
+    names = states.metadata.get("group_colors") or []
+    groups = states.groups()
+    if groups is None or not any(names) or renderer.color_by not in ("group", "auto"):
+        return None
+    if renderer.color_by == "auto" and len(names) < 2:
+        return None
+    from inertia.render.colormaps import group_colors, parse_color
+
+    palette = group_colors(np.arange(len(names))).astype(np.float32)
+    if palette.dtype != np.float32 or palette.max() > 1.0:
+        palette = palette / 255.0
+    for i, name in enumerate(names):
+        if name:
+            palette[i] = parse_color(name)
+    return palette[groups]
+
+
+def render_frames(states, render: dict | None = None, colliders=(), frames=None):
+    """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
+    renderer = renderer_for(states, render, colliders)
+    draw = colliders if (render or {}).get("draw_colliders", True) else ()
+    colors = _group_colors(states, renderer)
+    groups = states.groups()
+    radius = states.radius()
+    indices = range(states.frame_count) if frames is None else frames
+    for f in indices:
+        image = renderer.frame(
+            states.positions[f], radius=radius,
+            velocities=None if states.velocities is None else states.velocities[f],
+            colors=colors, groups=groups, active=states.active(f), colliders=draw,
+            t=float(states.times[f]))
+        yield f, image
+
+
+def plot_energy(states, path) -> Path:
+    """Energy (kinetic, potential, total) and momentum over time (PNG), from the recorded fields."""
+    from inertia.render import plot_energy as _plot, plot_states_energy
+
+    fields = states.fields
+    title = f"{states.metadata.get('scene_name', 'run')}: energy and momentum"
+    kinetic = fields.get("kinetic_energy")
+    if kinetic is None or not np.any(np.isfinite(kinetic)):
+        if states.velocities is None:
+            raise ValueError("the run recorded no energies and no velocities")
+        return plot_states_energy(states, path, title=title)
+    return _plot(states.times, kinetic, fields.get("potential_energy"), fields.get("momentum"), path, title=title)
+
+
+def write_outputs(states, out_dir, output: dict, render: dict | None = None, colliders=(),
+                  progress: Callable[[str, int, int], None] | None = None) -> dict[str, Path]:
+    """Write the outputs a scene's [output] table asks for; returns {kind: path}.
+
+    ``progress(stage, done, total)`` is called while frames are rendered.
+    """
+    from inertia.io import write_ply_sequence, write_usd
+    from inertia.render import VideoWriter, write_png
+
+    out = Path(out_dir)
+    written: dict[str, Path] = {}
+    fps = float(states.fps or 30.0)
+    videos = [v for v in output.get("video", []) if v in ("mp4", "gif")]
+    want_frames = bool(output.get("frames"))
+    if (videos or want_frames) and states.frame_count:
+        with contextlib.ExitStack() as stack:
+            writers = {}
+            for kind in videos:
+                path = out / OUTPUT_NAMES[kind]
+                writers[kind] = stack.enter_context(VideoWriter(path, fps=fps))
+                written[kind] = path
+            frame_dir = out / OUTPUT_NAMES["frames"]
+            if want_frames:
+                frame_dir.mkdir(exist_ok=True)
+                written["frames"] = frame_dir
+            total = states.frame_count
+            for f, image in render_frames(states, render, colliders):
+                for kind, writer in writers.items():
+                    if kind == "gif" and image.shape[1] > 640:
+                        writer.write(np.ascontiguousarray(image[::2, ::2]))
+                    else:
+                        writer.write(image)
+                if want_frames:
+                    write_png(frame_dir / f"frame_{f:05d}.png", image)
+                if progress is not None:
+                    progress("render", f + 1, total)
+    if output.get("plot"):
+        written["plot"] = plot_energy(states, out / OUTPUT_NAMES["plot"])
+    if output.get("ply"):
+        directory = out / OUTPUT_NAMES["ply"]
+        write_ply_sequence(states, directory)
+        written["ply"] = directory
+    if output.get("usd"):
+        written["usd"] = write_usd(states, out / OUTPUT_NAMES["usd"], up_axis="Z" if states.dim == 3 else "Y")
+    return written
+
+
+def frame_count_for(duration: float, fps: float) -> int:
+    """Frames of a run of `duration` at `fps`, frame 0 (the initial state) included."""
+    return int(math.floor(duration * fps + 1e-6)) + 1

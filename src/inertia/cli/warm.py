@@ -1,0 +1,145 @@
+"""`inertia warmup`: compile the Numba kernels ahead of time by running tiny scenes.
+
+Every kernel is ``@njit(cache=True)``, so compiling once fills the on-disk cache (beside the
+sources, or under ``NUMBA_CACHE_DIR``) and later runs start warm. The scenes below touch every
+integrator, force, emitter, tracer field and collider type for a few steps, in 2-D and 3-D,
+then render one small frame.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from typing import Callable
+
+
+__all__ = ["warm_all", "WARM_SCENES"]
+
+
+def _base(dim: int, integrator: str, **extra) -> dict:
+    sim = {"dim": dim, "dt": 0.001, "duration": 0.004, "fps": 500.0, "integrator": integrator}
+    sim.update(extra)
+    return {"format_version": 1, "simulation": sim}
+
+
+def _springy(dim: int, integrator: str) -> dict:
+    scene = _base(dim, integrator)
+    zero = [0.0] * dim
+    origin = [0.0] * (dim - 1) + [1.0]
+    scene["particles"] = [
+        {"name": "chain", "mass": 0.1, "radius": 0.01,
+         "chain": {"start": origin, "end": [0.5] + origin[1:], "count": 4, "stiffness": 50.0, "damping": 0.1}},
+        {"name": "free", "lattice": {"origin": zero, "counts": [2] * dim, "spacing": 0.1}},
+    ]
+    scene["forces"] = [
+        {"type": "gravity"}, {"type": "drag", "coefficient": 0.01}, {"type": "quadratic_drag", "coefficient": 0.01},
+        {"type": "attractor", "center": origin, "strength": 0.1, "groups": ["chain"]},
+        {"type": "wind", "velocity": [1.0] + zero[1:], "coefficient": 0.01, "gust_amplitude": 0.5, "groups": ["chain"]},
+        {"type": "anchor_springs", "indices": [1], "anchors": origin, "stiffness": 1.0, "groups": ["chain"]},
+    ]
+    return scene
+
+
+def _affine(dim: int, integrator: str) -> dict:
+    scene = _base(dim, integrator)
+    scene["particles"] = [{"random": {"count": 8, "center": [0.0] * dim, "half_extents": [1.0] * dim}}]
+    scene["forces"] = [{"type": "gravity"}, {"type": "drag", "coefficient": 0.1}]
+    return scene
+
+
+def _emitter(dim: int) -> dict:
+    scene = _base(dim, "semi_implicit_euler")
+    up = [0.0] * (dim - 1) + [1.0]
+    scene["particles"] = [{"emitters": [{"rate": 2000.0, "source": {"type": "sphere", "center": [0.0] * dim, "radius": 0.1},
+                                         "cone": {"direction": up, "speed": 1.0, "spread": 0.3}, "lifetime": [0.001, 0.003]}]}]
+    scene["forces"] = [{"type": "gravity"}]
+    return scene
+
+
+def _tracers(dim: int, integrator: str) -> dict:
+    scene = _base(dim, integrator)
+    scene["fields"] = {"spin": {"type": "rotation", "center": [0.0] * dim},
+                       "noise": {"type": "curl_noise", "frequency": 1.0}}
+    scene["tracers"] = [{"field": "spin", "positions": [[1.0] + [0.0] * (dim - 1)]},
+                        {"field": "noise", "positions": [[0.5] * dim]}]
+    return scene
+
+
+def _colliders(dim: int, mode: str) -> dict:
+    scene = _base(dim, "semi_implicit_euler")
+    zero = [0.0] * dim
+    up = [0.0] * (dim - 1) + [1.0]
+    scene["particles"] = [{"radius": 0.05, "self_collisions": True, "collision_mode": mode, "restitution": 0.5,
+                           "lattice": {"origin": [0.0] * (dim - 1) + [0.2], "counts": [2] * dim, "spacing": 0.12},
+                           "velocity": [0.0] * (dim - 1) + [-50.0]}]
+    scene["forces"] = [{"type": "gravity"}]
+    colliders = [{"type": "plane", "point": zero, "normal": up},
+                 {"type": "sphere", "center": [2.0] + zero[1:], "radius": 0.3},
+                 {"type": "box", "center": [-2.0] + zero[1:], "half_extents": [0.3] * dim,
+                  "motion": {"velocity": [0.1] + zero[1:]}},
+                 {"type": "capsule", "a": [0.0, 2.0] + zero[2:], "b": [0.5, 2.0] + zero[2:], "radius": 0.1},
+                 {"type": "container", "center": zero, "half_extents": [5.0] * dim}]
+    if dim == 3:
+        colliders.append({"type": "cylinder", "center": [0.0, -2.0, 0.0], "radius": 0.2, "half_height": 0.3})
+    scene["colliders"] = colliders
+    return scene
+
+
+def _scenes():
+    from inertia.ode.integrators import available
+
+    scenes = []
+    for dim in (3, 2):
+        for name in available():
+            scenes.append((f"{dim}-D springs, {name}", _springy(dim, name)))
+        for name in ("semi_implicit_euler", "rk4", "verlet"):
+            scenes.append((f"{dim}-D fast path, {name}", _affine(dim, name)))
+        scenes.append((f"{dim}-D emitter", _emitter(dim)))
+        for name in ("euler", "midpoint", "rk4", "rk45"):
+            scenes.append((f"{dim}-D tracers, {name}", _tracers(dim, name)))
+        for mode in ("a_priori", "a_posteriori"):
+            scenes.append((f"{dim}-D colliders, {mode}", _colliders(dim, mode)))
+    return scenes
+
+
+WARM_SCENES = _scenes
+
+
+def _run_scene(data: dict, render: bool) -> None:
+    from inertia.io import load_states
+    from inertia.scene import build, parse_scene
+    from inertia.world import Run
+
+    import json
+
+    scene = parse_scene(json.dumps(data), format="json", source="<warmup>")
+    world = build(scene)
+    with tempfile.TemporaryDirectory(prefix="inertia-warmup-") as tmp:
+        result = Run(world, tmp, duration=world.duration, fps=world.fps, handle_sigint=False).execute()
+        if render:
+            from .outputs import plot_energy, render_frames
+
+            states = load_states(result.states_path)
+            for _ in render_frames(states, {"width": 64, "height": 48}, world.colliders, frames=[states.frame_count - 1]):
+                pass
+            plot_energy(states, f"{tmp}/energy.png")
+
+
+def warm_all(report: Callable[[str], None] | None = None, *, only: str | None = None) -> list[str]:
+    """Run every warm-up scene (or those whose name contains `only`); returns their names.
+
+    Raises RuntimeError listing the failures after trying all.
+    """
+    done, failures = [], []
+    for i, (name, data) in enumerate(_scenes()):
+        if only is not None and only not in name:
+            continue
+        if report is not None:
+            report(name)
+        try:
+            _run_scene(data, render=name.endswith(("a_priori", "rk4")) or i == 0)
+            done.append(name)
+        except Exception as exc:  # noqa: BLE001 - keep compiling the rest, then report
+            failures.append(f"{name}: {type(exc).__name__}: {exc}")
+    if failures:
+        raise RuntimeError("warm-up scenes failed:\n  " + "\n  ".join(failures))
+    return done

@@ -1,0 +1,166 @@
+"""Scene files: TOML (or JSON) -> validated models -> a `World` of systems.
+
+    import inertia as ia
+    world = ia.load_scene("fountain.toml")     # or inertia.scene.load_scene
+    world.run()                                # the scene's duration
+    world["fountain"].x                        # positions of the group named "fountain"
+
+``load_scene(path, duration=None, fps=None, seed=None)`` reads, validates (`SceneError` lists
+every problem with its key path) and builds the scene; the keyword arguments override the
+``[simulation]`` settings. ``read_scene`` stops after validation. ``scene_schema()`` is the JSON
+Schema of the format (shipped as ``inertia/scene/schema.json`` for editors).
+
+The format is described key by key in `inertia.scene.models` and in the schema.
+"""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from .errors import Issue, SceneError
+from .models import FORMAT_VERSION, SceneModel
+
+__all__ = ["load_scene", "read_scene", "parse_scene", "build", "scene_schema", "SceneError", "Scene",
+           "FORMAT_VERSION", "SCHEMA_PATH", "with_overrides"]
+
+#: The JSON Schema shipped with the package.
+SCHEMA_PATH = Path(__file__).with_name("schema.json")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene: the model, the text it came from, and where."""
+
+    model: SceneModel
+    text: str
+    path: Path | None
+    format: str            # "toml" or "json"
+
+    @property
+    def name(self) -> str:
+        return self.model.name or (self.path.stem if self.path else "scene")
+
+    @property
+    def base_dir(self) -> Path:
+        return self.path.parent if self.path else Path.cwd()
+
+
+def _parse_text(text: str, fmt: str, source) -> dict:
+    if fmt == "json":
+        try:
+            data = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise SceneError(source, [Issue("", f"invalid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})")]) from None
+    else:
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise SceneError(source, [Issue("", f"invalid TOML: {exc}")]) from None
+    if not isinstance(data, dict):
+        raise SceneError(source, [Issue("", f"a scene must be a table at the top level (got {type(data).__name__})")])
+    return data
+
+
+def validate(data: dict, source=None) -> SceneModel:
+    """Validate a scene dictionary; raises `SceneError` listing every problem."""
+    from .errors import from_validation_error
+
+    if "format_version" not in data:
+        raise SceneError(source, [Issue("format_version", f"required key is missing: start the scene with "
+                                                          f"format_version = {FORMAT_VERSION}")])
+    try:
+        return SceneModel.model_validate(data)
+    except ValidationError as exc:
+        raise from_validation_error(exc, SceneModel, source) from None
+
+
+def parse_scene(text: str, *, format: str = "toml", source=None) -> Scene:
+    """Validate scene text ("toml" or "json")."""
+    if format not in ("toml", "json"):
+        raise ValueError(f"format must be 'toml' or 'json'; got {format!r}")
+    model = validate(_parse_text(text, format, source), source)
+    return Scene(model, text, Path(source) if source else None, format)
+
+
+def read_scene(path) -> Scene:
+    """Read and validate a scene file (.toml or .json); raises `SceneError` (or FileNotFoundError)."""
+    path = Path(path)
+    if not path.exists():
+        raise SceneError(path, [Issue("", "file not found")])
+    if path.is_dir():
+        raise SceneError(path, [Issue("", "is a directory, not a scene file")])
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(path, [Issue("", f"cannot read the file: {exc}")]) from None
+    fmt = "json" if path.suffix.lower() == ".json" else "toml"
+    model = validate(_parse_text(text, fmt, path), path)
+    return Scene(model, text, path, fmt)
+
+
+def with_overrides(scene: Scene, *, duration=None, fps=None, seed=None) -> Scene:
+    """The scene with [simulation] duration, fps or seed replaced (validated like the file)."""
+    update: dict[str, Any] = {}
+    checks = (("duration", duration, lambda v: v > 0), ("fps", fps, lambda v: v > 0),
+              ("seed", seed, lambda v: v >= 0 and float(v) == int(v)))
+    for key, value, ok in checks:
+        if value is None:
+            continue
+        if not ok(value):
+            raise SceneError(scene.path, [Issue(f"simulation.{key}", f"override must be > 0 (got {value!r})"
+                                                if key != "seed" else f"override must be an integer >= 0 (got {value!r})")])
+        update[key] = int(value) if key == "seed" else float(value)
+    if not update:
+        return scene
+    from .errors import from_validation_error
+    from .models import Simulation
+
+    try:
+        simulation = Simulation.model_validate({**scene.model.simulation.model_dump(), **update})
+    except ValidationError as exc:
+        error = from_validation_error(exc, Simulation, scene.path)
+        raise SceneError(scene.path, [Issue(f"simulation{'.' if i.path else ''}{i.path}", i.message + " (after the overrides)")
+                                      for i in error.issues]) from None
+    return Scene(scene.model.model_copy(update={"simulation": simulation}), scene.text, scene.path, scene.format)
+
+
+def build(scene: Scene):
+    """Build the `World` of a validated `Scene`."""
+    from .builder import build_world, scene_fingerprint
+
+    world = build_world(scene.model, source=scene.path, base_dir=scene.base_dir)
+    sim = scene.model.simulation
+    world.name = scene.name
+    world.duration, world.fps, world.seed = sim.duration, sim.fps, sim.seed
+    world.scene = scene
+    world.fingerprint = scene_fingerprint(scene.model)
+    return world
+
+
+def load_scene(path, *, duration: float | None = None, fps: float | None = None, seed: int | None = None):
+    """Read, validate and build a scene file: a `World` ready to ``step()`` or ``run()``.
+
+    ``duration``, ``fps`` and ``seed`` override the scene's [simulation] settings.
+    Raises `SceneError` (a ValueError) naming the file and the key path of every problem.
+    """
+    return build(with_overrides(read_scene(path), duration=duration, fps=fps, seed=seed))
+
+
+def scene_schema() -> dict:
+    """The JSON Schema (draft 2020-12) of the scene format, generated from the models."""
+    schema = SceneModel.model_json_schema(mode="validation")
+    schema["$schema"] = "https://json-schema.org/draft/2020-12/schema"
+    schema.setdefault("description", "Inertia scene file, format_version 1 (TOML or JSON).")
+    return schema
+
+
+def write_schema(path=SCHEMA_PATH) -> Path:
+    """Regenerate the shipped schema file (``python -m inertia.scene.schema``)."""
+    Path(path).write_text(json.dumps(scene_schema(), indent=2) + "\n", encoding="utf-8")
+    return Path(path)

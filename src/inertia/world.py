@@ -1,0 +1,576 @@
+"""The world: several systems stepped together, and the run loop that records and checkpoints them.
+
+`World` composes groups (each a `ParticleSystem` or `Tracers` with its own `Simulation` and
+integrator) that advance in lockstep at one fixed step ``dt``, each step split into
+``substeps`` integrator steps of ``dt / substeps``. Colliders are attached to the particle
+systems (``system.add_collider``); the world keeps the list for drawing.
+
+One `World.step` runs, for every group in order, ``substeps`` calls of ``Simulation.step``
+(whose own stages are begin -> integrate -> end -> check, see `inertia.simulation`); the time
+spent per group is added to ``world.profile``.
+
+`Run` drives a world over a duration and records it:
+
+1. ``setup``      -- a new state directory (frame 0 = the initial state), or, with ``resume``,
+                     the checkpoint restored into the world and the state directory cut back
+                     to the frames the checkpoint had seen;
+2. ``advance``    -- step until the time of the next output frame (frames are sampled at
+                     ``fps``, decoupled from ``dt``: frame k is recorded at the first step
+                     boundary at or after k / fps);
+3. ``record``     -- positions, velocities, the active mask and energies appended to the
+                     `inertia.io.StateWriter`;
+4. ``checkpoint`` -- every ``checkpoint_interval`` wall-clock seconds, at the end, on Ctrl-C
+                     and on divergence (the last good state): the state writer is flushed, then
+                     ``checkpoint.npz`` is written atomically. Resuming from it gives a
+                     trajectory identical, bit for bit, to an uninterrupted run.
+
+Ctrl-C (SIGINT) sets a flag checked after every step: the run stops at the current step,
+writes what it has and returns ``status = "interrupted"``. A second Ctrl-C raises
+``KeyboardInterrupt`` at once (files stay consistent: every write is atomic).
+
+Arrays (N = total particles over the groups in order, D = dim): ``World.positions()`` and
+``World.velocities()`` are (N, D) float64 copies gathered from the groups, ``World.active()``
+(N,) bool; group ``g`` owns rows ``group.start : group.stop``.
+
+Limitations: all groups share dim and dt; groups do not interact with each other (springs,
+self-collisions and forces act within a group); the particle count is fixed for a run.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import pickle
+import signal
+import threading
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .errors import SimulationDiverged
+from .simulation import Simulation, SimulationState
+
+__all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
+           "CHECKPOINT_NAME", "STATES_NAME", "frame_steps"]
+
+CHECKPOINT_NAME = "checkpoint.npz"
+STATES_NAME = "states"
+CHECKPOINT_VERSION = 1
+
+
+@dataclass
+class Group:
+    """One system of a world: its name, kind ("particles" or "tracers"), system and simulation.
+
+    ``start``/``stop``: the rows of this group in the world's gathered (N, D) arrays.
+    """
+
+    name: str
+    kind: str
+    system: Any
+    simulation: Simulation
+    color: str | None = None
+    start: int = 0
+    stop: int = 0
+    colliders: list = field(default_factory=list)
+
+    @property
+    def integrator(self) -> str:
+        return self.simulation.integrator_name
+
+    @property
+    def particle_count(self) -> int:
+        return self.system.particle_count
+
+
+@dataclass
+class WorldState:
+    """A checkpoint of a world: its step count and every group's `SimulationState`."""
+
+    step_count: int
+    groups: list[SimulationState]
+
+
+class World:
+    """Groups of particles and tracers stepped in lockstep.
+
+    Parameters
+    ----------
+    groups : list of `Group` (build them with `World.add_particles` / `World.add_tracers`, or
+        load a scene file with `inertia.load_scene`).
+    dt : the simulation step in seconds.
+    substeps : integrator steps per simulation step (each of dt / substeps); 1 default.
+    colliders : the collider objects of the scene (for drawing; attach them to systems yourself).
+    """
+
+    def __init__(self, *, dt: float, substeps: int = 1, colliders=(), name: str = "world"):
+        if not (dt > 0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be a finite number > 0; got {dt!r}")
+        if int(substeps) != substeps or substeps < 1:
+            raise ValueError(f"substeps must be an integer >= 1; got {substeps!r}")
+        self.name = name
+        self.dt = float(dt)
+        self.substeps = int(substeps)
+        self.groups: list[Group] = []
+        self.colliders = list(colliders)
+        self.step_count = 0
+        self.t = 0.0
+        self.profile: dict[str, float] = {}
+        self.metadata: dict[str, Any] = {}
+        # run settings of a loaded scene (None for a world built by hand)
+        self.duration: float | None = None
+        self.fps: float | None = None
+        self.seed: int | None = None
+
+    # ---- building ----------------------------------------------------------------------------
+    def add(self, name: str, system, *, integrator: str = "rk4", color: str | None = None,
+            kind: str | None = None, **integrator_options) -> Group:
+        """Add a system (ParticleSystem or Tracers) stepped by its own integrator; returns its group."""
+        if any(g.name == name for g in self.groups):
+            raise ValueError(f"a group named {name!r} already exists; names must be unique")
+        if self.groups and system.dim != self.dim:
+            raise ValueError(f"group {name!r} is {system.dim}-D but the world is {self.dim}-D")
+        sim = Simulation(system, integrator=integrator, dt=self.dt / self.substeps, **integrator_options)
+        kind = kind or ("particles" if getattr(system, "second_order", False) else "tracers")
+        start = self.particle_count
+        group = Group(name, kind, system, sim, color, start, start + system.particle_count)
+        self.groups.append(group)
+        self.profile[name] = 0.0
+        return group
+
+    # ---- sizes and lookup --------------------------------------------------------------------
+    @property
+    def dim(self) -> int:
+        return self.groups[0].system.dim if self.groups else 3
+
+    @property
+    def particle_count(self) -> int:
+        return self.groups[-1].stop if self.groups else 0
+
+    def group(self, name: str) -> Group:
+        for g in self.groups:
+            if g.name == name:
+                return g
+        raise KeyError(f"no group named {name!r}; groups: {[g.name for g in self.groups]}")
+
+    def __getitem__(self, name: str):
+        """The system of group `name` (``world["chain"].x`` are its positions)."""
+        return self.group(name).system
+
+    def __iter__(self):
+        return iter(self.groups)
+
+    # ---- stepping ----------------------------------------------------------------------------
+    def step(self) -> None:
+        """Advance every group by dt (``substeps`` integrator steps each)."""
+        clock = _time.perf_counter
+        for g in self.groups:
+            t0 = clock()
+            sim = g.simulation
+            for _ in range(self.substeps):
+                sim.step()
+            self.profile[g.name] += clock() - t0
+        self.step_count += 1
+        self.t = self.step_count * self.dt
+
+    def run(self, duration: float | None = None, callback: Callable[["World"], None] | None = None) -> None:
+        """Advance by `duration` seconds (rounded up to whole steps); default the scene's duration."""
+        if duration is None:
+            if self.duration is None:
+                raise ValueError("run() needs a duration (this world has no scene duration)")
+            duration = self.duration
+        steps = int(math.ceil(float(duration) / self.dt - 1e-9))
+        for _ in range(steps):
+            self.step()
+            if callback is not None:
+                callback(self)
+
+    # ---- gathered arrays ---------------------------------------------------------------------
+    def positions(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(N, D) positions of every group, in group order (a copy, or written into `out`)."""
+        out = np.empty((self.particle_count, self.dim)) if out is None else out
+        for g in self.groups:
+            out[g.start:g.stop] = g.system.x
+        return out
+
+    def velocities(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(N, D) velocities (for tracers: the field velocity at their positions)."""
+        out = np.empty((self.particle_count, self.dim)) if out is None else out
+        for g in self.groups:
+            out[g.start:g.stop] = g.system.v
+        return out
+
+    def active(self, out: np.ndarray | None = None) -> np.ndarray:
+        """(N,) bool: False for emitter pool slots not in use."""
+        out = np.empty(self.particle_count, dtype=bool) if out is None else out
+        for g in self.groups:
+            out[g.start:g.stop] = g.system.active
+        return out
+
+    def energies(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Per group: kinetic (G,), potential (G,) in J and momentum (G, D) in kg m/s (NaN for tracers)."""
+        n = len(self.groups)
+        kinetic, potential = np.full(n, np.nan), np.full(n, np.nan)
+        momentum = np.full((n, self.dim), np.nan)
+        for i, g in enumerate(self.groups):
+            if g.kind == "particles":
+                kinetic[i] = g.system.kinetic_energy()
+                potential[i] = g.system.potential_energy()
+                momentum[i] = g.system.momentum()
+        return kinetic, potential, momentum
+
+    @property
+    def has_emitters(self) -> bool:
+        return any(getattr(g.system, "emitters", None) for g in self.groups)
+
+    # ---- checkpoints -------------------------------------------------------------------------
+    def save_state(self) -> WorldState:
+        """Everything that changes; `restore_state` continues bit for bit."""
+        return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups])
+
+    def restore_state(self, state: WorldState) -> None:
+        if len(state.groups) != len(self.groups):
+            raise ValueError(f"the saved state has {len(state.groups)} groups; this world has {len(self.groups)}")
+        for g, s in zip(self.groups, state.groups):
+            g.simulation.restore_state(s)
+        self.step_count = int(state.step_count)
+        self.t = self.step_count * self.dt
+
+    def __repr__(self):
+        groups = ", ".join(f"{g.name}: {g.particle_count} {g.kind} ({g.integrator})" for g in self.groups)
+        return f"World({self.name!r}, dt={self.dt:g}, substeps={self.substeps}, t={self.t:g}, groups=[{groups}])"
+
+
+# ----------------------------------------------------------------------------------------------
+# checkpoint files: a JSON tree with the arrays beside it in one .npz, written atomically
+# ----------------------------------------------------------------------------------------------
+def _encode(value, arrays: dict):
+    def store(array) -> str:
+        key = f"a{len(arrays)}"
+        arrays[key] = array
+        return key
+
+    if value is None or isinstance(value, (bool, int, str)):
+        return value
+    if isinstance(value, float):
+        return value
+    if isinstance(value, np.ndarray):
+        if value.dtype == object:
+            return {"__pickle__": store(np.frombuffer(pickle.dumps(value), dtype=np.uint8))}
+        return {"__array__": store(value)}
+    if isinstance(value, np.generic):
+        return {"__scalar__": store(np.asarray(value))}
+    if isinstance(value, dict):
+        if all(isinstance(k, str) and not k.startswith("__") for k in value):
+            return {k: _encode(v, arrays) for k, v in value.items()}
+        return {"__items__": [[_encode(k, arrays), _encode(v, arrays)] for k, v in value.items()]}
+    if isinstance(value, list):
+        return [_encode(v, arrays) for v in value]
+    if isinstance(value, tuple):
+        return {"__tuple__": [_encode(v, arrays) for v in value]}
+    # anything else (a stage's private object): pickled, so the checkpoint stays complete
+    return {"__pickle__": store(np.frombuffer(pickle.dumps(value), dtype=np.uint8))}
+
+
+def _decode(value, arrays):
+    if isinstance(value, list):
+        return [_decode(v, arrays) for v in value]
+    if not isinstance(value, dict):
+        return value
+    if "__array__" in value:
+        return np.array(arrays[value["__array__"]])
+    if "__scalar__" in value:
+        return arrays[value["__scalar__"]][()]
+    if "__pickle__" in value:
+        return pickle.loads(arrays[value["__pickle__"]].tobytes())
+    if "__tuple__" in value:
+        return tuple(_decode(v, arrays) for v in value["__tuple__"])
+    if "__items__" in value:
+        return {_decode(k, arrays): _decode(v, arrays) for k, v in value["__items__"]}
+    return {k: _decode(v, arrays) for k, v in value.items()}
+
+
+def save_checkpoint(path, state: WorldState, info: dict) -> Path:
+    """Write `state` and `info` (JSON-able run facts) to `path` atomically (an .npz file)."""
+    from .io import atomic_write
+
+    arrays: dict[str, np.ndarray] = {}
+    groups = [{"time": s.time, "step_count": s.step_count, "system": _encode(s.system, arrays),
+               "integrator": _encode(s.integrator, arrays), "extra": _encode(s.extra, arrays)}
+              for s in state.groups]
+    tree = {"checkpoint_version": CHECKPOINT_VERSION, "info": info, "step_count": state.step_count,
+            "groups": groups}
+    arrays["tree"] = np.array(json.dumps(tree))
+    with atomic_write(path, "wb") as handle:
+        np.savez(handle, **arrays)
+    return Path(path)
+
+
+def load_checkpoint(path) -> tuple[WorldState, dict]:
+    """Read a checkpoint written by `save_checkpoint`: (state, info)."""
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    tree = json.loads(str(arrays.pop("tree")[()]))
+    if tree.get("checkpoint_version") != CHECKPOINT_VERSION:
+        raise ValueError(f"{path}: checkpoint version {tree.get('checkpoint_version')!r} is not "
+                         f"{CHECKPOINT_VERSION}")
+    groups = [SimulationState(g["time"], g["step_count"], _decode(g["system"], arrays),
+                              _decode(g["integrator"], arrays), _decode(g["extra"], arrays))
+              for g in tree["groups"]]
+    return WorldState(tree["step_count"], groups), tree["info"]
+
+
+# ----------------------------------------------------------------------------------------------
+# the run loop
+# ----------------------------------------------------------------------------------------------
+def frame_steps(frame: int, fps: float, dt: float) -> int:
+    """Steps from t = 0 to output frame `frame`: the first step boundary at or after frame / fps."""
+    return max(0, int(math.ceil(frame / (fps * dt) - 1e-6)))
+
+
+@dataclass
+class RunResult:
+    """What a run did. ``status``: "completed", "interrupted" or "diverged"."""
+
+    status: str
+    frame_count: int
+    step_count: int
+    time: float
+    states_path: Path
+    checkpoint_path: Path | None
+    timings: dict[str, float]
+    error: BaseException | None = None
+    first_frame_seconds: float | None = None
+
+
+@dataclass
+class Progress:
+    """Handed to the progress callback: where the run is."""
+
+    time: float
+    duration: float
+    frame: int
+    frame_count: int
+    step_count: int
+    steps_per_second: float
+
+
+class Run:
+    """Run a world for `duration` seconds into `out_dir`, recording at `fps`.
+
+    Parameters
+    ----------
+    world : the `World`.
+    out_dir : directory that receives ``states/`` (the state directory) and ``checkpoint.npz``.
+    duration, fps : simulated seconds and output frames per simulated second.
+    resume : continue from ``out_dir/checkpoint.npz`` (its ``fingerprint`` must match).
+    fingerprint : a string naming the physics of the scene; a checkpoint made from another
+        scene is refused on resume.
+    metadata : JSON-able header entries for the state file (scene text, seed, groups, ...).
+    checkpoint_interval : wall-clock seconds between checkpoints (10 default).
+    progress : callback ``progress(Progress)`` (after frames and at most every 0.2 s).
+    stop_after_frames : stop as if interrupted once this many frames are recorded (testing).
+    handle_sigint : catch Ctrl-C to stop cleanly (main thread only).
+    """
+
+    def __init__(self, world: World, out_dir, *, duration: float, fps: float, resume: bool = False,
+                 fingerprint: str = "", metadata: dict | None = None, checkpoint_interval: float = 10.0,
+                 progress: Callable[[Progress], None] | None = None, stop_after_frames: int | None = None,
+                 handle_sigint: bool = True):
+        if not (duration > 0 and math.isfinite(duration)):
+            raise ValueError(f"duration must be a finite number > 0; got {duration!r}")
+        if not (fps > 0 and math.isfinite(fps)):
+            raise ValueError(f"fps must be a finite number > 0; got {fps!r}")
+        self.world = world
+        self.out_dir = Path(out_dir)
+        self.duration, self.fps = float(duration), float(fps)
+        self.resume = bool(resume)
+        self.fingerprint = fingerprint
+        self.metadata = dict(metadata or {})
+        self.checkpoint_interval = float(checkpoint_interval)
+        self.progress = progress
+        self.stop_after_frames = stop_after_frames
+        self.handle_sigint = handle_sigint
+        self.states_path = self.out_dir / STATES_NAME
+        self.checkpoint_path = self.out_dir / CHECKPOINT_NAME
+        self._stop_requested = False
+        self.frame_count = int(math.floor(self.duration * self.fps + 1e-6)) + 1
+        w = world
+        self._x = np.empty((w.particle_count, w.dim))
+        self._v = np.empty((w.particle_count, w.dim))
+        self._active = np.empty(w.particle_count, dtype=bool)
+
+    # ---- pieces ------------------------------------------------------------------------------
+    def request_stop(self) -> None:
+        """Ask the loop to stop after the current step (what Ctrl-C does)."""
+        self._stop_requested = True
+
+    def _info(self, frames: int) -> dict:
+        w = self.world
+        return {"fingerprint": self.fingerprint, "fps": self.fps, "dt": w.dt, "substeps": w.substeps,
+                "frame_count": frames, "time": w.t, "particle_count": w.particle_count,
+                "groups": [g.name for g in w.groups]}
+
+    def _static(self) -> dict[str, np.ndarray]:
+        w = self.world
+        group = np.zeros(w.particle_count, dtype=np.int32)
+        radius = np.zeros(w.particle_count)
+        mass = np.zeros(w.particle_count)
+        for i, g in enumerate(w.groups):
+            group[g.start:g.stop] = i
+            radius[g.start:g.stop] = g.system.radius
+            mass[g.start:g.stop] = getattr(g.system, "mass", 0.0)
+        return {"group": group, "radius": radius, "mass": mass}
+
+    def _header(self) -> dict:
+        w = self.world
+        meta = {
+            "groups": [g.name for g in w.groups],
+            "group_kinds": [g.kind for g in w.groups],
+            "group_colors": [g.color for g in w.groups],
+            "integrators": [g.integrator for g in w.groups],
+            "dt": w.dt, "substeps": w.substeps, "duration": self.duration,
+        }
+        meta.update(self.metadata)
+        return meta
+
+    def _record(self, writer) -> None:
+        w = self.world
+        w.positions(self._x)
+        w.velocities(self._v)
+        kinetic, potential, momentum = w.energies()
+        particles = [i for i, g in enumerate(w.groups) if g.kind == "particles"]
+        fields = {
+            "kinetic_energy": np.float64(np.sum(kinetic[particles])) if particles else np.float64(np.nan),
+            "potential_energy": np.float64(np.sum(potential[particles])) if particles else np.float64(np.nan),
+            "momentum": np.sum(momentum[particles], axis=0) if particles else np.full(w.dim, np.nan),
+            "group_kinetic_energy": kinetic, "group_potential_energy": potential,
+        }
+        if w.has_emitters:
+            fields["active"] = w.active(self._active)
+        writer.append(w.t, self._x, self._v, **fields)
+
+    def _checkpoint(self, writer, frames: int) -> None:
+        writer.flush()
+        save_checkpoint(self.checkpoint_path, self.world.save_state(), self._info(frames))
+
+    # ---- the loop ----------------------------------------------------------------------------
+    def execute(self) -> RunResult:
+        from .io import StateWriter
+
+        w = self.world
+        clock = _time.perf_counter
+        started = clock()
+        timings = {"simulate": 0.0, "record": 0.0, "checkpoint": 0.0}
+        self.out_dir.mkdir(parents=True, exist_ok=True)
+
+        # setup: fresh, or from the checkpoint
+        if self.resume:
+            state, info = load_checkpoint(self.checkpoint_path)
+            self._check_compatible(info)
+            w.restore_state(state)
+            frame = int(info["frame_count"])
+            writer = StateWriter.reopen(self.states_path, frame_count=frame)
+        else:
+            writer = StateWriter(self.states_path, dim=w.dim, particle_count=w.particle_count, fps=self.fps,
+                                 static=self._static(), metadata=self._header(), overwrite=True)
+            frame = 0
+        status, error = "completed", None
+        first_frame = None
+        previous_handler = self._install_sigint()
+        try:
+            last_checkpoint = clock()
+            last_report = 0.0
+            report_steps, report_clock = w.step_count, clock()
+            rate = 0.0
+            while frame < self.frame_count:
+                # advance to the step of this frame
+                target = frame_steps(frame, self.fps, w.dt)
+                t0 = clock()
+                while w.step_count < target and not self._stop_requested:
+                    try:
+                        w.step()
+                    except SimulationDiverged as exc:
+                        status, error = "diverged", exc
+                        break
+                    now = clock()
+                    if self.progress is not None and now - last_report > 0.2:
+                        rate = (w.step_count - report_steps) / max(now - report_clock, 1e-9)
+                        last_report = now
+                        self.progress(Progress(w.t, self.duration, frame, self.frame_count, w.step_count, rate))
+                timings["simulate"] += clock() - t0
+                if status == "diverged" or self._stop_requested:
+                    break
+                # record
+                t0 = clock()
+                self._record(writer)
+                frame += 1
+                timings["record"] += clock() - t0
+                if first_frame is None and w.step_count > 0:
+                    first_frame = clock() - started
+                if self.stop_after_frames is not None and frame >= self.stop_after_frames and frame < self.frame_count:
+                    self._stop_requested = True
+                    break
+                now = clock()
+                if self.progress is not None:
+                    rate = (w.step_count - report_steps) / max(now - report_clock, 1e-9)
+                    self.progress(Progress(w.t, self.duration, frame, self.frame_count, w.step_count, rate))
+                if now - last_checkpoint > self.checkpoint_interval:
+                    t0 = clock()
+                    self._checkpoint(writer, frame)
+                    timings["checkpoint"] += clock() - t0
+                    last_checkpoint = clock()
+            if self._stop_requested and status == "completed":
+                status = "interrupted"
+        finally:
+            self._restore_sigint(previous_handler)
+            # what was simulated is kept: flush frames; checkpoint unless the state is broken
+            t0 = clock()
+            if status == "diverged":
+                writer.flush()
+            else:
+                self._checkpoint(writer, frame)
+            writer.close()
+            timings["checkpoint"] += clock() - t0
+        timings["total"] = clock() - started
+        return RunResult(status, frame, w.step_count, w.t, self.states_path,
+                         None if status == "diverged" else self.checkpoint_path, timings, error, first_frame)
+
+    def _check_compatible(self, info: dict) -> None:
+        w = self.world
+        problems = []
+        if info.get("fingerprint") != self.fingerprint:
+            problems.append("the scene's physics changed since the checkpoint was written")
+        if float(info.get("fps")) != self.fps:
+            problems.append(f"fps is {self.fps:g} but the checkpoint was recorded at {info.get('fps'):g}")
+        if float(info.get("dt")) != w.dt or int(info.get("substeps")) != w.substeps:
+            problems.append("dt or substeps changed")
+        if int(info.get("particle_count")) != w.particle_count:
+            problems.append("the particle count changed")
+        if problems:
+            raise ValueError(f"cannot resume from {self.checkpoint_path}: {'; '.join(problems)}. "
+                             "Run without --resume to start over.")
+
+    def _install_sigint(self):
+        if not self.handle_sigint or threading.current_thread() is not threading.main_thread():
+            return None
+
+        def handler(signum, frame):
+            if self._stop_requested:
+                raise KeyboardInterrupt
+            self._stop_requested = True
+
+        return signal.signal(signal.SIGINT, handler)
+
+    def _restore_sigint(self, previous) -> None:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def fingerprint(text: str) -> str:
+    """A short hash of a canonical description of a scene's physics."""
+    return hashlib.sha256(text.encode()).hexdigest()[:16]

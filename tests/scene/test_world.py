@@ -1,0 +1,174 @@
+"""The run loop: frame sampling decoupled from dt, checkpoints that resume bit for bit."""
+
+import numpy as np
+import pytest
+
+from inertia.io import load_states
+from inertia.scene import load_scene
+from inertia.world import Run, frame_steps, load_checkpoint
+
+MIXED = """
+format_version = 1
+[simulation]
+dt = 0.004
+duration = 0.4
+fps = 25
+seed = 4
+integrator = "semi_implicit_euler"
+
+[[particles]]
+name = "spray"
+mass = 0.01
+radius = 0.02
+[[particles.emitters]]
+rate = 400.0
+source = { type = "sphere", center = [0.0, 0.0, 0.3], radius = 0.05 }
+cone = { direction = [0.0, 0.0, 1.0], speed = 2.0, spread = 0.4 }
+lifetime = [0.1, 0.3]
+
+[[particles]]
+name = "chain"
+integrator = "implicit_euler"
+mass = 0.02
+chain = { start = [0, 0, 1], end = [0.5, 0, 1], count = 6, stiffness = 500.0, damping = 0.1 }
+
+[[particles]]
+name = "balls"
+integrator = "rk45"
+integrator_options = { rtol = 1e-7 }
+radius = 0.05
+lattice = { origin = [-0.5, 0, 0.2], counts = [2, 2, 1], spacing = 0.2 }
+
+[[forces]]
+type = "gravity"
+
+[[forces]]
+type = "wind"
+velocity = [0.5, 0.0, 0.0]
+gust_amplitude = 0.3
+groups = ["spray"]
+
+[[colliders]]
+name = "ground"
+type = "plane"
+point = [0, 0, 0]
+normal = [0, 0, 1]
+restitution = 0.6
+
+[fields.spin]
+type = "rotation"
+center = [0, 0, 0]
+
+[[tracers]]
+field = "spin"
+integrator = "rk4"
+positions = [[1, 0, 0], [0, 2, 0]]
+"""
+
+
+def test_frame_steps():
+    assert [frame_steps(k, 30, 1 / 600) for k in range(4)] == [0, 20, 40, 60]
+    # 1/fps not a multiple of dt: the first step boundary at or after each frame time
+    assert [frame_steps(k, 30, 0.01) for k in range(4)] == [0, 4, 7, 10]
+
+
+def _run(path, out, **kw):
+    world = load_scene(path)
+    run = Run(world, out, duration=world.duration, fps=world.fps, fingerprint=world.fingerprint,
+              handle_sigint=False, **kw)
+    return run, run.execute()
+
+
+def test_run_records_frames_at_fps(write_scene, tmp_path):
+    path = write_scene(MIXED)
+    run, result = _run(path, tmp_path / "a")
+    assert result.status == "completed" and result.frame_count == run.frame_count == 11
+    states = load_states(result.states_path)
+    np.testing.assert_allclose(states.times, np.arange(11) * 0.04, atol=1e-12)
+    assert states.metadata["groups"] == ["spray", "chain", "balls", "tracers0"]
+    assert states.metadata["integrators"] == ["semi_implicit_euler", "implicit_euler", "rk45", "rk4"]
+    assert states.fields["active"].shape == (11, states.particle_count)
+    assert states.fields["momentum"].shape == (11, 3)
+    assert np.all(states.static["group"][-2:] == 3)
+    # the first frame is the initial state
+    assert states.times[0] == 0.0 and not states.fields["active"][0, :states.particle_count - 12].any()
+
+
+@pytest.mark.parametrize("stop_after", [1, 4])
+def test_resume_is_bit_identical(write_scene, tmp_path, stop_after):
+    """Stop after k frames, resume, compare with an uninterrupted run: every array equal."""
+    path = write_scene(MIXED)
+    _, full = _run(path, tmp_path / "full")
+    run, part = _run(path, tmp_path / "part", stop_after_frames=stop_after)
+    assert part.status == "interrupted" and part.frame_count == stop_after
+    state, info = load_checkpoint(part.checkpoint_path)
+    assert info["frame_count"] == stop_after
+    _, resumed = _run(path, tmp_path / "part", resume=True)
+    assert resumed.status == "completed" and resumed.frame_count == full.frame_count
+    a, b = load_states(full.states_path), load_states(resumed.states_path)
+    np.testing.assert_array_equal(a.times, b.times)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.velocities, b.velocities)
+    for name in a.fields:
+        np.testing.assert_array_equal(a.fields[name], b.fields[name])
+
+
+def test_interrupt_mid_frame_resumes_identically(write_scene, tmp_path):
+    """A stop between frames (as Ctrl-C does) checkpoints the exact step, not the last frame."""
+    path = write_scene(MIXED)
+    _, full = _run(path, tmp_path / "full")
+    world = load_scene(path)
+    run = Run(world, tmp_path / "part", duration=world.duration, fps=world.fps,
+              fingerprint=world.fingerprint, handle_sigint=False)
+    steps = {"n": 0}
+
+    def progress(p):
+        pass
+
+    original = world.step
+
+    def step():
+        original()
+        steps["n"] += 1
+        if steps["n"] == 37:        # between frames 3 (step 30) and 4 (step 40)
+            run.request_stop()
+
+    world.step = step
+    result = run.execute()
+    assert result.status == "interrupted" and result.step_count == 37 and result.frame_count == 4
+    _, resumed = _run(path, tmp_path / "part", resume=True)
+    a, b = load_states(full.states_path), load_states(resumed.states_path)
+    np.testing.assert_array_equal(a.positions, b.positions)
+    np.testing.assert_array_equal(a.velocities, b.velocities)
+
+
+def test_resume_refuses_another_scene(write_scene, tmp_path):
+    path = write_scene(MIXED)
+    _run(path, tmp_path / "a", stop_after_frames=2)
+    other = write_scene(MIXED.replace("restitution = 0.6", "restitution = 0.7"), "other.toml")
+    with pytest.raises(ValueError, match="the scene's physics changed"):
+        _run(other, tmp_path / "a", resume=True)
+    # a longer duration is fine: it continues the same trajectory
+    world = load_scene(path, duration=0.6)
+    result = Run(world, tmp_path / "a", duration=0.6, fps=world.fps, resume=True, fingerprint=world.fingerprint,
+                 handle_sigint=False).execute()
+    assert result.frame_count == 16
+
+
+def test_divergence_keeps_the_frames(write_scene, tmp_path):
+    path = write_scene("""
+        format_version = 1
+        [simulation]
+        dt = 0.05
+        duration = 5.0
+        fps = 10
+        integrator = "euler"
+        [[particles]]
+        mass = 0.001
+        chain = { start = [0, 0, 0], end = [1, 0, 0], count = 3, stiffness = 1e12 }
+    """)
+    world = load_scene(path)
+    world["particles0"].v[1] = [0.0, 0.0, 1.0]
+    result = Run(world, tmp_path, duration=5.0, fps=10, handle_sigint=False).execute()
+    assert result.status == "diverged" and "diverged" in str(result.error)
+    assert load_states(result.states_path).frame_count == result.frame_count >= 1
