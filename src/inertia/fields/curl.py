@@ -1,0 +1,428 @@
+"""Curl-noise: divergence-free procedural flow that goes around solid boundaries.
+
+After Bridson, Hourihan & Nordenstam (2007). The velocity is the curl of a noise potential, so
+it is incompressible by construction; its derivatives are the analytic derivatives of the noise
+(``noise.py``), never finite differences:
+
+    2-D: a scalar potential psi,            v = (d psi / dy, -d psi / dx)
+    3-D: a vector potential (psi0, psi1, psi2) of three decorrelated noises, v = curl psi
+
+Boundaries (any collider of ``inertia.colliders``, static or kinematic). With d(x, t) the
+signed distance to the closest collider, n = grad d its outward normal, d0 the boundary width
+and Bridson's ramp alpha = ramp(d / d0) (= (15 r - 10 r^3 + 3 r^5) / 8 for |r| < 1, 1 beyond):
+
+    2-D: psi' = alpha psi + (1 - alpha) psi_R
+    3-D: psi' = alpha psi + (1 - alpha) n (n . psi) + (1 - alpha) psi_R
+
+An optional mean flow U joins the noise potential before the ramp (psi_U = U x (x - c) / 2),
+so that the wind, too, goes around the obstacles.
+
+At the surface (alpha = 0) psi' - psi_R is normal to the surface (zero in 2-D), so the curl
+of psi' has the normal component of the collider's own velocity: the flow is tangent to a
+static surface and carries no fluid through a moving one. psi_R is the potential of the
+collider's rigid motion u_R = V + W x (x - c) (the paper's "moving boundaries"):
+
+    2-D: psi_R = V_x (y - c_y) - V_y (x - c_x) - W (|x - c|^2 - R^2) / 2
+    3-D: psi_R = V x (x - c) / 2 + W (R^2 - |x - c|^2) / 2
+
+V and W are read from ``collider.velocity`` at the reference point c and three (two) points
+around it; c is the collider's reference point at time t (``collider.pose(t)``, else its
+``center`` / ``point``) and R the distance from c to the surface when c is inside (the radius,
+for a sphere), which keeps psi_R small near the surface.
+
+References
+----------
+- Bridson, R., Hourihan, J. & Nordenstam, M. (2007), "Curl-noise for procedural fluid flow",
+  ACM Trans. Graph. 26(3), SIGGRAPH 2007: everything above.
+- Perlin, K. (1985, 2002) and Gustavson, S. (2005/2012): the noise (see ``noise.py``).
+
+Limitations
+-----------
+- Several colliders: the closest one (least signed distance) shapes the potential (see
+  below for what happens where two are within d0 of a point).
+- 3-D boundaries need grad n (the Hessian of the signed distance). It is taken from the
+  collider's ``distance_hessian(points, t)`` when it has one, otherwise by central differences
+  of ``collider.normal`` with step 1e-3 d0 (O(step^2) error in the curvature term only;
+  the tangency at the surface does not depend on it). Across an edge of the distance field
+  (the medial planes inside a ``Container``, where the normal jumps) one-sided differences are
+  used; the potential has a kink there, and the velocity a jump in its tangential part.
+- Where the closest collider changes (two colliders both within d0) the normal-blend term of
+  the 3-D potential switches from one normal to the other, so the velocity jumps across that
+  surface and is divergence-free only on either side of it. Keep colliders at least d0 apart
+  (or lower ``boundary_width``) where exact incompressibility matters; tangency at every
+  surface holds regardless.
+- Collider motion is taken as rigid (translation + rotation) at each instant; a deforming
+  collider would need a potential for its deformation velocity, which is not built.
+- ``jacobian`` / ``divergence`` (analytic) are available without boundaries only.
+- Fields added to a bounded curl-noise (``CurlNoise(...) + Uniform(...)``) are not made
+  tangent to the boundaries; put the mean flow into the noise's potential instead.
+- The spatial amplitude modulation A(x) of the paper is not provided.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._validate import as_points, as_vector, positive_scalar
+from . import kernels as K
+from .base import Field
+from .noise import _GRADIENTS, PARALLEL_MIN_POINTS, NoiseParameters, lattice_tables
+
+__all__ = ["CurlNoise"]
+
+
+# Step of the central differences of collider normals (relative to the boundary width d0).
+_HESSIAN_STEP = 1e-3
+# A normal turning by more than this (radians, roughly) over one step marks an edge of the
+# distance field, not curvature (that would be a radius of curvature below 0.01 step / 1e-3).
+_KINK = 0.1
+
+
+class CurlNoise(Field):
+    """Divergence-free procedural velocity field (Bridson et al. 2007); see the module docstring.
+
+    Parameters
+    ----------
+    dim : int
+        2 or 3; 3 default.
+    seed : int
+        0 default; same seed, same flow.
+    kind : {"simplex", "perlin"}
+        Noise used for the potential; "simplex" default (faster: D + 1 lattice corners).
+    frequency : float
+        Lattice cells per unit length of the first octave; 1.0 default. Eddies are about
+        0.5 / frequency across.
+    octaves, lacunarity, gain : int, float, float
+        Fractal sum of the potential: 1, 2.0, 0.5 default (see ``Noise``). With gain 0.5 and
+        lacunarity 2 every octave contributes about equally to the velocity.
+    speed : float
+        RMS speed of the noise flow away from boundaries, m/s; 1.0 default (0.1-5 for
+        smoke at human scale). Peak speeds are 3-4 times it. The potential is scaled to give
+        it: each component is bounded by ``potential_amplitude`` = speed / (RMS speed of the
+        unit-amplitude field), measured once at construction over 16384 quasi-random points
+        spread over 64 lattice cells per axis at t = 0. (For Perlin noise with
+        ``time_frequency`` > 0 the RMS drifts by up to ~10 % with time, as the time axis
+        crosses lattice planes.)
+    time_frequency : float
+        Lattice cells per second along the noise's time axis; 0.0 default (steady flow);
+        0.1-1 for smoke whose eddies evolve as it moves.
+    mean_velocity : (D,) or None
+        A uniform wind U in m/s carried by the potential (psi_U = U x (x - c) / 2 about each
+        collider's centre c), so that it also flows around the boundaries; None (0) default.
+        Smoke rising past an obstacle: ``mean_velocity=(0, 0, 1)``.
+    boundaries : sequence of colliders
+        Colliders of ``inertia.colliders`` (anything with ``dim``, ``signed_distance``,
+        ``normal`` and ``velocity``); empty default.
+    boundary_width : float
+        d0, the distance over which the flow is bent to run along a boundary; 0.5 / frequency
+        default (one eddy); 0.5-2 eddies. Must be > 0.
+    """
+
+    def __init__(self, dim: int = 3, *, seed: int = 0, kind: str = "simplex",
+                 frequency: float = 1.0, octaves: int = 1, lacunarity: float = 2.0,
+                 gain: float = 0.5, speed: float = 1.0, time_frequency: float = 0.0,
+                 mean_velocity=None, boundaries=(), boundary_width: float | None = None):
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be one of [2, 3]; got {dim!r}")
+        self.dim = int(dim)
+        self.params = NoiseParameters.check(
+            seed=seed, kind=kind, frequency=frequency, octaves=octaves, lacunarity=lacunarity,
+            gain=gain, amplitude=1.0, time_frequency=time_frequency)
+        self.speed = positive_scalar(speed, "speed", allow_zero=True)
+        self.lattice_dim = self.dim + (1 if self.params.time_frequency != 0.0 else 0)
+        self.components = 1 if self.dim == 2 else 3
+        self._perm, self._offsets = lattice_tables(self.params.seed, self.components, self.params.octaves)
+        self._grads = _GRADIENTS[self.lattice_dim]
+        self._scale = self.params.scale(self.lattice_dim)
+        # Calibrate: scale the unit-amplitude potential so that the RMS speed is `speed`.
+        unit_rms = self._unit_rms_speed()
+        self.potential_amplitude = self.speed / unit_rms
+        self._scale *= self.potential_amplitude
+        if boundary_width is None:
+            boundary_width = 0.5 / self.params.frequency
+        self.boundary_width = positive_scalar(boundary_width, "boundary_width")
+        self.boundaries = _Boundaries(boundaries, self.dim, self.boundary_width)
+        self.mean_velocity = (np.zeros(self.dim) if mean_velocity is None
+                              else as_vector(mean_velocity, "mean_velocity", self.dim))
+        # Empty boundary arrays for the boundary-free kernel path.
+        D = self.dim
+        self._none = _no_boundaries(D)
+
+    def __repr__(self):
+        p = self.params
+        b = f", boundaries={list(self.boundaries.colliders)!r}" if self.boundaries.colliders else ""
+        return (f"CurlNoise(dim={self.dim}, seed={p.seed}, kind={p.kind!r}, frequency={p.frequency}, "
+                f"octaves={p.octaves}, speed={self.speed}, time_frequency={p.time_frequency}{b})")
+
+    def _unit_rms_speed(self) -> float:
+        """RMS speed of this field with unit-amplitude potentials, over a fixed point set."""
+        # Roberts' R_D quasi-random sequence (additive recurrence with the generalised golden
+        # ratio): deterministic, even coverage of [0, 64)^D lattice cells.
+        D = self.dim
+        phi = 2.0
+        for _ in range(30):
+            phi = (1.0 + phi) ** (1.0 / (D + 1))
+        alpha = phi ** -np.arange(1, D + 1)
+        n = np.arange(1, 16385)[:, None]
+        pts = np.ascontiguousarray(((0.5 + n * alpha) % 1.0) * (64.0 / self.params.frequency))
+        out = np.empty_like(pts)
+        p = self.params
+        K.curl_noise(pts, self._offsets, self._perm, self._grads, *_no_boundaries(D), np.zeros(D), out,
+                     0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
+                     p.time_frequency, self._scale, 1.0)
+        return float(np.sqrt(np.mean(np.sum(out * out, axis=1))))
+
+    # -- velocity ---------------------------------------------------------------------------
+    def sample(self, points: np.ndarray, t: float, out: np.ndarray) -> None:
+        """Fill `out` (M, D) with the velocity at `points` (M, D), time `t` (analytic curl)."""
+        self._check_out(points, out)
+        t = float(t)
+        bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
+        p = self.params
+        kernel = K.curl_noise if points.shape[0] >= PARALLEL_MIN_POINTS else K.curl_noise_serial
+        kernel(points, self._offsets, self._perm, self._grads, *bnd, self.mean_velocity, out,
+                     t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
+                     p.time_frequency, self._scale, self.boundary_width)
+
+    def sample_jacobian(self, points, t, out) -> None:
+        """Analytic Jacobian dv_a/dx_b (boundary-free fields only), out (M, D, D)."""
+        if self.boundaries.colliders:
+            raise NotImplementedError(
+                "CurlNoise.jacobian is analytic only without boundaries (it would need third "
+                "derivatives of the colliders' signed distance); use central differences of "
+                "the velocity instead")
+        if points.ndim != 2 or points.shape[1] != self.dim or out.shape != (points.shape[0], self.dim, self.dim):
+            raise ValueError(f"points must be (M, {self.dim}) and out (M, {self.dim}, {self.dim}); "
+                             f"got {points.shape} and {out.shape}")
+        p = self.params
+        K.curl_noise_jacobian(points, self._offsets, self._perm, self._grads, out, float(t),
+                              p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
+                              p.time_frequency, self._scale)
+
+    # -- potential --------------------------------------------------------------------------
+    def potential(self, points, t: float = 0.0) -> np.ndarray:
+        """The (boundary-modified) potential psi' whose curl is the velocity.
+
+        Returns (M,) in 2-D (a stream function) and (M, 3) in 3-D. Slower than ``sample``
+        (NumPy, not fused); meant for checks and visualisation.
+        """
+        pts = as_points(points, "points", dim=self.dim)
+        t = float(t)
+        M = pts.shape[0]
+        p = self.params
+        psi = np.empty((M, self.components))
+        value = np.empty(M)
+        for c in range(self.components):
+            K.fractal_noise(pts, np.ascontiguousarray(self._offsets[c]), self._perm, self._grads,
+                            value, np.empty((0, self.dim)), np.empty((0, self.dim, self.dim)),
+                            t, p.kind_code, 0, p.frequency, p.lacunarity, p.gain, p.octaves,
+                            p.time_frequency, self._scale)
+            psi[:, c] = value
+        U = self.mean_velocity
+        if self.boundaries.colliders:
+            slot, dist, normal, _, coll, V, W, C, R2 = self.boundaries.prepare(pts, t)
+            near = np.flatnonzero(slot >= 0)
+            r = dist / self.boundary_width
+            alpha = np.where(r >= 1, 1.0, np.where(r <= -1, -1.0, (15 * r - 10 * r**3 + 3 * r**5) / 8))
+            x = pts[near] - C[coll]
+            # Far from boundaries the mean flow's potential is taken about the origin; near
+            # one, about its centre (they differ by a constant: same curl).
+            far = slot < 0
+            if self.dim == 2:
+                psi[far, 0] += U[0] * pts[far, 1] - U[1] * pts[far, 0]
+                psi[near, 0] += U[0] * x[:, 1] - U[1] * x[:, 0]
+            else:
+                psi[far] += 0.5 * np.cross(U, pts[far])
+                psi[near] += 0.5 * np.cross(U, x)
+            if self.dim == 2:
+                psi_r = (V[coll, 0] * x[:, 1] - V[coll, 1] * x[:, 0]
+                         - 0.5 * W[coll, 0] * (np.sum(x * x, axis=1) - R2[coll]))
+                psi[near, 0] = alpha * psi[near, 0] + (1 - alpha) * psi_r
+            else:
+                psi_r = 0.5 * np.cross(V[coll], x) + 0.5 * (R2[coll] - np.sum(x * x, axis=1))[:, None] * W[coll]
+                s = np.sum(normal * psi[near], axis=1)
+                psi[near] = (alpha[:, None] * psi[near] + (1 - alpha)[:, None] * normal * s[:, None]
+                             + (1 - alpha)[:, None] * psi_r)
+        else:
+            if self.dim == 2:
+                psi[:, 0] += U[0] * pts[:, 1] - U[1] * pts[:, 0]
+            else:
+                psi += 0.5 * np.cross(U, pts)
+        return psi[:, 0].copy() if self.dim == 2 else psi
+
+
+class _Boundaries:
+    """Gathers, for each sample, the geometry of the closest collider near every point.
+
+    ``prepare(points, t)`` returns the arrays the ``curl_noise`` kernel reads:
+      slot (M,) int64         -- index into the arrays below, -1 where d >= d0 (no effect)
+      distance (m,)           -- signed distance d to the closest collider, m = near points
+      normal (m, D)           -- its outward unit normal
+      hessian (m, D, D)       -- grad n (3-D only; zeros in 2-D)
+      collider (m,) int64     -- which collider
+      velocity (K, D), spin (K, D), center (K, D), radius2 (K,) -- rigid motion per collider
+    """
+
+    def __init__(self, colliders, dim: int, width: float):
+        if colliders is None:
+            colliders = ()
+        if not isinstance(colliders, (list, tuple)):
+            colliders = (colliders,)
+        for c in colliders:
+            missing = [m for m in ("signed_distance", "normal", "velocity") if not callable(getattr(c, m, None))]
+            if missing or not hasattr(c, "dim"):
+                raise ValueError("boundaries must be colliders (with dim, signed_distance, normal and "
+                                 f"velocity, e.g. inertia.colliders.Sphere); {type(c).__name__} lacks "
+                                 f"{missing or ['dim']}")
+            if c.dim != dim:
+                raise ValueError(f"boundaries must be {dim}-D colliders for a {dim}-D field; "
+                                 f"got a {c.dim}-D {type(c).__name__}")
+        self.colliders = tuple(colliders)
+        self.dim = dim
+        self.width = width
+        self._slot = np.empty(0, np.int64)
+        self._buffers = None  # per collider: distance (M,), normal (M, D), velocity (M, D)
+
+    def prepare(self, points, t):
+        D = self.dim
+        M = points.shape[0]
+        cols = self.colliders
+        # 3-D colliders without an analytic distance Hessian get it from normals at x +- h e_a.
+        # For small batches those 2 D shifted copies ride along in the one query per collider
+        # (a collider query has a fixed cost that dominates at a few hundred points).
+        fd = [D == 3 and not callable(getattr(c, "distance_hessian", None)) for c in cols]
+        stack = M < PARALLEL_MIN_POINTS
+        rows = [M * (2 * D + 1) if (f and stack) else M for f in fd]
+        if self._buffers is None or [b[0].shape[0] for b in self._buffers] != rows:
+            self._buffers = [(np.empty(r), np.empty((r, D)), np.empty((r, D))) for r in rows]
+        h = _HESSIAN_STEP * self.width
+        for k, c in enumerate(cols):
+            d_k, n_k, v_k = self._buffers[k]
+            query_points = points if rows[k] == M else _shifted_stack(points, h)
+            if callable(getattr(c, "query", None)):
+                c.query(query_points, t, d_k, n_k, v_k)
+            else:
+                d_k[:] = c.signed_distance(query_points, t)
+                if rows[k] == M:
+                    n_k.fill(np.nan)  # not known yet: asked below for the near points only
+                else:
+                    n_k[:] = c.normal(query_points, t)
+        # Closest collider and its signed distance at every point.
+        dist = self._buffers[0][0][:M]
+        closest = np.zeros(M, dtype=np.int64)
+        if len(cols) > 1:
+            dist = dist.copy()
+            for k in range(1, len(cols)):
+                dk = self._buffers[k][0][:M]
+                nearer = dk < dist
+                dist[nearer] = dk[nearer]
+                closest[nearer] = k
+        near = np.flatnonzero(dist < self.width)
+        if self._slot.shape[0] != M:
+            self._slot = np.empty(M, dtype=np.int64)
+        slot = self._slot
+        slot.fill(-1)
+        slot[near] = np.arange(near.shape[0])
+        m = near.shape[0]
+        n_dist = np.ascontiguousarray(dist[near])
+        n_coll = np.ascontiguousarray(closest[near])
+        normal = np.empty((m, D))
+        hessian = np.zeros((m, D, D))
+        # Normal and grad n of the closest collider at the near points.
+        for k, c in enumerate(cols):
+            sel = np.flatnonzero(n_coll == k)
+            if sel.size == 0:
+                continue
+            idx = near[sel]
+            nk = self._buffers[k][1][idx]
+            pts = np.ascontiguousarray(points[idx])
+            if np.isnan(nk[0, 0]):
+                nk = np.asarray(c.normal(pts, t), dtype=np.float64)
+            normal[sel] = nk
+            if D != 3:
+                continue
+            if not fd[k]:
+                hessian[sel] = np.asarray(c.distance_hessian(pts, t), dtype=np.float64)
+                continue
+            if rows[k] == M:
+                shifted = np.asarray(c.normal(_shifted_stack(pts, h)[pts.shape[0]:], t),
+                                     dtype=np.float64).reshape(2 * D, -1, D)
+                at = np.arange(pts.shape[0])
+            else:
+                shifted = self._buffers[k][1][M:].reshape(2 * D, M, D)
+                at = idx
+            H = np.empty((sel.shape[0], D, D))
+            K.hessian_from_normals(np.ascontiguousarray(nk), shifted, at, H, h, _KINK)
+            hessian[sel] = H
+        velocity, spin, center, radius2 = self._rigid_motion(t)
+        return (slot, n_dist, normal, hessian, n_coll, velocity, spin, center, radius2)
+
+    def _rigid_motion(self, t):
+        """Per collider: V (K, D), W (K, D) (2-D: W[:, 0] = omega), centre c (K, D), R^2 (K,)."""
+        D = self.dim
+        Kc = len(self.colliders)
+        V = np.zeros((Kc, D))
+        W = np.zeros((Kc, D))
+        C = np.zeros((Kc, D))
+        R2 = np.zeros(Kc)
+        for k, col in enumerate(self.colliders):
+            c = _reference_point(col, t, D)
+            C[k] = c
+            if getattr(col, "moving", None) is False:
+                continue  # declared static
+            # u(c + e_a) - u(c) = W x e_a for a rigid motion u(x) = V + W x (x - c).
+            probe = np.vstack([c, c + np.eye(D)])
+            u = np.asarray(col.velocity(probe, t), dtype=np.float64).reshape(D + 1, D)
+            if not np.any(u):
+                continue  # static
+            V[k] = u[0]
+            du = u[1:] - u[0]  # du[a] = W x e_a
+            if D == 2:
+                # W x e_x = (0, w), W x e_y = (-w, 0)
+                W[k, 0] = 0.5 * (du[0, 1] - du[1, 0])
+            else:
+                # W x e_x = (0, Wz, -Wy), W x e_y = (-Wz, 0, Wx), W x e_z = (Wy, -Wx, 0)
+                W[k, 0] = 0.5 * (du[1, 2] - du[2, 1])
+                W[k, 1] = 0.5 * (du[2, 0] - du[0, 2])
+                W[k, 2] = 0.5 * (du[0, 1] - du[1, 0])
+            d_c = float(np.asarray(col.signed_distance(c[None, :], t)).reshape(-1)[0])
+            R2[k] = d_c * d_c if d_c < 0 else 0.0
+        return V, W, C, R2
+
+
+def _shifted_stack(points, h):
+    """[points; points + h e_0; points - h e_0; points + h e_1; ...]: ((2 D + 1) M, D)."""
+    M, D = points.shape
+    out = np.empty((2 * D + 1, M, D))
+    out[:] = points
+    for a in range(D):
+        out[1 + 2 * a, :, a] += h
+        out[2 + 2 * a, :, a] -= h
+    return out.reshape(-1, D)
+
+
+def _no_boundaries(D):
+    """Empty boundary arrays: the kernel's boundary-free path."""
+    return (np.empty(0, np.int64), np.empty(0), np.empty((0, D)), np.empty((0, D, D)),
+            np.empty(0, np.int64), np.empty((0, D)), np.empty((0, D)), np.empty((0, D)),
+            np.empty(0))
+
+
+def _reference_point(collider, t, dim):
+    """A point that moves with the collider (its centre) at time t; the origin if unknown.
+
+    Uses ``collider.pose(t)`` (position of the reference point, ``inertia.colliders``) when
+    present, else a ``center`` / ``point`` attribute.
+    """
+    pose = getattr(collider, "pose", None)
+    if callable(pose):
+        p = np.asarray(pose(t)[0], dtype=np.float64).reshape(-1)
+        if p.shape[0] >= dim:
+            return p[:dim].copy()
+    for name in ("center", "point"):
+        value = getattr(collider, name, None)
+        if value is not None and not callable(value):
+            arr = np.asarray(value, dtype=np.float64).reshape(-1)
+            if arr.shape == (dim,):
+                return arr
+    return np.zeros(dim)

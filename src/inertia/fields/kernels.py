@@ -1,0 +1,1114 @@
+"""Numba kernels of the fields package: gradient noise, curl-noise, grids and analytic fields.
+
+Pure functions over arrays (inputs, then the outputs they fill, then scalars); no Python objects
+and no allocation per point. The parallel kernels split the points into chunks and give each
+chunk its own small scratch arrays, so nothing is allocated inside the per-point loop; each has
+a ``*_serial`` twin (the same ``*_range`` body on one thread) that the classes use for small
+batches, where starting threads would cost more than the work.
+
+References
+----------
+- Perlin, K. (1985), "An image synthesizer", SIGGRAPH: lattice gradient noise.
+- Perlin, K. (2002), "Improving noise", SIGGRAPH: the quintic fade 6t^5 - 15t^4 + 10t^3 and
+  a fixed set of edge gradients (``perlin`` kind here).
+- Perlin, K. (2001), "Noise hardware", SIGGRAPH course notes, and Gustavson, S. (2005/2012),
+  "Simplex noise demystified": the skewed simplex lattice, D + 1 corners per point, the radial
+  kernel (r^2 - |d|^2)^4 (``simplex`` kind here; r^2 = 0.5 in every dimension so that the noise
+  and its derivatives are continuous).
+- Bridson, R., Hourihan, J. & Nordenstam, M. (2007), "Curl-noise for procedural fluid flow",
+  ACM Trans. Graph. 26(3) (SIGGRAPH): velocity as the curl of a noise potential, the boundary
+  ramp and the normal-component blend of the potential near solids.
+
+Notation used below: ``D`` is the dimension of the noise lattice (2, 3 or 4: the spatial
+dimension plus one when time is an axis), ``S`` the spatial dimension of the points.
+
+Limitations
+-----------
+- The lattice hash uses a 256-entry permutation, so every noise is periodic with period 256
+  lattice cells along each axis (256 / frequency in space).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+KIND_SIMPLEX = 0
+KIND_PERLIN = 1
+
+# Floating-point contraction (FMA) and reassociation, but NaN and inf keep their IEEE meaning.
+_FAST = {"contract", "reassoc", "nsz", "arcp"}
+
+# Points per parallel chunk: large enough to amortise the chunk's scratch arrays.
+_CHUNK = 1024
+
+# Simplex kernel radius squared: 0.5 keeps every corner's kernel inside the simplices that share
+# that corner in 2-D, 3-D and 4-D, so the noise is C^2. (Gustavson's reference code uses 0.6 in
+# 3-D and 4-D, which leaves small discontinuities; tests/fields/test_noise.py checks continuity.)
+_SIMPLEX_R2 = 0.5
+
+
+# ---------------------------------------------------------------------------------------------
+# One octave of noise at one lattice point, with its gradient and (order 2) its Hessian.
+# x[:D] is the point in lattice units; grad[:D] and hess[:D, :D] are filled.
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _hash(cell, D, perm):
+    """Hash of integer lattice coordinates cell[:D]: perm[c0 + perm[c1 + perm[c2 + ...]]]."""
+    h = 0
+    for k in range(D - 1, -1, -1):
+        h = perm[(cell[k] + h) & 255]
+    return h
+
+
+@njit(cache=True)
+def simplex_point(x, D, perm, grads, order, grad, hess, cell, x0, rank, corner, dc):
+    """Simplex noise at x[:D] (unscaled: |value| <= the bound in `noise.py`).
+
+    For every corner c of the simplex that holds x, with d = x - corner (unskewed) and
+    q = r^2 - |d|^2 > 0:
+        n      = sum_c q^4 (g_c . d)
+        dn/dx_a = sum_c -8 q^3 d_a (g.d) + q^4 g_a
+        d2n/dx_a dx_b = sum_c 48 q^2 d_a d_b (g.d) - 8 q^3 (delta_ab (g.d) + d_a g_b + d_b g_a)
+    """
+    # Skew x onto the hypercubic lattice to find the cell: F = (sqrt(D+1) - 1) / D.
+    F = (math.sqrt(D + 1.0) - 1.0) / D
+    G = (1.0 - 1.0 / math.sqrt(D + 1.0)) / D
+    s = 0.0
+    for k in range(D):
+        s += x[k]
+    s *= F
+    tsum = 0.0
+    for k in range(D):
+        cell[k] = np.int64(math.floor(x[k] + s))
+        tsum += cell[k]
+    tsum *= G
+    # Position relative to the cell origin in unskewed space.
+    for k in range(D):
+        x0[k] = x[k] - (cell[k] - tsum)
+    # Rank of each coordinate (0 = largest): corner c adds 1 along the c largest axes.
+    for k in range(D):
+        r = 0
+        for j in range(D):
+            if x0[j] > x0[k] or (x0[j] == x0[k] and j < k):
+                r += 1
+        rank[k] = r
+    for k in range(D):
+        grad[k] = 0.0
+        if order >= 2:
+            for j in range(D):
+                hess[k, j] = 0.0
+    value = 0.0
+    ng = grads.shape[0]
+    for c in range(D + 1):
+        q = _SIMPLEX_R2
+        for k in range(D):
+            o = 1 if rank[k] < c else 0
+            corner[k] = cell[k] + o
+            dc[k] = x0[k] - o + c * G
+            q -= dc[k] * dc[k]
+        if q <= 0.0:
+            continue
+        gi = _hash(corner, D, perm) % ng
+        gd = 0.0
+        for k in range(D):
+            gd += grads[gi, k] * dc[k]
+        q2 = q * q
+        q3 = q2 * q
+        q4 = q2 * q2
+        value += q4 * gd
+        if order >= 1:
+            for a in range(D):
+                grad[a] += -8.0 * q3 * dc[a] * gd + q4 * grads[gi, a]
+        if order >= 2:
+            for a in range(D):
+                for b in range(D):
+                    h = 48.0 * q2 * dc[a] * dc[b] * gd - 8.0 * q3 * (
+                        dc[a] * grads[gi, b] + dc[b] * grads[gi, a])
+                    if a == b:
+                        h -= 8.0 * q3 * gd
+                    hess[a, b] += h
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# Unrolled simplex noise with gradient (the hot path of curl-noise). Same lattice, hash, ranks
+# (ties go to the lower axis) and kernel as `simplex_point`, so the two agree to rounding.
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def _corner_term(q, gd):
+    # Returns q^4 (g.d) and -8 q^3 (g.d): value and the factor of d in the gradient.
+    q2 = q * q
+    return q2 * q2 * gd, -8.0 * q2 * q * gd, q2 * q2
+
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def simplex2_grad(x, y, perm, grads):
+    """2-D simplex noise and gradient: (n, dn/dx, dn/dy)."""
+    F2 = 0.3660254037844386  # (sqrt(3) - 1) / 2
+    G2 = 0.21132486540518713  # (3 - sqrt(3)) / 6
+    s = (x + y) * F2
+    fi = math.floor(x + s)
+    fj = math.floor(y + s)
+    t = (fi + fj) * G2
+    x0 = x - (fi - t)
+    y0 = y - (fj - t)
+    i = np.int64(fi) & 255
+    j = np.int64(fj) & 255
+    if x0 >= y0:
+        i1, j1 = 1, 0
+    else:
+        i1, j1 = 0, 1
+    m = grads.shape[0] - 1
+    n = 0.0
+    gx = 0.0
+    gy = 0.0
+    for c in range(3):
+        if c == 0:
+            dx, dy, oi, oj = x0, y0, 0, 0
+        elif c == 1:
+            dx, dy, oi, oj = x0 - i1 + G2, y0 - j1 + G2, i1, j1
+        else:
+            dx, dy, oi, oj = x0 - 1.0 + 2.0 * G2, y0 - 1.0 + 2.0 * G2, 1, 1
+        q = _SIMPLEX_R2 - dx * dx - dy * dy
+        if q > 0.0:
+            h = perm[i + oi + perm[j + oj]] & m
+            ax = grads[h, 0]
+            ay = grads[h, 1]
+            v, f, q4 = _corner_term(q, ax * dx + ay * dy)
+            n += v
+            gx += f * dx + q4 * ax
+            gy += f * dy + q4 * ay
+    return n, gx, gy
+
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def simplex3_grad(x, y, z, perm, grads):
+    """3-D simplex noise and gradient: (n, dn/dx, dn/dy, dn/dz)."""
+    F3 = 1.0 / 3.0
+    G3 = 1.0 / 6.0
+    s = (x + y + z) * F3
+    fi = math.floor(x + s)
+    fj = math.floor(y + s)
+    fk = math.floor(z + s)
+    t = (fi + fj + fk) * G3
+    x0 = x - (fi - t)
+    y0 = y - (fj - t)
+    z0 = z - (fk - t)
+    i = np.int64(fi) & 255
+    j = np.int64(fj) & 255
+    k = np.int64(fk) & 255
+    # Ranks (0 = largest coordinate; ties to the lower axis).
+    rx = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0)
+    ry = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0)
+    rz = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0)
+    m = grads.shape[0] - 1
+    n = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for c in range(4):
+        oi = 1 if rx < c else 0
+        oj = 1 if ry < c else 0
+        ok = 1 if rz < c else 0
+        dx = x0 - oi + c * G3
+        dy = y0 - oj + c * G3
+        dz = z0 - ok + c * G3
+        q = _SIMPLEX_R2 - dx * dx - dy * dy - dz * dz
+        if q > 0.0:
+            h = perm[i + oi + perm[j + oj + perm[k + ok]]] & m
+            ax = grads[h, 0]
+            ay = grads[h, 1]
+            az = grads[h, 2]
+            v, f, q4 = _corner_term(q, ax * dx + ay * dy + az * dz)
+            n += v
+            gx += f * dx + q4 * ax
+            gy += f * dy + q4 * ay
+            gz += f * dz + q4 * az
+    return n, gx, gy, gz
+
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def simplex4_grad(x, y, z, w, perm, grads):
+    """4-D simplex noise and gradient: (n, dn/dx, dn/dy, dn/dz, dn/dw)."""
+    F4 = 0.30901699437494745  # (sqrt(5) - 1) / 4
+    G4 = 0.1381966011250105  # (5 - sqrt(5)) / 20
+    s = (x + y + z + w) * F4
+    fi = math.floor(x + s)
+    fj = math.floor(y + s)
+    fk = math.floor(z + s)
+    fl = math.floor(w + s)
+    t = (fi + fj + fk + fl) * G4
+    x0 = x - (fi - t)
+    y0 = y - (fj - t)
+    z0 = z - (fk - t)
+    w0 = w - (fl - t)
+    i = np.int64(fi) & 255
+    j = np.int64(fj) & 255
+    k = np.int64(fk) & 255
+    l = np.int64(fl) & 255
+    rx = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0) + (1 if w0 > x0 else 0)
+    ry = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0) + (1 if w0 > y0 else 0)
+    rz = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0) + (1 if w0 > z0 else 0)
+    rw = (1 if x0 >= w0 else 0) + (1 if y0 >= w0 else 0) + (1 if z0 >= w0 else 0)
+    m = grads.shape[0] - 1
+    n = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    gw = 0.0
+    for c in range(5):
+        oi = 1 if rx < c else 0
+        oj = 1 if ry < c else 0
+        ok = 1 if rz < c else 0
+        ol = 1 if rw < c else 0
+        dx = x0 - oi + c * G4
+        dy = y0 - oj + c * G4
+        dz = z0 - ok + c * G4
+        dw = w0 - ol + c * G4
+        q = _SIMPLEX_R2 - dx * dx - dy * dy - dz * dz - dw * dw
+        if q > 0.0:
+            h = perm[i + oi + perm[j + oj + perm[k + ok + perm[l + ol]]]] & m
+            ax = grads[h, 0]
+            ay = grads[h, 1]
+            az = grads[h, 2]
+            aw = grads[h, 3]
+            v, f, q4 = _corner_term(q, ax * dx + ay * dy + az * dz + aw * dw)
+            n += v
+            gx += f * dx + q4 * ax
+            gy += f * dy + q4 * ay
+            gz += f * dz + q4 * az
+            gw += f * dw + q4 * aw
+    return n, gx, gy, gz, gw
+
+
+@njit(cache=True, fastmath=_FAST)
+def _fade(f):
+    # s(f) = 6 f^5 - 15 f^4 + 10 f^3, s' = 30 f^2 (f - 1)^2, s'' = 60 f (2f - 1)(f - 1)
+    s = f * f * f * (f * (f * 6.0 - 15.0) + 10.0)
+    ds = 30.0 * f * f * (f - 1.0) * (f - 1.0)
+    dds = 60.0 * f * (2.0 * f - 1.0) * (f - 1.0)
+    return s, ds, dds
+
+
+@njit(cache=True)
+def perlin_point(x, D, perm, grads, order, grad, hess, cell, frac, w, corner, dc):
+    """Improved Perlin noise at x[:D] (unscaled). `w` is a (3, 4) scratch: fade weights.
+
+    With f = x - floor(x) and, per axis, w_k = s(f_k) for corners at +1 and 1 - s(f_k) at 0,
+    n = sum_corners (prod_k w_k) (g . (f - corner)); derivatives by the product rule.
+    """
+    for k in range(D):
+        fl = math.floor(x[k])
+        cell[k] = np.int64(fl)
+        frac[k] = x[k] - fl
+        s, ds, dds = _fade(frac[k])
+        w[0, k] = s
+        w[1, k] = ds
+        w[2, k] = dds
+        grad[k] = 0.0
+        if order >= 2:
+            for j in range(D):
+                hess[k, j] = 0.0
+    value = 0.0
+    ng = grads.shape[0]
+    for bits in range(1 << D):
+        for k in range(D):
+            o = (bits >> k) & 1
+            corner[k] = cell[k] + o
+            dc[k] = frac[k] - o
+        gi = _hash(corner, D, perm) % ng
+        gd = 0.0
+        for k in range(D):
+            gd += grads[gi, k] * dc[k]
+        # Weight and its derivatives; axis factor (b ? s : 1 - s), derivative (b ? s' : -s').
+        W = 1.0
+        for k in range(D):
+            W *= w[0, k] if (bits >> k) & 1 else 1.0 - w[0, k]
+        value += W * gd
+        if order >= 1:
+            for a in range(D):
+                # dW/dx_a = w'_a prod_{k != a} w_k
+                dWa = 1.0
+                for k in range(D):
+                    b = (bits >> k) & 1
+                    if k == a:
+                        dWa *= w[1, k] if b else -w[1, k]
+                    else:
+                        dWa *= w[0, k] if b else 1.0 - w[0, k]
+                grad[a] += dWa * gd + W * grads[gi, a]
+                if order >= 2:
+                    for c in range(D):
+                        # d2W/dx_a dx_c
+                        ddW = 1.0
+                        for k in range(D):
+                            b = (bits >> k) & 1
+                            if k == a and k == c:
+                                ddW *= w[2, k] if b else -w[2, k]
+                            elif k == a or k == c:
+                                ddW *= w[1, k] if b else -w[1, k]
+                            else:
+                                ddW *= w[0, k] if b else 1.0 - w[0, k]
+                        dWc = 1.0
+                        for k in range(D):
+                            b = (bits >> k) & 1
+                            if k == c:
+                                dWc *= w[1, k] if b else -w[1, k]
+                            else:
+                                dWc *= w[0, k] if b else 1.0 - w[0, k]
+                        hess[a, c] += ddW * gd + dWa * grads[gi, c] + dWc * grads[gi, a]
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# Improved Perlin noise with gradient, scalar code (same lattice and hash as `perlin_point`).
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def perlin2_grad(x, y, perm, grads):
+    """2-D improved Perlin noise and gradient: (n, dn/dx, dn/dy)."""
+    fx = math.floor(x)
+    fy = math.floor(y)
+    i = np.int64(fx) & 255
+    j = np.int64(fy) & 255
+    ux = x - fx
+    uy = y - fy
+    sx, dsx, _ = _fade(ux)
+    sy, dsy, _ = _fade(uy)
+    m = grads.shape[0] - 1
+    n = 0.0
+    gx = 0.0
+    gy = 0.0
+    for bits in range(4):
+        bx = bits & 1
+        by = (bits >> 1) & 1
+        dx = ux - bx
+        dy = uy - by
+        h = perm[i + bx + perm[j + by]] & m
+        ax = grads[h, 0]
+        ay = grads[h, 1]
+        gd = ax * dx + ay * dy
+        wx = sx if bx else 1.0 - sx
+        wy = sy if by else 1.0 - sy
+        dwx = dsx if bx else -dsx
+        dwy = dsy if by else -dsy
+        W = wx * wy
+        n += W * gd
+        gx += dwx * wy * gd + W * ax
+        gy += wx * dwy * gd + W * ay
+    return n, gx, gy
+
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def perlin3_grad(x, y, z, perm, grads):
+    """3-D improved Perlin noise and gradient: (n, dn/dx, dn/dy, dn/dz)."""
+    fx = math.floor(x)
+    fy = math.floor(y)
+    fz = math.floor(z)
+    i = np.int64(fx) & 255
+    j = np.int64(fy) & 255
+    k = np.int64(fz) & 255
+    ux = x - fx
+    uy = y - fy
+    uz = z - fz
+    sx, dsx, _ = _fade(ux)
+    sy, dsy, _ = _fade(uy)
+    sz, dsz, _ = _fade(uz)
+    m = grads.shape[0] - 1
+    n = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    for bits in range(8):
+        bx = bits & 1
+        by = (bits >> 1) & 1
+        bz = (bits >> 2) & 1
+        dx = ux - bx
+        dy = uy - by
+        dz = uz - bz
+        h = perm[i + bx + perm[j + by + perm[k + bz]]] & m
+        ax = grads[h, 0]
+        ay = grads[h, 1]
+        az = grads[h, 2]
+        gd = ax * dx + ay * dy + az * dz
+        wx = sx if bx else 1.0 - sx
+        wy = sy if by else 1.0 - sy
+        wz = sz if bz else 1.0 - sz
+        dwx = dsx if bx else -dsx
+        dwy = dsy if by else -dsy
+        dwz = dsz if bz else -dsz
+        W = wx * wy * wz
+        n += W * gd
+        gx += dwx * wy * wz * gd + W * ax
+        gy += wx * dwy * wz * gd + W * ay
+        gz += wx * wy * dwz * gd + W * az
+    return n, gx, gy, gz
+
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def perlin4_grad(x, y, z, w, perm, grads):
+    """4-D improved Perlin noise and gradient: (n, dn/dx, dn/dy, dn/dz, dn/dw)."""
+    fx = math.floor(x)
+    fy = math.floor(y)
+    fz = math.floor(z)
+    fw = math.floor(w)
+    i = np.int64(fx) & 255
+    j = np.int64(fy) & 255
+    k = np.int64(fz) & 255
+    l = np.int64(fw) & 255
+    ux = x - fx
+    uy = y - fy
+    uz = z - fz
+    uw = w - fw
+    sx, dsx, _ = _fade(ux)
+    sy, dsy, _ = _fade(uy)
+    sz, dsz, _ = _fade(uz)
+    sw, dsw, _ = _fade(uw)
+    m = grads.shape[0] - 1
+    n = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    gw = 0.0
+    for bits in range(16):
+        bx = bits & 1
+        by = (bits >> 1) & 1
+        bz = (bits >> 2) & 1
+        bw = (bits >> 3) & 1
+        dx = ux - bx
+        dy = uy - by
+        dz = uz - bz
+        dw = uw - bw
+        h = perm[i + bx + perm[j + by + perm[k + bz + perm[l + bw]]]] & m
+        ax = grads[h, 0]
+        ay = grads[h, 1]
+        az = grads[h, 2]
+        aw = grads[h, 3]
+        gd = ax * dx + ay * dy + az * dz + aw * dw
+        wx = sx if bx else 1.0 - sx
+        wy = sy if by else 1.0 - sy
+        wz = sz if bz else 1.0 - sz
+        ww = sw if bw else 1.0 - sw
+        dwx = dsx if bx else -dsx
+        dwy = dsy if by else -dsy
+        dwz = dsz if bz else -dsz
+        dww = dsw if bw else -dsw
+        W = wx * wy * wz * ww
+        n += W * gd
+        gx += dwx * wy * wz * ww * gd + W * ax
+        gy += wx * dwy * wz * ww * gd + W * ay
+        gz += wx * wy * dwz * ww * gd + W * az
+        gw += wx * wy * wz * dww * gd + W * aw
+    return n, gx, gy, gz, gw
+
+
+@njit(cache=True, fastmath=_FAST)
+def octave_grad(kind, D, x, y, z, w, perm, grads):
+    """One octave at lattice point (x, y[, z[, w]]): (n, dn/dx, dn/dy, dn/dz, dn/dw), unused = 0."""
+    if kind == KIND_SIMPLEX:
+        if D == 3:
+            n, a, b, c = simplex3_grad(x, y, z, perm, grads)
+            return n, a, b, c, 0.0
+        if D == 4:
+            return simplex4_grad(x, y, z, w, perm, grads)
+        n, a, b = simplex2_grad(x, y, perm, grads)
+        return n, a, b, 0.0, 0.0
+    if D == 3:
+        n, a, b, c = perlin3_grad(x, y, z, perm, grads)
+        return n, a, b, c, 0.0
+    if D == 4:
+        return perlin4_grad(x, y, z, w, perm, grads)
+    n, a, b = perlin2_grad(x, y, perm, grads)
+    return n, a, b, 0.0, 0.0
+
+
+@njit(cache=True, fastmath=_FAST)
+def fractal_grad(p0, p1, p2, S, t, offsets, comp, perm, grads, kind,
+                 frequency, lacunarity, gain, octaves, time_frequency, scale):
+    """Fractal noise component `comp` at the 2-D or 3-D point (p0, p1[, p2]) and time t.
+
+    Scalar form of `fractal_point` for order 1 (offsets is (components, octaves, 4)):
+    returns (N, dN/dx, dN/dy, dN/dz) (dN/dz = 0 in 2-D).
+    """
+    timed = time_frequency != 0.0
+    D = S + 1 if timed else S
+    value = 0.0
+    gx = 0.0
+    gy = 0.0
+    gz = 0.0
+    f = frequency
+    ft = time_frequency
+    a = scale
+    for o in range(octaves):
+        x = p0 * f + offsets[comp, o, 0]
+        y = p1 * f + offsets[comp, o, 1]
+        if S == 3:
+            z = p2 * f + offsets[comp, o, 2]
+            w = t * ft + offsets[comp, o, 3]
+        else:
+            z = t * ft + offsets[comp, o, 2]
+            w = 0.0
+        n, a0, a1, a2, _ = octave_grad(kind, D, x, y, z, w, perm, grads)
+        value += a * n
+        af = a * f
+        gx += af * a0
+        gy += af * a1
+        if S == 3:
+            gz += af * a2
+        f *= lacunarity
+        ft *= lacunarity
+        a *= gain
+    return value, gx, gy, gz
+
+
+@njit(cache=True)
+def _noise_point(kind, x, D, perm, grads, order, grad, hess, cell, xa, rank, corner, dc, w):
+    # Value and gradient: the scalar kernels; Hessians: the general ones.
+    if order <= 1:
+        n, grad[0], grad[1], g2, g3 = octave_grad(kind, D, x[0], x[1], x[2] if D > 2 else 0.0,
+                                                  x[3] if D > 3 else 0.0, perm, grads)
+        if D > 2:
+            grad[2] = g2
+        if D > 3:
+            grad[3] = g3
+        return n
+    if kind == KIND_SIMPLEX:
+        return simplex_point(x, D, perm, grads, order, grad, hess, cell, xa, rank, corner, dc)
+    return perlin_point(x, D, perm, grads, order, grad, hess, cell, xa, w, corner, dc)
+
+
+@njit(cache=True)
+def fractal_point(p, S, t, offsets, perm, grads, kind, order, value_grad, hess_out,
+                  x, g1, h1, cell, xa, rank, corner, dc, w,
+                  frequency, lacunarity, gain, octaves, time_frequency, scale):
+    """Fractal sum of noise at spatial point p[:S] and time t.
+
+        N(p, t) = scale * sum_o gain^o n(f_o p + offset_o, f_o tf t + offset_o,t),
+        f_o = frequency * lacunarity^o
+
+    Returns N; fills value_grad[:S] with dN/dp and, for order 2, hess_out[:S, :S].
+    offsets is (octaves, 4): a lattice offset per octave that decorrelates the octaves.
+    """
+    D = S + 1 if time_frequency != 0.0 else S
+    value = 0.0
+    for k in range(S):
+        value_grad[k] = 0.0
+        if order >= 2:
+            for j in range(S):
+                hess_out[k, j] = 0.0
+    f = frequency
+    ft = time_frequency
+    a = scale
+    for o in range(octaves):
+        for k in range(S):
+            x[k] = p[k] * f + offsets[o, k]
+        if D > S:
+            x[S] = t * ft + offsets[o, S]
+        n = _noise_point(kind, x, D, perm, grads, order, g1, h1, cell, xa, rank, corner, dc, w)
+        value += a * n
+        # Chain rule: d/dp n(f p) = f grad n, d2/dp2 = f^2 hess n.
+        if order >= 1:
+            for k in range(S):
+                value_grad[k] += a * f * g1[k]
+        if order >= 2:
+            af2 = a * f * f
+            for k in range(S):
+                for j in range(S):
+                    hess_out[k, j] += af2 * h1[k, j]
+        f *= lacunarity
+        ft *= lacunarity
+        a *= gain
+    return value
+
+
+# ---------------------------------------------------------------------------------------------
+# Scalar fractal noise over many points.
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def fractal_noise_range(start, stop, points, offsets, perm, grads, value_out, grad_out, hess_out,
+                        t, kind, order, frequency, lacunarity, gain, octaves, time_frequency, scale):
+    """Scalar fractal noise at points[start:stop]: value_out (M,), grad_out (M, S) (order >= 1),
+    hess_out (M, S, S) (order 2)."""
+    S = points.shape[1]
+    x = np.empty(4)
+    g1 = np.empty(4)
+    h1 = np.empty((4, 4))
+    cell = np.empty(4, np.int64)
+    xa = np.empty(4)
+    rank = np.empty(4, np.int64)
+    corner = np.empty(4, np.int64)
+    dc = np.empty(4)
+    w = np.empty((3, 4))
+    vg = np.empty(4)
+    hh = np.empty((4, 4))
+    for i in range(start, stop):
+        v = fractal_point(points[i], S, t, offsets, perm, grads, kind, order, vg, hh,
+                          x, g1, h1, cell, xa, rank, corner, dc, w,
+                          frequency, lacunarity, gain, octaves, time_frequency, scale)
+        value_out[i] = v
+        if order >= 1:
+            for k in range(S):
+                grad_out[i, k] = vg[k]
+        if order >= 2:
+            for k in range(S):
+                for j in range(S):
+                    hess_out[i, k, j] = hh[k, j]
+
+
+@njit(cache=True, parallel=True)
+def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
+                  t, kind, order, frequency, lacunarity, gain, octaves, time_frequency, scale):
+    """`fractal_noise_range` over all points, in parallel chunks."""
+    M = points.shape[0]
+    nchunks = (M + _CHUNK - 1) // _CHUNK
+    for ch in prange(nchunks):
+        fractal_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
+                            value_out, grad_out, hess_out, t, kind, order, frequency,
+                            lacunarity, gain, octaves, time_frequency, scale)
+
+
+@njit(cache=True)
+def fractal_noise_serial(points, offsets, perm, grads, value_out, grad_out, hess_out,
+                         t, kind, order, frequency, lacunarity, gain, octaves, time_frequency,
+                         scale):
+    """`fractal_noise` on one thread (few points)."""
+    fractal_noise_range(0, points.shape[0], points, offsets, perm, grads, value_out, grad_out,
+                        hess_out, t, kind, order, frequency, lacunarity, gain, octaves,
+                        time_frequency, scale)
+
+
+# ---------------------------------------------------------------------------------------------
+# Curl-noise (Bridson et al. 2007).
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def ramp(r):
+    """Bridson's smooth ramp: 1 for r >= 1, -1 for r <= -1, else (15 r - 10 r^3 + 3 r^5) / 8.
+
+    Returns (ramp(r), dramp/dr, d2ramp/dr2); the ramp is odd and C^2 at |r| = 1.
+    """
+    if r >= 1.0:
+        return 1.0, 0.0, 0.0
+    if r <= -1.0:
+        return -1.0, 0.0, 0.0
+    r2 = r * r
+    return ((15.0 - 10.0 * r2 + 3.0 * r2 * r2) * r / 8.0,
+            (15.0 - 30.0 * r2 + 15.0 * r2 * r2) / 8.0,
+            (-60.0 * r + 60.0 * r2 * r) / 8.0)
+
+
+@njit(cache=True, fastmath=_FAST)
+def curl_noise_range(start, stop, points, offsets, perm, grads,
+               slot, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+               rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+               out,
+               t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+               boundary_width):
+    """Velocity of curl-noise at every point, with optional boundaries.
+
+    Potentials (unit-range noise times `scale`, decorrelated by offsets[c]):
+      2-D: scalar psi;         v = (dpsi/dy, -dpsi/dx)
+      3-D: psi = (psi0, psi1, psi2); v = curl psi
+    Boundaries (slot[i] >= 0 for points with a collider within `boundary_width` = d0; the
+    bnd_* arrays are indexed by slot): with d the signed distance, n = grad d, H = grad n,
+    alpha = ramp(d / d0), a1 = ramp'(d / d0) / d0,
+      2-D: psi' = alpha psi + (1 - alpha) psi_R,
+           grad psi' = a1 n (psi - psi_R) + alpha grad psi + (1 - alpha) grad psi_R
+      3-D: psi' = alpha psi + (1 - alpha) n (n . psi) + (1 - alpha) psi_R,
+           curl psi' = a1 n x psi + alpha curl psi + (1 - alpha) grad(n . psi) x n
+                       - a1 n x psi_R + (1 - alpha) u_R,
+           grad(n . psi) = H psi + (grad psi)^T n      (curl n = 0 because n = grad d)
+    A mean flow U (mean_velocity) is added to v away from boundaries and, near them, to psi
+    as psi_U = U x (x - c) / 2 (3-D), U_x (y - c_y) - U_y (x - c_x) (2-D) before the ramp, so
+    that it too goes around the collider (potentials about different centres differ by
+    constants, whose curl is zero, so v is continuous where a point leaves the ramp zone).
+    psi_R is the potential of the collider's rigid motion u_R = V + W x (x - c):
+      2-D: psi_R = V_x (y - c_y) - V_y (x - c_x) - W (|x - c|^2 - R^2) / 2
+      3-D: psi_R = V x (x - c) / 2 + W (R^2 - |x - c|^2) / 2
+    (rigid_radius2 holds R^2; rigid_center c; for static colliders V = W = 0).
+    """
+    S = points.shape[1]
+    ncomp = 1 if S == 2 else 3
+    bounded = slot.shape[0] > 0  # an empty slot array means: no boundaries
+    psi = np.empty(3)
+    J = np.empty((3, 3))  # J[c, j] = d psi_c / d x_j
+    for i in range(start, stop):
+        p = points[i]
+        p2 = p[2] if S == 3 else 0.0
+        for c in range(ncomp):
+            psi[c], J[c, 0], J[c, 1], J[c, 2] = fractal_grad(
+                p[0], p[1], p2, S, t, offsets, c, perm, grads, kind, frequency, lacunarity,
+                gain, octaves, time_frequency, scale)
+        sl = slot[i] if bounded else -1
+        if S == 2:
+            gx = J[0, 0]
+            gy = J[0, 1]
+            if sl < 0:
+                gx -= mean_velocity[1]
+                gy += mean_velocity[0]
+            else:
+                r = bnd_distance[sl] / boundary_width
+                al, dal, _ = ramp(r)
+                a1 = dal / boundary_width
+                nx = bnd_normal[sl, 0]
+                ny = bnd_normal[sl, 1]
+                k = bnd_collider[sl]
+                cx = p[0] - rigid_center[k, 0]
+                cy = p[1] - rigid_center[k, 1]
+                # Mean flow U, as a potential about c: psi_U = U_x (y - c_y) - U_y (x - c_x).
+                psi[0] += mean_velocity[0] * cy - mean_velocity[1] * cx
+                gx -= mean_velocity[1]
+                gy += mean_velocity[0]
+                vx = rigid_velocity[k, 0]
+                vy = rigid_velocity[k, 1]
+                om = rigid_spin[k, 0]
+                psir = vx * cy - vy * cx - 0.5 * om * (cx * cx + cy * cy - rigid_radius2[k])
+                gxr = -vy - om * cx
+                gyr = vx - om * cy
+                gx = a1 * nx * (psi[0] - psir) + al * gx + (1.0 - al) * gxr
+                gy = a1 * ny * (psi[0] - psir) + al * gy + (1.0 - al) * gyr
+            out[i, 0] = gy
+            out[i, 1] = -gx
+        else:
+            if sl >= 0:
+                # Mean flow U, as a potential about the collider's centre c:
+                # psi_U = U x (x - c) / 2, grad psi_U = [U]_x / 2.
+                k = bnd_collider[sl]
+                cx = p[0] - rigid_center[k, 0]
+                cy = p[1] - rigid_center[k, 1]
+                cz = p[2] - rigid_center[k, 2]
+                U0 = 0.5 * mean_velocity[0]
+                U1 = 0.5 * mean_velocity[1]
+                U2 = 0.5 * mean_velocity[2]
+                psi[0] += U1 * cz - U2 * cy
+                psi[1] += U2 * cx - U0 * cz
+                psi[2] += U0 * cy - U1 * cx
+                J[0, 1] -= U2
+                J[0, 2] += U1
+                J[1, 0] += U2
+                J[1, 2] -= U0
+                J[2, 0] -= U1
+                J[2, 1] += U0
+            v0 = J[2, 1] - J[1, 2]
+            v1 = J[0, 2] - J[2, 0]
+            v2 = J[1, 0] - J[0, 1]
+            if sl < 0:
+                v0 += mean_velocity[0]
+                v1 += mean_velocity[1]
+                v2 += mean_velocity[2]
+            else:
+                r = bnd_distance[sl] / boundary_width
+                al, dal, _ = ramp(r)
+                a1 = dal / boundary_width
+                n0 = bnd_normal[sl, 0]
+                n1 = bnd_normal[sl, 1]
+                n2 = bnd_normal[sl, 2]
+                # gs = grad(n . psi) = H psi + J^T n
+                gs0 = (bnd_hessian[sl, 0, 0] * psi[0] + bnd_hessian[sl, 0, 1] * psi[1]
+                       + bnd_hessian[sl, 0, 2] * psi[2]
+                       + n0 * J[0, 0] + n1 * J[1, 0] + n2 * J[2, 0])
+                gs1 = (bnd_hessian[sl, 1, 0] * psi[0] + bnd_hessian[sl, 1, 1] * psi[1]
+                       + bnd_hessian[sl, 1, 2] * psi[2]
+                       + n0 * J[0, 1] + n1 * J[1, 1] + n2 * J[2, 1])
+                gs2 = (bnd_hessian[sl, 2, 0] * psi[0] + bnd_hessian[sl, 2, 1] * psi[1]
+                       + bnd_hessian[sl, 2, 2] * psi[2]
+                       + n0 * J[0, 2] + n1 * J[1, 2] + n2 * J[2, 2])
+                # Rigid-motion potential psi_R and velocity u_R about the centre c.
+                V0 = rigid_velocity[k, 0]
+                V1 = rigid_velocity[k, 1]
+                V2 = rigid_velocity[k, 2]
+                W0 = rigid_spin[k, 0]
+                W1 = rigid_spin[k, 1]
+                W2 = rigid_spin[k, 2]
+                half = 0.5 * (rigid_radius2[k] - (cx * cx + cy * cy + cz * cz))
+                pr0 = 0.5 * (V1 * cz - V2 * cy) + half * W0
+                pr1 = 0.5 * (V2 * cx - V0 * cz) + half * W1
+                pr2 = 0.5 * (V0 * cy - V1 * cx) + half * W2
+                ur0 = V0 + W1 * cz - W2 * cy
+                ur1 = V1 + W2 * cx - W0 * cz
+                ur2 = V2 + W0 * cy - W1 * cx
+                # q = psi - psi_R enters as a1 n x q.
+                q0 = psi[0] - pr0
+                q1 = psi[1] - pr1
+                q2 = psi[2] - pr2
+                b = 1.0 - al
+                v0 = a1 * (n1 * q2 - n2 * q1) + al * v0 + b * (gs1 * n2 - gs2 * n1) + b * ur0
+                v1 = a1 * (n2 * q0 - n0 * q2) + al * v1 + b * (gs2 * n0 - gs0 * n2) + b * ur1
+                v2 = a1 * (n0 * q1 - n1 * q0) + al * v2 + b * (gs0 * n1 - gs1 * n0) + b * ur2
+            out[i, 0] = v0
+            out[i, 1] = v1
+            out[i, 2] = v2
+
+
+
+
+@njit(cache=True, parallel=True)
+def curl_noise(points, offsets, perm, grads,
+               slot, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+               rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+               out,
+               t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+               boundary_width):
+    """Velocity of curl-noise at every point (see `curl_noise_range`), in parallel chunks."""
+    M = points.shape[0]
+    nchunks = (M + _CHUNK - 1) // _CHUNK
+    for ch in prange(nchunks):
+        curl_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads, slot, bnd_distance, bnd_normal, bnd_hessian,
+            bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+            out, t, kind,
+            frequency, lacunarity, gain, octaves, time_frequency, scale, boundary_width)
+
+
+@njit(cache=True)
+def curl_noise_serial(points, offsets, perm, grads,
+               slot, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+               rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+               out,
+               t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+               boundary_width):
+    """`curl_noise` on one thread: for few points, where starting threads costs more."""
+    curl_noise_range(0, points.shape[0], points, offsets, perm, grads, slot, bnd_distance, bnd_normal, bnd_hessian,
+            bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+            out, t, kind,
+            frequency, lacunarity, gain, octaves, time_frequency, scale, boundary_width)
+
+
+@njit(cache=True)
+def curl_noise_jacobian(points, offsets, perm, grads, out,
+                        t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale):
+    """Analytic Jacobian dv_i/dx_j of boundary-free curl-noise, out (M, S, S).
+
+      2-D: v = (psi_y, -psi_x)          -> dv/dx = [[psi_yx, psi_yy], [-psi_xx, -psi_xy]]
+      3-D: v_i = eps_ijk d_j psi_k      -> dv_i/dx_l = eps_ijk d_l d_j psi_k
+    The trace (the divergence) vanishes because each Hessian is symmetric.
+    One thread: this is a verification tool, and a parallel twin would double its compile time.
+    """
+    M, S = points.shape
+    ncomp = 1 if S == 2 else 3
+    x = np.empty(4)
+    g1 = np.empty(4)
+    h1 = np.empty((4, 4))
+    cell = np.empty(4, np.int64)
+    xa = np.empty(4)
+    rank = np.empty(4, np.int64)
+    corner = np.empty(4, np.int64)
+    dc = np.empty(4)
+    w = np.empty((3, 4))
+    vg = np.empty(4)
+    H = np.empty((3, 3, 3))  # H[c] = Hessian of psi_c
+    hh = np.empty((4, 4))
+    for i in range(M):
+        p = points[i]
+        for c in range(ncomp):
+            fractal_point(p, S, t, offsets[c], perm, grads, kind, 2, vg, hh,
+                          x, g1, h1, cell, xa, rank, corner, dc, w,
+                          frequency, lacunarity, gain, octaves, time_frequency, scale)
+            for a in range(S):
+                for b in range(S):
+                    H[c, a, b] = hh[a, b]
+        if S == 2:
+            for l in range(2):
+                out[i, 0, l] = H[0, 1, l]
+                out[i, 1, l] = -H[0, 0, l]
+        else:
+            for l in range(3):
+                out[i, 0, l] = H[2, 1, l] - H[1, 2, l]
+                out[i, 1, l] = H[0, 2, l] - H[2, 0, l]
+                out[i, 2, l] = H[1, 0, l] - H[0, 1, l]
+
+
+# ---------------------------------------------------------------------------------------------
+# Sampled grids: multilinear interpolation.
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def _grid_axis(u, n):
+    """Cell index, fraction and slope factor (0 when clamped) of grid coordinate u on n nodes."""
+    inside = 1.0
+    if u < 0.0:
+        u = 0.0
+        inside = 0.0
+    elif u > n - 1.0:
+        u = n - 1.0
+        inside = 0.0
+    b = min(int(math.floor(u)), n - 2)
+    return b, u - b, inside
+
+
+@njit(cache=True)
+def grid_sample(points, values, origin, inv_spacing, out, order, zero_outside):
+    """Multilinear (bilinear / trilinear) interpolation of node values (n0, n1, n2, C)
+    (2-D grids are passed as (n0, n1, 1, C)).
+
+    With u = (x - origin) / h split into cell b and fraction f per axis,
+        v(x) = sum_corners prod_k (f_k or 1 - f_k) values[b + corner]
+    order 0: out (M, C, 1) values; order 1: out (M, C, S) = dv_c/dx_j (0 along clamped axes).
+    Points outside the grid take the nearest boundary value (zero_outside False) or 0.
+    """
+    M, S = points.shape
+    C = values.shape[-1]
+    for i in range(M):
+        b0, f0, in0 = _grid_axis((points[i, 0] - origin[0]) * inv_spacing[0], values.shape[0])
+        b1, f1, in1 = _grid_axis((points[i, 1] - origin[1]) * inv_spacing[1], values.shape[1])
+        b2, f2, in2 = 0, 0.0, 1.0
+        if S == 3:
+            b2, f2, in2 = _grid_axis((points[i, 2] - origin[2]) * inv_spacing[2], values.shape[2])
+        for c in range(C):
+            for j in range(out.shape[2]):
+                out[i, c, j] = 0.0
+        if zero_outside and in0 * in1 * in2 == 0.0:
+            continue
+        for bits in range(1 << S):
+            o0 = bits & 1
+            o1 = (bits >> 1) & 1
+            o2 = (bits >> 2) & 1
+            w0 = f0 if o0 else 1.0 - f0
+            w1 = f1 if o1 else 1.0 - f1
+            w2 = (f2 if o2 else 1.0 - f2) if S == 3 else 1.0
+            # d w_k / d x_k = +-1 / h_k inside the grid, 0 where the axis is clamped
+            d0 = (1.0 if o0 else -1.0) * inv_spacing[0] * in0
+            d1 = (1.0 if o1 else -1.0) * inv_spacing[1] * in1
+            d2 = (1.0 if o2 else -1.0) * inv_spacing[2] * in2 if S == 3 else 0.0
+            for c in range(C):
+                val = values[b0 + o0, b1 + o1, b2 + o2, c]
+                if order == 0:
+                    out[i, c, 0] += w0 * w1 * w2 * val
+                else:
+                    out[i, c, 0] += d0 * w1 * w2 * val
+                    out[i, c, 1] += w0 * d1 * w2 * val
+                    if S == 3:
+                        out[i, c, 2] += w0 * w1 * d2 * val
+
+
+# ---------------------------------------------------------------------------------------------
+# Analytic primitives (Sims 1990; Wejchert & Haumann 1991).
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def vortex_field(points, center, axis, out, jac, circulation, core2, order):
+    """Regularised line vortex (Kaufmann-Scully core): with r the offset from the axis a,
+        v = Gamma / (2 pi) (a x r) / (|r|^2 + rc^2)
+    2-D: a = z, so a x r = (-r_y, r_x). Divergence-free for every rc.
+    order 1 also fills jac (M, S, S) = dv/dx:
+        dv_p/dx_q = k ([a]_x[p, q] / den - 2 (a x r)_p r_q / den^2)
+    (dr/dx = I - a a^T and [a]_x (I - a a^T) = [a]_x, d|r|^2/dx = 2 r).
+    """
+    M, S = points.shape
+    k = circulation / (2.0 * math.pi)
+    a0 = axis[0]
+    a1 = axis[1]
+    a2 = axis[2]
+    if S == 2:
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 1.0
+    for i in range(M):
+        d0 = points[i, 0] - center[0]
+        d1 = points[i, 1] - center[1]
+        d2 = points[i, 2] - center[2] if S == 3 else 0.0
+        da = d0 * a0 + d1 * a1 + d2 * a2
+        r0 = d0 - da * a0
+        r1 = d1 - da * a1
+        r2 = d2 - da * a2
+        c0 = a1 * r2 - a2 * r1
+        c1 = a2 * r0 - a0 * r2
+        c2 = a0 * r1 - a1 * r0
+        den = r0 * r0 + r1 * r1 + r2 * r2 + core2
+        out[i, 0] = k * c0 / den
+        out[i, 1] = k * c1 / den
+        if S == 3:
+            out[i, 2] = k * c2 / den
+        if order >= 1:
+            g = 2.0 * k / (den * den)
+            kd = k / den
+            # [a]_x = [[0, -a2, a1], [a2, 0, -a0], [-a1, a0, 0]]
+            jac[i, 0, 0] = -g * c0 * r0
+            jac[i, 0, 1] = -kd * a2 - g * c0 * r1
+            jac[i, 1, 0] = kd * a2 - g * c1 * r0
+            jac[i, 1, 1] = -g * c1 * r1
+            if S == 3:
+                jac[i, 0, 2] = kd * a1 - g * c0 * r2
+                jac[i, 1, 2] = -kd * a0 - g * c1 * r2
+                jac[i, 2, 0] = -kd * a1 - g * c2 * r0
+                jac[i, 2, 1] = kd * a0 - g * c2 * r1
+                jac[i, 2, 2] = -g * c2 * r2
+
+
+@njit(cache=True)
+def source_field(points, center, out, jac, strength, core2, order):
+    """Regularised point source (sink for negative strength), with r = x - c:
+        3-D: v = Q / (4 pi) r / (|r|^2 + rc^2)^(3/2)
+        2-D: v = Q / (2 pi) r / (|r|^2 + rc^2)
+    Volume flux Q through any sphere (circle) enclosing the core in the limit rc -> 0.
+    """
+    M, S = points.shape
+    for i in range(M):
+        r2 = core2
+        for a in range(S):
+            d = points[i, a] - center[a]
+            r2 += d * d
+        if S == 3:
+            k = strength / (4.0 * math.pi)
+            f = k / (r2 * math.sqrt(r2))
+            df = -3.0 * f / r2  # d f / d(|r|^2) * 2
+        else:
+            k = strength / (2.0 * math.pi)
+            f = k / r2
+            df = -2.0 * f / r2
+        for a in range(S):
+            out[i, a] = f * (points[i, a] - center[a])
+        if order >= 1:
+            for a in range(S):
+                da = points[i, a] - center[a]
+                for b in range(S):
+                    db = points[i, b] - center[b]
+                    jac[i, a, b] = df * da * db + (f if a == b else 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Boundary geometry: the Hessian of a signed distance from normals at shifted points.
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True)
+def hessian_from_normals(normal, shifted, rows, out, h, kink):
+    """grad n at m points from their normals (m, D) and those at x +- h e_a.
+
+    shifted is (2 D, R, D): shifted[2a, rows[i]] = n(x_i + h e_a), shifted[2a + 1, rows[i]] =
+    n(x_i - h e_a). Central differences (n(x + h e_a) - n(x - h e_a)) / 2h where the normal
+    is smooth across the stencil; one-sided where it turns by more than `kink` over one step
+    (an edge of the distance field), zero if on both sides. out (m, D, D) is symmetrised.
+    """
+    m, D = normal.shape
+    for i in range(m):
+        r = rows[i]
+        for a in range(D):
+            jf = 0.0
+            jb = 0.0
+            for b in range(D):
+                df = shifted[2 * a, r, b] - normal[i, b]
+                db = normal[i, b] - shifted[2 * a + 1, r, b]
+                jf += df * df
+                jb += db * db
+            kf = math.sqrt(jf) > kink
+            kb = math.sqrt(jb) > kink
+            for b in range(D):
+                df = (shifted[2 * a, r, b] - normal[i, b]) / h
+                db = (normal[i, b] - shifted[2 * a + 1, r, b]) / h
+                if kf and kb:
+                    out[i, a, b] = 0.0
+                elif kf:
+                    out[i, a, b] = db
+                elif kb:
+                    out[i, a, b] = df
+                else:
+                    out[i, a, b] = 0.5 * (df + db)
+        for a in range(D):
+            for b in range(a + 1, D):
+                sym = 0.5 * (out[i, a, b] + out[i, b, a])
+                out[i, a, b] = sym
+                out[i, b, a] = sym
