@@ -115,3 +115,21 @@ def test_primitives_drive_tracers():
     sim.run(period)
     assert np.linalg.norm(tracers.x[0]) == pytest.approx(R, abs=1e-9)
     np.testing.assert_allclose(tracers.x[0], [R, 0.0], atol=1e-6)
+
+
+def test_rotation_paths_are_circles_and_divergence_free():
+    """v = omega x (x - c): |v| = |omega| r, v . (x - c) = 0, div v = trace(J) = 0 exactly."""
+    import inertia as ia
+    rng = np.random.default_rng(2)
+    p2 = rng.uniform(-2, 2, (50, 2))
+    rot2 = ia.fields.Rotation((0.5, -0.5), 2.0)
+    v2 = rot2(p2, 0.0)
+    r2 = p2 - [0.5, -0.5]
+    np.testing.assert_allclose(np.linalg.norm(v2, axis=1), 2.0 * np.linalg.norm(r2, axis=1), rtol=1e-14)
+    np.testing.assert_allclose(np.einsum("ij,ij->i", v2, r2), 0.0, atol=1e-12)
+    p3 = rng.uniform(-2, 2, (50, 3))
+    rot3 = ia.fields.Rotation((0, 0, 0), (0.0, 0.0, 1.5))
+    np.testing.assert_allclose(rot3(p3, 0.0)[:, :2], 1.5 * np.stack([-p3[:, 1], p3[:, 0]], 1), rtol=1e-14)
+    np.testing.assert_allclose(rot3.divergence(p3, 0.0), 0.0, atol=1e-15)
+    with pytest.raises(ValueError, match="angular_velocity"):
+        ia.fields.Rotation((0, 0, 0), 1.0)

@@ -9,17 +9,17 @@ velocities; ``field.sample(points, t, out)`` fills a preallocated array (what
   fractal octaves, analytic gradient and Hessian (``noise.py``).
 - ``CurlNoise``: divergence-free flow after Bridson et al. (2007), going around colliders
   (``curl.py``).
-- ``Uniform``, ``Vortex``, ``Source``, ``Sink`` (``analytic.py``) and ``Grid`` (``grid.py``).
+- ``Uniform``, ``Rotation``, ``Vortex``, ``Source``, ``Sink`` (``analytic.py``) and ``Grid`` (``grid.py``).
 - ``Field``, ``Sum``, ``Scaled``: the protocol and its arithmetic (``base.py``).
 
 References and limitations are listed in each module.
 """
 
-from .analytic import Sink, Source, Uniform, Vortex
+from .analytic import Rotation, Sink, Source, Uniform, Vortex
 from .base import Field, Scaled, Sum
 from .curl import CurlNoise
 from .grid import Grid
 from .noise import Noise
 
-__all__ = ["CurlNoise", "Field", "Grid", "Noise", "Scaled", "Sink", "Source", "Sum", "Uniform",
-           "Vortex"]
+__all__ = ["CurlNoise", "Field", "Grid", "Noise", "Rotation", "Scaled", "Sink", "Source", "Sum",
+           "Uniform", "Vortex"]

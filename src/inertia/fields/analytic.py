@@ -5,6 +5,7 @@ Wejchert & Haumann (1991); combine them with ``+`` and scalar ``*`` (see ``base.
 All have analytic Jacobians.
 
     Uniform:  v = U
+    Rotation: v = omega x (x - c)    (rigid rotation; 2-D: omega (-(y - cy), x - cx))
     Vortex:   v = Gamma / (2 pi) (a x r) / (|r|^2 + rc^2)      r: offset from the axis
     Source:   v = Q / (4 pi) r / (|r|^2 + rc^2)^(3/2)     (3-D)
               v = Q / (2 pi) r / (|r|^2 + rc^2)           (2-D)
@@ -15,11 +16,14 @@ References
   SIGGRAPH '90: vortices and other flow primitives for particle systems.
 - Wejchert, J. & Haumann, D. (1991), "Animation aerodynamics", SIGGRAPH '91: uniform flow,
   sources, sinks and vortices superposed as potential flows.
+- Witkin & Baraff (2001), "Differential Equation Basics": the rigid rotation field, whose exact
+  paths are circles (explicit Euler spirals outward, RK4 stays on the circle to O(h^4)).
 - Kaufmann, W. (1962) / Scully, M. P. (1975): the regularised vortex core |r|^2 + rc^2 used here
   (the velocity peaks at |r| = rc instead of diverging on the axis).
 
 Limitations
 -----------
+- Rotation has no core: its speed grows with the distance from the centre.
 - Vortex lines are straight and infinite; sources are points. The regularised source is not
   divergence-free inside its core (its volume flux is spread over the core, as intended).
 - These primitives do not know about colliders: they flow through solids (use ``CurlNoise``
@@ -63,6 +67,54 @@ class Uniform(Field):
 
     def __repr__(self):
         return f"Uniform({self.velocity.tolist()})"
+
+
+class Rotation(Field):
+    """Rigid rotation ``v = omega x (x - center)``.
+
+    `angular_velocity` is a number in rad/s for 2-D (counter-clockwise) or an (axis * rad/s)
+    3-vector for 3-D; the dimension follows `center`.
+    """
+
+    def __init__(self, center, angular_velocity):
+        self.center = as_vector(center, "center")
+        self.dim = self.center.shape[0]
+        if self.dim == 2:
+            self.omega = _finite(angular_velocity, "angular_velocity")
+        else:
+            self.omega = as_vector(angular_velocity, "angular_velocity")
+            if self.omega.shape[0] != 3:
+                raise ValueError(f"angular_velocity must be a 3-vector for a 3-D center; got {self.omega.tolist()}")
+        self._offset = np.empty((0, self.dim))
+
+    def sample(self, points, t, out):
+        self._check_out(points, out)
+        c, w = self.center, self.omega
+        if self.dim == 2:
+            # out = w (-(y - cy), x - cx), column by column without temporaries
+            np.subtract(points[:, 1], c[1], out=out[:, 0])
+            out[:, 0] *= -w
+            np.subtract(points[:, 0], c[0], out=out[:, 1])
+            out[:, 1] *= w
+            return
+        if self._offset.shape != points.shape:
+            self._offset = np.empty_like(points)
+        r = self._offset
+        np.subtract(points, c, out=r)
+        out[:, 0] = w[1] * r[:, 2] - w[2] * r[:, 1]
+        out[:, 1] = w[2] * r[:, 0] - w[0] * r[:, 2]
+        out[:, 2] = w[0] * r[:, 1] - w[1] * r[:, 0]
+
+    def sample_jacobian(self, points, t, out):
+        out[:] = 0.0
+        if self.dim == 2:
+            out[:, 0, 1], out[:, 1, 0] = -self.omega, self.omega
+        else:
+            w = self.omega
+            out[:] = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+    def __repr__(self):
+        return f"Rotation(center={self.center.tolist()}, angular_velocity={np.asarray(self.omega).tolist()})"
 
 
 class Vortex(Field):

@@ -198,12 +198,11 @@ class _Builder:
         return obj
 
     def _make_field(self, spec, path):
-        from . import fields as local
         import inertia.fields as fields
 
         dim = self.dim
         if spec.type == "uniform":
-            return local.uniform(self.vec(spec.velocity, f"{path}.velocity"))
+            return fields.Uniform(self.vec(spec.velocity, f"{path}.velocity"))
         if spec.type == "rotation":
             center = self.vec(spec.center, f"{path}.center")
             w = spec.angular_velocity
@@ -211,7 +210,7 @@ class _Builder:
                 w = self.vec([0.0, 0.0, w] if isinstance(w, float) else w, f"{path}.angular_velocity", 3)
             elif not isinstance(w, float):
                 self.fail(f"{path}.angular_velocity", "must be a number (rad/s) in a 2-D scene")
-            return local.Rotation(center, w)
+            return fields.Rotation(center, w)
         if spec.type == "vortex":
             cls = self.require(fields, "Vortex", path)
             kwargs = dict(center=self.vec(spec.center, f"{path}.center"), circulation=spec.circulation,
