@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from .._jit import parallel_kernel
+from .._jit import SizeDispatched, parallel_kernel
 
 # Fixed chunk count for reductions: the chunking, hence the rounding, is the same at any
 # thread count, which keeps runs bit-identical at 1 and at N threads.
@@ -90,13 +90,17 @@ def verlet_advance(x, x_prev, v, a, a_prev, h):
         a_prev[i] = a[i]
 
 
-@parallel_kernel
-def all_finite(y):
+def _all_finite(y):
     """True when every entry of y is finite: sum(y * 0) is 0, or NaN as soon as one entry is NaN/inf."""
     acc = 0.0
     for i in prange(y.shape[0]):
         acc += y[i] * 0.0
     return acc == 0.0
+
+
+# Reassociation (only) lets the reduction vectorise; NaN and inf keep their IEEE meaning, which the
+# check relies on (the full fastmath set would assume them away).
+all_finite = SizeDispatched(njit(cache=True, parallel=True, fastmath={"reassoc"})(_all_finite))
 
 
 # ---------------------------------------------------------------------------------------
