@@ -1,0 +1,806 @@
+"""Numba kernels of the particle collision stage (see ``particle_stage`` for the algorithm).
+
+Colliders are passed packed (``ParticleCollisionData.pack``):
+
+cint  (K, 4) int64    [kind, flags (1 moving), cf offset, ci offset]
+cnear (K, 5) float64  cheap distance lower bound for the "far from everything" test:
+                      [NEAR_PLANE, n, c] | [NEAR_BALL, centre, bounding radius] |
+                      [NEAR_PLANES, cf offset, plane count, -, -] | [NEAR_ALWAYS] | [NEAR_NEVER]
+cmat  (K, 2) float64  [restitution, friction]
+cf, ci                flat shape data (layouts in ``distance``)
+pose0, pose1 (K, 12)  [p, R] of each collider at the start / end of the step
+ref   (K, 3)          rest reference point
+
+Per-particle contact state (written by ``classify_contacts`` / ``collide_particles``, read by
+the force filter and the next ``collide_particles``):
+
+rest_k (N,) int64     collider the particle rests on, -1 if none
+rest_n (N, 3)         its unit outward normal there (world)
+rest_u (N, 3)         the collider's surface velocity there (world, m/s)
+load   (N,)           normal load per unit mass the filter cancelled (m/s^2), last evaluation
+static_ok (N,) bool   the applied tangential force is within the static friction cone
+
+All kernels are pure functions: inputs, then outputs, then scalars; nothing is allocated.
+Particles are independent in ``collide_particles`` (parallel, deterministic); the pair solver
+processes colour batches (write-disjoint) in parallel.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit, prange
+
+from . import distance as _d
+from ._jit import serial_twin
+from .broadphase import MAX_COLORS
+from .response import surface_response
+from .toi import may_hit, segment_toi
+
+NEAR_PLANE, NEAR_BALL, NEAR_PLANES, NEAR_ALWAYS, NEAR_NEVER = 0.0, 1.0, 2.0, 3.0, 4.0
+
+
+@njit(cache=True, parallel=True)
+def copy_into(src, dst):
+    """dst[:] = src (1-D), in parallel."""
+    for i in prange(src.shape[0]):
+        dst[i] = src[i]
+
+
+@njit(cache=True)
+def _eval(cint, cf, ci, pose, ref, k, x, y, z):
+    """Distance, world normal and rest point of collider k at world point (x, y, z) for `pose`."""
+    kind, moving = cint[k, 0], cint[k, 1] & 1
+    if moving:
+        lx, ly, lz = _d.to_rest(pose[k], ref[k], x, y, z)
+    else:
+        lx, ly, lz = x, y, z
+    d, gx, gy, gz = _d.sdf(kind, cf, cint[k, 2], ci, cint[k, 3], lx, ly, lz)
+    if moving:
+        gx, gy, gz = _d.rotate(pose[k], gx, gy, gz)
+    return d, gx, gy, gz, lx, ly, lz
+
+
+@njit(cache=True)
+def _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt):
+    """Average velocity over the step of the collider material at rest point l."""
+    if not (cint[k, 1] & 1):
+        return 0.0, 0.0, 0.0
+    ax, ay, az = _d.to_world(pose0[k], ref[k], lx, ly, lz)
+    bx, by, bz = _d.to_world(pose1[k], ref[k], lx, ly, lz)
+    return (bx - ax) * inv_dt, (by - ay) * inv_dt, (bz - az) * inv_dt
+
+
+@njit(cache=True)
+def _classify_one(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref, inv_dt, tol,
+                  rest_speed, keep, rest_k, rest_n, rest_u):
+    # resting contact: within tol of a surface and not moving along its normal
+    kbest = -1
+    for k in range(cint.shape[0]):
+        if cint[k, 0] == _d.CALLABLE:
+            continue
+        d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose_at, ref, k, x, y, z)
+        if d - r > tol:
+            continue
+        ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
+        wn = (vx - ux) * nx + (vy - uy) * ny + (vz - uz) * nz
+        if abs(wn) > rest_speed:
+            continue
+        if kbest < 0 or k == keep:
+            kbest = k
+            rest_n[i, 0], rest_n[i, 1], rest_n[i, 2] = nx, ny, nz
+            rest_u[i, 0], rest_u[i, 1], rest_u[i, 2] = ux, uy, uz
+    rest_k[i] = kbest
+
+
+@njit(cache=True, parallel=True)
+def classify_contacts(x, v, radius, inv_mass, active, cint, cf, ci, pose_at, pose0, pose1, ref,
+                      rest_k, rest_n, rest_u, dt, tol, rest_speed):
+    """Resting-contact state of every particle at positions x (colliders at ``pose_at``).
+    Returns the number of resting particles."""
+    n, dim = x.shape
+    inv_dt = 1.0 / dt
+    resting = 0
+    for i in prange(n):
+        if not active[i] or inv_mass[i] == 0.0:
+            rest_k[i] = -1
+            continue
+        z = x[i, 2] if dim == 3 else 0.0
+        vz = v[i, 2] if dim == 3 else 0.0
+        _classify_one(i, x[i, 0], x[i, 1], z, v[i, 0], v[i, 1], vz, radius[i], cint, cf, ci,
+                      pose_at, pose0, pose1, ref, inv_dt, tol, rest_speed, rest_k[i], rest_k, rest_n,
+                      rest_u)
+        if rest_k[i] >= 0:
+            resting += 1
+    return resting
+
+
+@njit(cache=True, parallel=True)
+def push_out(x, v, radius, inv_mass, active, cint, cf, ci, pose, ref, tol, inside_count):
+    """Project particles that lie inside a collider onto its surface and remove their inward
+    normal velocity (relative to a static surface). inside_count (K,) int64 receives, per
+    collider, how many particles were inside it. Returns the number of particles moved."""
+    n, dim = x.shape
+    moved = 0
+    for k in range(cint.shape[0]):
+        if cint[k, 0] == _d.CALLABLE:
+            inside_count[k] = 0
+            continue
+        count = 0
+        for i in prange(n):
+            if not active[i] or inv_mass[i] == 0.0:
+                continue
+            z = x[i, 2] if dim == 3 else 0.0
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose, ref, k, x[i, 0], x[i, 1], z)
+            f = d - radius[i]
+            if f >= -tol:
+                continue
+            count += 1
+            x[i, 0] -= f * nx
+            x[i, 1] -= f * ny
+            vn = v[i, 0] * nx + v[i, 1] * ny
+            if dim == 3:
+                x[i, 2] -= f * nz
+                vn += v[i, 2] * nz
+            if vn < 0.0:
+                v[i, 0] -= vn * nx
+                v[i, 1] -= vn * ny
+                if dim == 3:
+                    v[i, 2] -= vn * nz
+        inside_count[k] = count
+        moved += count
+    return moved
+
+
+@njit(cache=True)
+def _resting_motion(x0x, x0y, x0z, v0x, v0y, v0z, ax, ay, az, nx, ny, nz, ux, uy, uz, mu, dt,
+                    rest_speed):
+    """End of step (x, v) of a particle resting on a surface when the force filter did not run
+    (a fused integrator step): the same physics applied to the step's average acceleration a.
+
+    Relative to the surface (velocity u): the normal part of a pushing in is cancelled (load
+    -a.N); at rest, static friction holds while |a_T| <= mu load, else the particle starts to
+    slide with a_T (1 - mu load / |a_T|); sliding, kinetic friction mu load opposes the sliding
+    direction, and if it stops the particle within the step it stays (static) or restarts.
+    Constant acceleration over the step: x = x0 + (u + w0) t + a_c t^2 / 2 (exact for constant
+    forces, like the filter with any Runge-Kutta method).
+    """
+    an = ax * nx + ay * ny + az * nz  # < 0: the caller checked that a pushes into the surface
+    # no motion into the surface at the start
+    wx, wy, wz = v0x - ux, v0y - uy, v0z - uz
+    wn = wx * nx + wy * ny + wz * nz
+    if wn < 0.0:
+        wx, wy, wz = wx - wn * nx, wy - wn * ny, wz - wn * nz
+        wn = 0.0
+    # F' = F_T: cancel the push into the surface
+    tax, tay, taz = ax - an * nx, ay - an * ny, az - an * nz
+    load = -an
+    limit = mu * load
+    at = math.sqrt(tax * tax + tay * tay + taz * taz)
+    tx, ty, tz = wx - wn * nx, wy - wn * ny, wz - wn * nz
+    speed = math.sqrt(tx * tx + ty * ty + tz * tz)
+    px = py = pz = 0.0  # displacement relative to the surface
+    rem = dt
+    if speed > rest_speed:
+        # kinetic friction against the sliding direction
+        dx, dy, dz = tx / speed, ty / speed, tz / speed
+        cx, cy, cz = tax - limit * dx, tay - limit * dy, taz - limit * dz
+        decel = -(cx * dx + cy * dy + cz * dz)
+        tau = dt
+        if decel > 0.0 and speed < decel * dt:
+            tau = speed / decel  # friction stops the sliding at tau
+        px, py, pz = wx * tau + 0.5 * cx * tau * tau, wy * tau + 0.5 * cy * tau * tau, wz * tau + 0.5 * cz * tau * tau
+        wx, wy, wz = wx + cx * tau, wy + cy * tau, wz + cz * tau
+        rem = dt - tau
+        if rem > 0.0:
+            # stopped: drop the residual tangential velocity
+            wn = wx * nx + wy * ny + wz * nz
+            wx, wy, wz = wn * nx, wn * ny, wn * nz
+    if rem > 0.0:
+        if at <= limit:
+            cx = cy = cz = 0.0       # static friction holds
+            wx, wy, wz = wn * nx, wn * ny, wn * nz
+        else:
+            s = 1.0 - limit / at    # starts to slide along a_T
+            cx, cy, cz = s * tax, s * tay, s * taz
+        px += wx * rem + 0.5 * cx * rem * rem
+        py += wy * rem + 0.5 * cy * rem * rem
+        pz += wz * rem + 0.5 * cz * rem * rem
+        wx, wy, wz = wx + cx * rem, wy + cy * rem, wz + cz * rem
+    return (x0x + ux * dt + px, x0y + uy * dt + py, x0z + uz * dt + pz, ux + wx, uy + wy, uz + wz)
+
+
+@njit(cache=True)
+def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
+               static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az,
+               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, resting_done):
+    """Steps 1-4 of ``collide_particles`` for one particle near a collider (kept out of the hot
+    loop so that the far-from-everything path stays small). Returns the final (x, v), whether
+    anything changed and whether the particle rests afterwards."""
+    ncol = cint.shape[0]
+    inv_dt = 1.0 / dt
+    r = radius[i]
+    modified = resting_done
+    # 1. resting contact (unless the caller applied the resting motion already)
+    if kr >= 0 and not resting_done:
+        nx, ny, nz = rest_n[i, 0], rest_n[i, 1], rest_n[i, 2]
+        ux, uy, uz = rest_u[i, 0], rest_u[i, 1], rest_u[i, 2]
+        if not filter_ran and ax * nx + ay * ny + az * nz < 0.0:
+            ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
+                                                        ux, uy, uz, cmat[kr, 1], dt, rest_speed)
+            ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+            modified = True
+        else:
+            wx, wy, wz = evx - ux, evy - uy, evz - uz
+            wn = wx * nx + wy * ny + wz * nz
+            tx, ty, tz = wx - wn * nx, wy - wn * ny, wz - wn * nz
+            tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+            stop = static_ok[i] and tl > 0.0 and tl <= cmat[kr, 1] * load[i] * dt + rest_speed
+            if wn < 0.0 or stop:
+                if stop:
+                    tx = ty = tz = 0.0
+                wn = max(wn, 0.0)
+                evx, evy, evz = ux + tx + wn * nx, uy + ty + wn * ny, uz + tz + wn * nz
+                modified = True
+
+    # 2. continuous detection along the step's straight path
+    s_start = 0.0
+    if a_priori:
+        for _ in range(max_sub):
+            best = 2.0
+            bk = -1
+            bsig = 0.0
+            bgx = bgy = bgz = 0.0
+            blsx = blsy = blsz = blex = bley = blez = 0.0
+            for k in range(ncol):
+                kind = cint[k, 0]
+                if kind == _d.CALLABLE or not (near >> min(k, 62)) & 1:
+                    continue
+                o, io = cint[k, 2], cint[k, 3]
+                if cint[k, 1] & 1:
+                    # rest frame: start through the pose at s_start (interpolated), end at 1
+                    a0x, a0y, a0z = _d.to_rest(pose0[k], ref[k], sx, sy, sz)
+                    a1x, a1y, a1z = _d.to_rest(pose1[k], ref[k], sx, sy, sz)
+                    lsx = a0x + s_start * (a1x - a0x)
+                    lsy = a0y + s_start * (a1y - a0y)
+                    lsz = a0z + s_start * (a1z - a0z)
+                    lex, ley, lez = _d.to_rest(pose1[k], ref[k], ex, ey, ez)
+                else:
+                    lsx, lsy, lsz, lex, ley, lez = sx, sy, sz, ex, ey, ez
+                if not may_hit(kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley, lez, r, tol):
+                    continue
+                hit, sig, gx, gy, gz = segment_toi(kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley,
+                                                   lez, r, tol, max_iter)
+                if hit:
+                    s_abs = s_start + sig * (1.0 - s_start)
+                    if s_abs < best:
+                        best, bk, bsig, bgx, bgy, bgz = s_abs, k, sig, gx, gy, gz
+                        blsx, blsy, blsz, blex, bley, blez = lsx, lsy, lsz, lex, ley, lez
+            if bk < 0:
+                break
+            # contact point (rest frame -> world at the time of impact), normal, surface velocity
+            lcx = blsx + bsig * (blex - blsx)
+            lcy = blsy + bsig * (bley - blsy)
+            lcz = blsz + bsig * (blez - blsz)
+            if cint[bk, 1] & 1:
+                w0x, w0y, w0z = _d.to_world(pose0[bk], ref[bk], lcx, lcy, lcz)
+                w1x, w1y, w1z = _d.to_world(pose1[bk], ref[bk], lcx, lcy, lcz)
+                cx, cy, cz = w0x + best * (w1x - w0x), w0y + best * (w1y - w0y), w0z + best * (w1z - w0z)
+                ux, uy, uz = (w1x - w0x) * inv_dt, (w1y - w0y) * inv_dt, (w1z - w0z) * inv_dt
+                n0x, n0y, n0z = _d.rotate(pose0[bk], bgx, bgy, bgz)
+                n1x, n1y, n1z = _d.rotate(pose1[bk], bgx, bgy, bgz)
+                nx, ny, nz = n0x + best * (n1x - n0x), n0y + best * (n1y - n0y), n0z + best * (n1z - n0z)
+                nl = math.sqrt(nx * nx + ny * ny + nz * nz)
+                nx, ny, nz = nx / nl, ny / nl, nz / nl
+            else:
+                cx, cy, cz = lcx, lcy, lcz
+                ux = uy = uz = 0.0
+                nx, ny, nz = bgx, bgy, bgz
+            # velocity at the time of impact (constant acceleration over the step)
+            tau = (best - s_start) * dt
+            cvx, cvy, cvz = svx + tau * ax, svy + tau * ay, svz + tau * az
+            an = ax * nx + ay * ny + az * nz
+            threshold = 2.0 * max(0.0, -an) * dt + rest_speed
+            cvx, cvy, cvz, _hit = surface_response(cvx, cvy, cvz, ux, uy, uz, nx, ny, nz,
+                                                   cmat[bk, 0], cmat[bk, 1], threshold)
+            # a contact that holds the particle cancels the acceleration into the surface
+            if an < 0.0 and (cvx - ux) * nx + (cvy - uy) * ny + (cvz - uz) * nz <= threshold:
+                ax, ay, az = ax - an * nx, ay - an * ny, az - an * nz
+            # finish the step from the contact: x = xc + v rem + a rem^2 / 2
+            rem = (1.0 - best) * dt
+            ex = cx + rem * cvx + 0.5 * rem * rem * ax
+            ey = cy + rem * cvy + 0.5 * rem * rem * ay
+            ez = cz + rem * cvz + 0.5 * rem * rem * az
+            evx, evy, evz = cvx + rem * ax, cvy + rem * ay, cvz + rem * az
+            sx, sy, sz, svx, svy, svz = cx, cy, cz, cvx, cvy, cvz
+            s_start = best
+            modified = True
+            near = -1  # the path changed: every collider is a candidate now
+
+    if modified:
+        near = -1
+    # 3. end-of-step projection (the a-posteriori response; a safety net a priori)
+    for _ in range(3):
+        pushed = False
+        for k in range(ncol):
+            if cint[k, 0] == _d.CALLABLE or not (near >> min(k, 62)) & 1:
+                continue
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, ex, ey, ez)
+            f = d - r
+            if f >= tol:
+                continue
+            # Witkin & Baraff: (X - P).N < eps and N.V < 0 (relative to the surface)
+            ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
+            heading_in = (evx - ux) * nx + (evy - uy) * ny + (evz - uz) * nz < 0.0
+            deep = f < -tol or (f < 0.0 and k == kr)
+            if not (deep or heading_in):
+                continue
+            if f < 0.0:
+                ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
+            if heading_in:
+                an = ax * nx + ay * ny + az * nz
+                threshold = 2.0 * max(0.0, -an) * dt + rest_speed
+                evx, evy, evz, _hit = surface_response(evx, evy, evz, ux, uy, uz, nx, ny, nz,
+                                                       cmat[k, 0], cmat[k, 1], threshold)
+            pushed = True
+            modified = True
+        if not pushed:
+            break
+        near = -1
+
+    # 4. resting-contact state for the next step (only near colliders can hold it)
+    if classify:
+        kbest = -1
+        for k in range(ncol):
+            if cint[k, 0] == _d.CALLABLE or not (near >> min(k, 62)) & 1:
+                continue
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, ex, ey, ez)
+            if d - r > tol:
+                continue
+            ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
+            wn = (evx - ux) * nx + (evy - uy) * ny + (evz - uz) * nz
+            if abs(wn) > rest_speed:
+                continue
+            if kbest < 0 or k == kr:
+                kbest = k
+                rest_n[i, 0], rest_n[i, 1], rest_n[i, 2] = nx, ny, nz
+                rest_u[i, 0], rest_u[i, 1], rest_u[i, 2] = ux, uy, uz
+        if kbest != kr:
+            rest_k[i] = kbest
+        return ex, ey, ez, evx, evy, evz, modified, kbest >= 0
+    return ex, ey, ez, evx, evy, evz, modified, False
+
+
+@njit(cache=True, parallel=True)
+def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cnear, cmat, cf, ci, pose0,
+                      pose1, ref, rest_k, rest_n, rest_u, load, static_ok, dv_step,
+                      dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, write_dv,
+                      filter_ran, save_next):
+    """Detect and respond to particle-collider contacts for one step, in place on x and v.
+
+    x0, v0: the state at the start of the step (rows valid where active0). For each particle
+    (independently, in parallel):
+    0. colliders that provably cannot be reached from the step's path are skipped (one distance
+       evaluation at the end point each);
+    1. resting contact (rest_k >= 0): if the force filter ran, remove normal velocity into the
+       surface and stop sliding that friction stops within the step; if it did not run (fused
+       integrator), recompute the step's motion with the filtered acceleration
+       (``_resting_motion``);
+    2. a priori: the earliest time of impact along the straight path x0 -> x over the colliders,
+       move there, respond, finish the step with the remaining time from the contact; up to
+       ``max_sub`` impacts;
+    3. the end position is projected out of any collider it is inside (the whole response in
+       a-posteriori mode; a safety net a priori);
+    4. (classify) the resting-contact state for the next step;
+    5. (save_next) x0, v0 = the final x, v (the next step's start, saving begin_step a copy).
+    Returns (number of particles changed, number resting).
+    """
+    n, dim = x.shape
+    ncol = cint.shape[0]
+    inv_dt = 1.0 / dt
+    changed = 0
+    resting = 0
+    for i in prange(n):
+        if not active[i] or inv_mass[i] == 0.0:
+            if rest_k[i] != -1:
+                rest_k[i] = -1
+            continue
+        r = radius[i]
+        ex, ey = x[i, 0], x[i, 1]
+        ez = x[i, 2] if dim == 3 else 0.0
+        evx, evy = v[i, 0], v[i, 1]
+        evz = v[i, 2] if dim == 3 else 0.0
+        started = active0[i]
+        if started:
+            sx, sy = x0[i, 0], x0[i, 1]
+            sz = x0[i, 2] if dim == 3 else 0.0
+        else:  # became active during the step: no path to sweep
+            sx, sy, sz = ex, ey, ez
+        if write_dv:
+            if started:
+                dv_step[i, 0], dv_step[i, 1] = evx - v0[i, 0], evy - v0[i, 1]
+                dv_step[i, 2] = (evz - v0[i, 2]) if dim == 3 else 0.0
+            else:
+                dv_step[i, 0] = dv_step[i, 1] = dv_step[i, 2] = 0.0
+        kr = rest_k[i]
+        modified = False
+
+        # 0. colliders near the path (bit k of `near`): a lower bound of the distance at the end
+        #    point (exact for planes and containers, the bounding sphere otherwise) beyond the
+        #    path length proves the path cannot reach the surface. Inline math only: this runs
+        #    for every particle.
+        length2 = (ex - sx) ** 2 + (ey - sy) ** 2 + (ez - sz) ** 2  # squared: no sqrt on this path
+        near = 0
+        for k in range(ncol):
+            kind = cnear[k, 0]
+            if kind == NEAR_NEVER:
+                continue
+            if kind == NEAR_PLANE:
+                lb1 = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
+            elif kind == NEAR_BALL:
+                lb1 = math.sqrt((ex - cnear[k, 1]) ** 2 + (ey - cnear[k, 2]) ** 2 + (ez - cnear[k, 3]) ** 2)
+                lb1 -= cnear[k, 4]
+            elif kind == NEAR_PLANES:
+                o, m = int(cnear[k, 1]), int(cnear[k, 2])
+                lb1 = 1e300
+                for p in range(m):
+                    b = o + 4 * p
+                    lb1 = min(lb1, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
+            else:
+                lb1 = -1e300  # always a candidate (moving colliders)
+            gap = lb1 - r - 2.0 * tol  # far iff gap > |x1 - x0|
+            if k >= 62 or k == kr or gap <= 0.0 or gap * gap <= length2:
+                near |= 1 << min(k, 62)
+        if near == 0 and kr < 0:
+            # far from every collider: nothing to do
+            if save_next:
+                x0[i, 0], x0[i, 1], v0[i, 0], v0[i, 1] = ex, ey, evx, evy
+                if dim == 3:
+                    x0[i, 2], v0[i, 2] = ez, evz
+            continue
+        # near: the start velocity and the step's average acceleration (exact for constant forces)
+        if started:
+            svx, svy = v0[i, 0], v0[i, 1]
+            svz = v0[i, 2] if dim == 3 else 0.0
+        else:
+            svx, svy, svz = evx, evy, evz
+        ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+
+        # 1. resting on a static plane and near nothing else (a floor, the bottom of a pile):
+        #    the resting motion, and if the particle is still on the plane without normal motion,
+        #    done without the general path
+        resting_done = False
+        if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62 and not filter_ran:
+            nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
+            if ax * nx + ay * ny + az * nz < 0.0:
+                ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
+                                                            0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
+                ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+                modified = resting_done = True
+            f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
+            wn = evx * nx + evy * ny + evz * nz
+            if -tol <= f <= tol and abs(wn) <= rest_speed:
+                if f < 0.0:
+                    ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
+                    modified = True
+                if modified:
+                    changed += 1
+                    x[i, 0], x[i, 1] = ex, ey
+                    v[i, 0], v[i, 1] = evx, evy
+                    if dim == 3:
+                        x[i, 2], v[i, 2] = ez, evz
+                if save_next:
+                    x0[i, 0], x0[i, 1], v0[i, 0], v0[i, 1] = ex, ey, evx, evy
+                    if dim == 3:
+                        x0[i, 2], v0[i, 2] = ez, evz
+                if classify:
+                    resting += 1  # rest_k, rest_n (the plane's normal) and rest_u (0) stay
+                continue
+
+        # 2-4. near a collider: the general path
+        ex, ey, ez, evx, evy, evz, mod, rests = _full_path(
+            i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load, static_ok,
+            near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az, dt, tol, rest_speed,
+            a_priori, max_sub, max_iter, classify, filter_ran, resting_done)
+        if mod or modified:
+            changed += 1
+            x[i, 0], x[i, 1] = ex, ey
+            v[i, 0], v[i, 1] = evx, evy
+            if dim == 3:
+                x[i, 2], v[i, 2] = ez, evz
+        if save_next:
+            x0[i, 0], x0[i, 1], v0[i, 0], v0[i, 1] = ex, ey, evx, evy
+            if dim == 3:
+                x0[i, 2], v0[i, 2] = ez, evz
+        if rests:
+            resting += 1
+    return changed, resting
+
+
+@njit(cache=True, parallel=True)
+def resting_filter(v, f, inv_mass, rest_k, rest_n, rest_u, cmat, rest_speed, load, static_ok):
+    """Resting-contact force filter (Witkin & Baraff): for a particle resting on a surface, cancel
+    the normal component of the applied force that pushes into it (F' = F_T) and apply Coulomb
+    friction: static (cancel F_T) while the particle is at rest and |F_T| <= mu |F_N|, kinetic
+    (mu |F_N| against the sliding velocity) otherwise. f (N, D) is modified in place."""
+    n, dim = f.shape
+    for i in prange(n):
+        k = rest_k[i]
+        if k < 0 or inv_mass[i] == 0.0:
+            continue
+        nx, ny, nz = rest_n[i, 0], rest_n[i, 1], rest_n[i, 2]
+        fx, fy = f[i, 0], f[i, 1]
+        fz = f[i, 2] if dim == 3 else 0.0
+        fn = fx * nx + fy * ny + fz * nz
+        if fn >= 0.0:
+            # pulling away: the contact lets go
+            load[i] = 0.0
+            static_ok[i] = True
+            continue
+        # F' = F - (F.N) N: the contact force cancels the push into the surface
+        fx, fy, fz = fx - fn * nx, fy - fn * ny, fz - fn * nz
+        normal_load = -fn
+        mu = cmat[k, 1]
+        vx, vy = v[i, 0] - rest_u[i, 0], v[i, 1] - rest_u[i, 1]
+        vz = (v[i, 2] if dim == 3 else 0.0) - rest_u[i, 2]
+        vn = vx * nx + vy * ny + vz * nz
+        tx, ty, tz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+        speed = math.sqrt(tx * tx + ty * ty + tz * tz)
+        ft = math.sqrt(fx * fx + fy * fy + fz * fz)
+        limit = mu * normal_load
+        static_ok[i] = ft <= limit
+        if speed <= rest_speed:
+            if ft <= limit:
+                fx = fy = fz = 0.0  # static friction holds it
+            else:
+                s = limit / ft     # starts to slide along F_T
+                fx, fy, fz = fx - s * fx, fy - s * fy, fz - s * fz
+        else:
+            s = limit / speed      # kinetic friction against the sliding velocity
+            fx, fy, fz = fx - s * tx, fy - s * ty, fz - s * tz
+        load[i] = normal_load * inv_mass[i]
+        f[i, 0], f[i, 1] = fx, fy
+        if dim == 3:
+            f[i, 2] = fz
+
+
+@njit(cache=True, parallel=True)
+def mark_pairs(pair_i, pair_j, color_start, color_order, ncolors, in_pair):
+    """in_pair[p] = 1 for every particle in a pair (colour batches are write-disjoint); int8."""
+    for c in range(ncolors):
+        if c == MAX_COLORS - 1:
+            for q in range(color_start[c], color_start[c + 1]):
+                p = color_order[q]
+                in_pair[pair_i[p]] = 1
+                in_pair[pair_j[p]] = 1
+        else:
+            for q in prange(color_start[c], color_start[c + 1]):
+                p = color_order[q]
+                in_pair[pair_i[p]] = 1
+                in_pair[pair_j[p]] = 1
+
+
+@njit(cache=True)
+def _pair_velocity(x, v, inv_mass, dv_step, support, pair_i, pair_j, p, restitution, friction, rest_speed):
+    """Pair impulse (``response.pair_impulse``, written out here: this runs per pair and pass)
+    with shock propagation: in a resting contact, a supported particle lying where its
+    neighbour is pushed (within 60 degrees of its applied acceleration) acts as infinitely
+    heavy for it and passes its support on."""
+    i, j = pair_i[p], pair_j[p]
+    dim = x.shape[1]
+    rx = x[j, 0] - x[i, 0]
+    ry = x[j, 1] - x[i, 1]
+    rz = (x[j, 2] - x[i, 2]) if dim == 3 else 0.0
+    dist = math.sqrt(rx * rx + ry * ry + rz * rz)
+    if dist > 0.0:
+        nx, ny, nz = rx / dist, ry / dist, rz / dist
+    else:
+        nx, ny, nz = 1.0, 0.0, 0.0  # coincident: any fixed direction (deterministic)
+    wx = v[j, 0] - v[i, 0]
+    wy = v[j, 1] - v[i, 1]
+    wz = (v[j, 2] - v[i, 2]) if dim == 3 else 0.0
+    vn = wx * nx + wy * ny + wz * nz
+    if vn >= 0.0:
+        return
+    # resting speed: twice what the step's forces add to either particle along the normal
+    ain = dv_step[i, 0] * nx + dv_step[i, 1] * ny + dv_step[i, 2] * nz
+    ajn = dv_step[j, 0] * nx + dv_step[j, 1] * ny + dv_step[j, 2] * nz
+    threshold = 2.0 * max(abs(ain), abs(ajn)) + rest_speed
+    wi, wj = inv_mass[i], inv_mass[j]
+    side = 0
+    if -vn <= threshold:
+        # i below j: -n along j's pull; j below i: n along i's pull (|a| cos 60 = |a| / 2)
+        if support[i] and -ajn > 0.0 and 4.0 * ajn * ajn > (dv_step[j, 0] ** 2 + dv_step[j, 1] ** 2
+                                                            + dv_step[j, 2] ** 2):
+            wi, side = 0.0, 1
+        elif support[j] and ain > 0.0 and 4.0 * ain * ain > (dv_step[i, 0] ** 2 + dv_step[i, 1] ** 2
+                                                              + dv_step[i, 2] ** 2):
+            wj, side = 0.0, 2
+    w = wi + wj
+    if w == 0.0:
+        return
+    e = restitution if -vn > threshold else 0.0
+    impulse = -(1.0 + e) * vn / w
+    # tangential impulse: stop the relative sliding, bounded by mu * impulse
+    tx, ty, tz = wx - vn * nx, wy - vn * ny, wz - vn * nz
+    tl = math.sqrt(tx * tx + ty * ty + tz * tz)
+    q = 0.0
+    if tl > 0.0:
+        q = min(friction * impulse, tl / w) / tl
+    px = impulse * nx - q * tx
+    py = impulse * ny - q * ty
+    pz = impulse * nz - q * tz
+    v[i, 0] -= wi * px
+    v[i, 1] -= wi * py
+    v[j, 0] += wj * px
+    v[j, 1] += wj * py
+    if dim == 3:
+        v[i, 2] -= wi * pz
+        v[j, 2] += wj * pz
+    # the supported side passes its support on
+    if side == 1:
+        support[j] = True
+    elif side == 2:
+        support[i] = True
+
+
+@njit(cache=True)
+def _pair_position(x, inv_mass, radius, dv_step, support, pair_i, pair_j, p):
+    """Overlap projection of one pair: mass-weighted (the centre of mass stays), or all on the
+    supported particle's neighbour (see ``_pair_velocity``)."""
+    dim = x.shape[1]
+    i, j = pair_i[p], pair_j[p]
+    rx = x[j, 0] - x[i, 0]
+    ry = x[j, 1] - x[i, 1]
+    rz = (x[j, 2] - x[i, 2]) if dim == 3 else 0.0
+    dist = math.sqrt(rx * rx + ry * ry + rz * rz)
+    overlap = radius[i] + radius[j] - dist
+    if overlap <= 0.0:
+        return
+    if dist > 0.0:
+        nx, ny, nz = rx / dist, ry / dist, rz / dist
+    else:
+        nx, ny, nz = 1.0, 0.0, 0.0
+    wi, wj = inv_mass[i], inv_mass[j]
+    ain = dv_step[i, 0] * nx + dv_step[i, 1] * ny + dv_step[i, 2] * nz
+    ajn = dv_step[j, 0] * nx + dv_step[j, 1] * ny + dv_step[j, 2] * nz
+    if support[i] and -ajn > 0.0 and 4.0 * ajn * ajn > dv_step[j, 0] ** 2 + dv_step[j, 1] ** 2 + dv_step[j, 2] ** 2:
+        wi = 0.0
+    elif support[j] and ain > 0.0 and 4.0 * ain * ain > dv_step[i, 0] ** 2 + dv_step[i, 1] ** 2 + dv_step[i, 2] ** 2:
+        wj = 0.0
+    w = wi + wj
+    if w == 0.0:
+        return
+    si, sj = overlap * wi / w, overlap * wj / w
+    x[i, 0] -= si * nx
+    x[i, 1] -= si * ny
+    x[j, 0] += sj * nx
+    x[j, 1] += sj * ny
+    if dim == 3:
+        x[i, 2] -= si * nz
+        x[j, 2] += sj * nz
+
+
+@njit(cache=True)
+def _near_lower_bound(cnear, cf, k, x, y, z):
+    """The ``cnear`` lower bound of collider k's distance at (x, y, z) (scalars only)."""
+    kind = cnear[k, 0]
+    if kind == NEAR_PLANE:
+        return cnear[k, 1] * x + cnear[k, 2] * y + cnear[k, 3] * z - cnear[k, 4]
+    if kind == NEAR_BALL:
+        return math.sqrt((x - cnear[k, 1]) ** 2 + (y - cnear[k, 2]) ** 2 + (z - cnear[k, 3]) ** 2) - cnear[k, 4]
+    if kind == NEAR_PLANES:
+        o, m = int(cnear[k, 1]), int(cnear[k, 2])
+        lb = 1e300
+        for p in range(m):
+            b = o + 4 * p
+            lb = min(lb, cf[b] * x + cf[b + 1] * y + cf[b + 2] * z - cf[b + 3])
+        return lb
+    if kind == NEAR_NEVER:
+        return 1e300
+    return -1e300
+
+
+@njit(cache=True)
+def _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, pose1, ref, inv_dt,
+                    rest_speed, project):
+    """Project particle i out of the colliders (``project``) and remove its velocity into them
+    (inelastic, with the collider's friction). Returns True when it touches a collider that
+    holds it up (the surface normal within 60 degrees of the particle's applied pull, reversed)."""
+    dim = x.shape[1]
+    touching = False
+    a = math.sqrt(dv_step[i, 0] ** 2 + dv_step[i, 1] ** 2 + dv_step[i, 2] ** 2)
+    for _sweep in range(3):
+        pushed = False
+        for k in range(cint.shape[0]):
+            if cint[k, 0] == _d.CALLABLE:
+                continue
+            z = x[i, 2] if dim == 3 else 0.0
+            if _near_lower_bound(cnear, cf, k, x[i, 0], x[i, 1], z) - radius[i] > 1e-3 * radius[i]:
+                continue
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, x[i, 0], x[i, 1], z)
+            f = d - radius[i]
+            if f > 1e-3 * radius[i]:
+                continue
+            if nx * dv_step[i, 0] + ny * dv_step[i, 1] + nz * dv_step[i, 2] < -0.5 * a:
+                touching = True
+            if f < 0.0 and project:
+                pushed = True
+                x[i, 0] -= f * nx
+                x[i, 1] -= f * ny
+                if dim == 3:
+                    x[i, 2] -= f * nz
+            ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
+            vz = v[i, 2] if dim == 3 else 0.0
+            vx2, vy2, vz2, _hit = surface_response(v[i, 0], v[i, 1], vz, ux, uy, uz, nx, ny, nz,
+                                                   0.0, cmat[k, 1], rest_speed)
+            v[i, 0], v[i, 1] = vx2, vy2
+            if dim == 3:
+                v[i, 2] = vz2
+        if not pushed:
+            break
+    return touching
+
+
+@njit(cache=True, parallel=True)
+def solve_pairs(x, v, inv_mass, radius, dv_step, pair_i, pair_j, color_start, color_order, ncolors,
+                in_pair, support, cint, cnear, cmat, cf, ci, pose0, pose1, ref,
+                dt, restitution, friction, rest_speed, iterations):
+    """Sphere-sphere contacts: Gauss-Seidel over colour batches (each batch in parallel).
+
+    0. support: particles in pairs that touch a collider are supported; support persists while a
+       particle stays in a pair and spreads through contacts (shock propagation, Guendelman et al.
+       2003): a supported particle lying where its neighbour is pushed acts as infinitely heavy
+       for it, so a pile rests in one sweep instead of sinking through slow iterations;
+    1. velocity passes: pair impulses (restitution, friction; momentum conserving between free
+       particles);
+    2. position passes: remove overlaps by (mass-weighted) projection, no velocity change; then
+       push the particles in pairs back out of the colliders, without velocity into them.
+    """
+    n = x.shape[0]
+    inv_dt = 1.0 / dt
+    for i in prange(n):
+        if in_pair[i] == 0 or inv_mass[i] == 0.0:
+            support[i] = inv_mass[i] == 0.0 and in_pair[i] != 0  # pinned particles support others
+            continue
+        if _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, pose1, ref, inv_dt,
+                           rest_speed, False):
+            support[i] = True
+        # particles within a radius of a collider are the ones the position passes may push in
+        z = x[i, 2] if x.shape[1] == 3 else 0.0
+        for k in range(cint.shape[0]):
+            if cint[k, 0] != _d.CALLABLE and _near_lower_bound(cnear, cf, k, x[i, 0], x[i, 1], z) < 2.0 * radius[i]:
+                in_pair[i] = 2
+    for _ in range(iterations):
+        for c in range(ncolors):
+            if c == MAX_COLORS - 1:
+                for q in range(color_start[c], color_start[c + 1]):
+                    _pair_velocity(x, v, inv_mass, dv_step, support, pair_i, pair_j, color_order[q], restitution,
+                                   friction, rest_speed)
+            else:
+                for q in prange(color_start[c], color_start[c + 1]):
+                    _pair_velocity(x, v, inv_mass, dv_step, support, pair_i, pair_j, color_order[q], restitution,
+                                   friction, rest_speed)
+    for _ in range(iterations):
+        for c in range(ncolors):
+            if c == MAX_COLORS - 1:
+                for q in range(color_start[c], color_start[c + 1]):
+                    _pair_position(x, inv_mass, radius, dv_step, support, pair_i, pair_j, color_order[q])
+            else:
+                for q in prange(color_start[c], color_start[c + 1]):
+                    _pair_position(x, inv_mass, radius, dv_step, support, pair_i, pair_j, color_order[q])
+        # colliders win over pairs
+        for i in prange(n):
+            if in_pair[i] == 2 and inv_mass[i] != 0.0:
+                _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, pose1, ref, inv_dt,
+                                rest_speed, True)
+
+
+# --- serial twins for small systems (see _jit) ------------------------------------------------
+copy_into_serial = serial_twin(copy_into)
+classify_contacts_serial = serial_twin(classify_contacts)
+push_out_serial = serial_twin(push_out)
+collide_particles_serial = serial_twin(collide_particles)
+resting_filter_serial = serial_twin(resting_filter)
+mark_pairs_serial = serial_twin(mark_pairs)
+solve_pairs_serial = serial_twin(solve_pairs)

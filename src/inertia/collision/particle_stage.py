@@ -1,0 +1,725 @@
+"""The particle collision stage: colliders, resting contact and particle-particle contact.
+
+``system.add_collider(collider, restitution=0.5, friction=0.0)`` attaches a collider;
+``system.collision_mode = "a_priori" | "a_posteriori"`` picks continuous or discrete detection;
+``system.self_collisions = True`` makes particles with a radius collide with each other. The
+system delegates to ``attach_collider``, ``set_collision_mode`` and ``set_self_collisions``
+here; the per-system data lives on ``system._collision`` (a ``ParticleCollisionData``).
+
+One step (``Simulation.step``), with what each part reads and writes
+-------------------------------------------------------------------
+begin_step (before the integrator)
+    save      state -> ``state0`` (x0, v0: the step's start, for continuous detection); skipped
+              when the previous end_step already wrote it and nobody changed the state since
+              (``state_revision``); ``active`` -> ``active0``
+    pose      motions -> ``pose0`` (t), ``pose1`` (t + dt) of the moving colliders
+    start     (first step after a collider is added) particles inside a collider are pushed out,
+              with a warning saying how many
+    classify  x, v -> ``rest_k``, ``rest_n``, ``rest_u``: particles resting on a surface (within
+              ``distance_tolerance`` of it, relative normal speed <= ``rest_speed``); reused from the
+              previous end_step when nothing else changed the state and no collider moves
+integrator
+    non-fused steps: the force filter ``RestingContactFilter`` runs in every force evaluation:
+    for resting particles it cancels the applied force into the surface and applies Coulomb
+    friction (static / kinetic); writes ``load``, ``static_ok``. Fused steps (``fused_rk4``,
+    ``kick_drift``, all forces affine) skip it (``fusable = True``) and end_step applies the
+    same physics to the step's motion (``particle_kernels._resting_motion``).
+end_step (after the integrator)
+    collide   x0, v0, x, v -> x, v (``particle_kernels.collide_particles``): a cheap distance
+              bound skips particles whose path cannot reach any collider, and particles resting
+              on a static plane take an inline path; the others get resting clean-up, a-priori
+              time of impact and response (or a-posteriori projection and response), the
+              end-of-step projection, and the next classification
+    callables unbaked ``SDF`` colliders, in NumPy
+    pairs     (self_collisions) broad phase (``broadphase``), shock-propagated Gauss-Seidel pair
+              impulses and overlap projection by colour batches, then classification
+    the system's ``state_modified()`` is called when anything changed.
+
+Parameters (``configure_contacts``)
+-----------------------------------
+distance_tolerance : 1e-6 m default (1e-7..1e-4): contact distance tolerance; scale with the scene.
+rest_speed : 1e-6 m/s default: relative speeds below this are "at rest" (plus twice what the
+    step's forces add, for impacts: slower impacts are inelastic so bouncing ends).
+self_restitution, self_friction : 0.5, 0.0 default: particle-particle restitution and friction.
+iterations : 4 default (8-16 for loose piles of thousands): relaxation passes of the pair solver.
+max_substeps : 4 default: a-priori impacts resolved per particle per step (corners need 2-3).
+
+References
+----------
+- Witkin, A. & Baraff, D. (2001), *Physically Based Modeling*, SIGGRAPH course notes,
+  "Particle System Dynamics": detection ``(X - P).N < eps`` and ``N.V < 0``, response
+  ``v' = v_T - e v_N``, resting contact by cancelling the normal force.
+- Bridson, R., Fedkiw, R. & Anderson, J. (2002), "Robust treatment of collisions, contact and
+  friction for cloth animation", SIGGRAPH: friction bounded by the normal impulse.
+- Guendelman, E., Bridson, R. & Fedkiw, R. (2003), "Nonconvex rigid bodies with stacking",
+  SIGGRAPH: separate velocity and position passes, restitution off for resting contacts,
+  shock propagation (supported bodies act as infinitely heavy for those resting on them).
+- Mirtich, B. (1996), PhD thesis (conservative advancement); Redon et al. (2002) (continuous
+  collision detection on the interpolated straight path).
+
+Limitations
+-----------
+- The continuous (a-priori) search follows the straight chord of each step; curved paths are
+  linearised, so impacts are found up to O(a dt^2) in position (exact for constant forces).
+- Self-collisions are discrete (end-of-step overlap): particles moving more than about their
+  radius per step can pass through each other.
+- A particle rests on one collider at a time (the force filter uses that normal); in corners
+  the other walls act through the end-of-step projection.
+- Unbaked ``SDF`` colliders are handled in NumPy after the compiled pass (one impact per step,
+  no resting-contact filter, temporary arrays each step); bake them for full treatment.
+- The pair solver is iterative: piles of thousands settle over a few tenths of a second and
+  keep compacting slowly (particles creeping into gaps at cm/s); supported contacts do not
+  conserve momentum (the ground takes it), free pairs do.
+- With the fused integrator path the resting contact uses the step's average acceleration
+  (exact for constant forces; first order for forces that vary within the step).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from . import broadphase as bp
+from . import distance as _d
+from . import particle_kernels as pk
+from .shapes import Collider
+
+__all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "get_collision_mode",
+           "get_self_collisions", "configure_contacts", "ParticleCollisionData",
+           "ParticleCollisionStage", "RestingContactFilter", "COLLISION_MODES"]
+
+COLLISION_MODES = ("a_priori", "a_posteriori")
+# Below these sizes the serial twins of the kernels run: a parallel launch costs ~10 us on an
+# idle machine and milliseconds on an oversubscribed one, against ~50-100 ns of work per
+# particle here; each colour batch of the pair solver is one launch.
+SERIAL_BELOW = 16384
+PARALLEL_PAIRS = 65536
+
+
+def _user_stacklevel() -> int:
+    """stacklevel that points a warning at the first caller outside the inertia package."""
+    import os
+    import sys
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+def pick(kernel, twin, n):
+    """The kernel for n items: its serial twin below ``SERIAL_BELOW``."""
+    return twin if n < SERIAL_BELOW else kernel
+
+
+class ParticleCollisionData:
+    """Collision data of one particle system (``system._collision``).
+
+    Model (changes only when colliders are added): ``colliders``, packed ``cint``, ``cmat``,
+    ``cf``, ``ci``, ``ref`` (see ``particle_kernels``). Options: ``mode``, ``self_collisions``,
+    ``distance_tolerance``, ``rest_speed``, ``self_restitution``, ``self_friction``,
+    ``iterations``, ``max_substeps``.
+
+    Step state (preallocated; N particles, D dims):
+    state0 (2 N D,)      copy of the state at the start of the step (begin_step); x0, v0 views
+    pose0, pose1 (K, 12) collider poses at t and t + dt (begin_step)
+    rest_k (N,) int64, rest_n (N, 3), rest_u (N, 3)   resting contacts (classify / end_step)
+    load (N,), static_ok (N,) bool                    written by the force filter
+    dv_step (N, 3)       velocity change of the step before responses (self-collisions)
+    profile              cumulative seconds per part: save, classify, collide, callables,
+                         broad_phase, pair_solve; ``steps``
+    """
+
+    def __init__(self):
+        self.colliders: list[Collider] = []
+        self.restitution: list[float] = []
+        self.friction: list[float] = []
+        self.mode = "a_priori"
+        self.self_collisions = False
+        self.distance_tolerance = 1e-6
+        self.rest_speed = 1e-6
+        self.self_restitution = 0.5
+        self.self_friction = 0.0
+        self.iterations = 4
+        self.max_substeps = 4
+        self.max_iterations = 32
+        self.check_start = False
+        self.profile = dict.fromkeys(("save", "classify", "collide", "callables", "broad_phase",
+                                      "pair_solve"), 0.0)
+        self.profile["steps"] = 0
+        self.pair_count = 0
+        self.color_count = 0
+        self.resting_count = 0
+        self._shape = None
+        self._valid_revision = None
+        self._saved_revision = None
+        self._restored = False
+        self._pending_contacts = None
+        self.filter_ran = False
+        self._pack()
+
+    # --- model -------------------------------------------------------------------------------
+    def add(self, collider, restitution, friction):
+        self.colliders.append(collider)
+        self.restitution.append(restitution)
+        self.friction.append(friction)
+        self.check_start = True
+        self._valid_revision = None
+        self._pack()
+
+    def _pack(self):
+        k = len(self.colliders)
+        kernel = [c for c in self.colliders]
+        self.cint = np.zeros((max(k, 1), 4), np.int64)
+        self.cint[:, 0] = _d.CALLABLE  # the placeholder row (no colliders) is skipped by kernels
+        self.cmat = np.zeros((max(k, 1), 2))
+        self.ref = np.zeros((max(k, 1), 3))
+        self.pose0 = np.zeros((max(k, 1), 12))
+        self.pose0[:, 3::4] = 1.0  # identity rotations
+        self.pose1 = self.pose0.copy()
+        cfs, cis, off, ioff = [], [], 0, 0
+        for i, c in enumerate(kernel):
+            self.cint[i] = (c.kind, 1 if c.moving else 0, off, ioff)
+            self.cmat[i] = (self.restitution[i], self.friction[i])
+            self.ref[i] = c._ref
+            self.pose0[i, :3] = c._ref
+            self.pose1[i, :3] = c._ref
+            cfs.append(c._cf)
+            cis.append(c._ci)
+            off += c._cf.size
+            ioff += c._ci.size
+        self.cnear = np.zeros((max(k, 1), 5))
+        self.cnear[:, 0] = pk.NEAR_NEVER
+        for i, c in enumerate(kernel):
+            self.cnear[i] = _near_bound(c, self.cint[i, 2])
+        self.cf = np.concatenate(cfs) if cfs else np.zeros(1)
+        self.ci = np.concatenate(cis) if cis else np.zeros(1, np.int64)
+        self.callables = [(i, c) for i, c in enumerate(self.colliders) if c.kind == _d.CALLABLE]
+        self.any_moving = any(c.moving for c in self.colliders)
+        self.any_kernel = any(c.kind != _d.CALLABLE for c in self.colliders)
+
+    def update_poses(self, t, dt):
+        """pose0 / pose1 of the moving colliders at t and t + dt."""
+        if not self.any_moving:
+            return
+        for i, c in enumerate(self.colliders):
+            if c.moving:
+                self.pose0[i] = c._packed_pose(t)
+                self.pose1[i] = c._packed_pose(t + dt)
+
+    # --- buffers -----------------------------------------------------------------------------
+    def ensure_buffers(self, system):
+        n, dim = system.x.shape
+        shape = (n, dim, self.self_collisions)
+        if self._shape == shape:
+            return
+        if self._shape is None or self._shape[:2] != (n, dim):
+            self.state0 = np.empty_like(system.state)
+            self.x0 = self.state0[:n * dim].reshape(n, dim)
+            self.v0 = self.state0[n * dim:].reshape(n, dim)
+            self.rest_k = np.full(n, -1, np.int32)
+            self.active0 = np.zeros(n, bool)
+            self.rest_n = np.zeros((n, 3))
+            self.rest_u = np.zeros((n, 3))
+            self.load = np.zeros(n)
+            self.static_ok = np.zeros(n, bool)
+            self._valid_revision = None
+        if self.self_collisions:
+            self.table_size = bp.table_size_for(n)
+            self.dense_capacity = max(bp.DENSE_CELLS_PER_PARTICLE * n, 4096)
+            self.dv_step = np.zeros((n, 3))
+            self.cell_key = np.empty(n, np.int64)
+            self.bucket = np.empty(n, np.int64)
+            self.bucket_start = np.empty(max(self.table_size, self.dense_capacity) + 1, np.int64)
+            self.order = np.empty(n, np.int64)
+            self.pair_counts = np.empty(n, np.int64)
+            self.pair_start = np.empty(n + 1, np.int64)
+            self.box_partial = np.empty((bp.BOX_CHUNKS, 6))
+            self.box_lo, self.box_hi = np.zeros(3), np.zeros(3)
+            self.grid_dims = np.ones(3, np.int64)
+            self._alloc_pairs(max(64, 8 * n))
+            self.used_colors = np.zeros(n, np.uint64)
+            self.color_start = np.zeros(bp.MAX_COLORS + 1, np.int64)
+            self.color_cursor = np.zeros(bp.MAX_COLORS, np.int64)
+            self.in_pair = np.zeros(n, np.int8)
+            self.support = np.zeros(n, bool)
+            # sorted-space copies (see broadphase)
+            dim = system.x.shape[1]
+            self.xs, self.vs, self.dvs = np.empty((n, dim)), np.empty((n, dim)), np.empty((n, 3))
+            self.rs, self.ims = np.empty(n), np.empty(n)
+            self.ks, self.sups = np.empty(n, np.int64), np.zeros(n, bool)
+        else:
+            self.dv_step = np.zeros((1, 3))
+        self._shape = shape
+        self.apply_pending_contacts()
+
+    def apply_pending_contacts(self):
+        """Install resting contacts restored by ``set_state`` (once the buffers exist)."""
+        if self._pending_contacts is None:
+            return
+        k, nrm, u, support = self._pending_contacts
+        if k.shape == self.rest_k.shape:
+            self.rest_k[:], self.rest_n[:], self.rest_u[:] = k, nrm, u
+            if support is not None and self.self_collisions:
+                self.support[:] = support
+            self._restored = True
+        self._pending_contacts = None
+
+    def _alloc_pairs(self, capacity):
+        self.pair_i = np.empty(capacity, np.int64)
+        self.pair_j = np.empty(capacity, np.int64)
+        self.pair_color = np.empty(capacity, np.int64)
+        self.color_order = np.empty(capacity, np.int64)
+
+
+def _near_bound(c, offset):
+    """Row of ``cnear`` for collider c (see ``particle_kernels``): a cheap lower bound of its
+    distance, exact for planes and containers, a bounding sphere for the bounded shapes."""
+    dim = c.dim
+    if c.moving:
+        return (pk.NEAR_ALWAYS, 0, 0, 0, 0)
+    f = c._cf
+    if c.kind == _d.PLANE:
+        return (pk.NEAR_PLANE, f[0], f[1], f[2], f[3])
+    if c.kind == _d.CONTAINER:
+        return (pk.NEAR_PLANES, offset, c._ci[0], 0, 0)
+    if c.kind == _d.SPHERE:
+        return (pk.NEAR_BALL, f[0], f[1], f[2], f[3])
+    if c.kind == _d.BOX:
+        return (pk.NEAR_BALL, f[0], f[1], f[2], float(np.linalg.norm(f[12:12 + dim])))
+    if c.kind == _d.CAPSULE:
+        a, b = f[0:3], f[3:6]
+        return (pk.NEAR_BALL, *(0.5 * (a + b)), 0.5 * float(np.linalg.norm(b - a)) + f[6])
+    if c.kind == _d.CYLINDER:
+        return (pk.NEAR_BALL, f[0], f[1], f[2], float(np.hypot(f[6], f[7])))
+    if c.kind == _d.GRID:
+        lo, hi = f[_d.G_BMIN:_d.G_BMIN + 3], f[_d.G_BMAX:_d.G_BMAX + 3]
+        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo)
+        return (pk.NEAR_BALL, *centre, float(np.linalg.norm(half[:dim])) + f[_d.G_THICK])
+    return (pk.NEAR_NEVER, 0, 0, 0, 0)
+
+
+class RestingContactFilter:
+    """Force filter for resting contact (see ``particle_kernels.resting_filter``).
+
+    ``active`` is False while no particle rests on a collider (the filter is then a no-op).
+    ``fusable`` is True: when a fused integrator step skips force filters, the collision stage
+    applies the same resting-contact physics to the step's motion afterwards (see
+    ``particle_kernels._resting_motion``), so the fused paths may stay on.
+    """
+
+    fusable = True
+
+    def __init__(self, system, data: ParticleCollisionData):
+        self.system, self.data = system, data
+
+    @property
+    def active(self) -> bool:
+        return self.data.resting_count > 0
+
+    def apply(self, x, v, t, f):
+        d = self.data
+        d.filter_ran = True
+        if d.resting_count == 0 or d._shape is None:
+            return
+        kernel = pick(pk.resting_filter, pk.resting_filter_serial, f.shape[0])
+        kernel(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
+               d.static_ok)
+
+
+class ParticleCollisionStage:
+    """Step stage that detects and responds to collisions (see the module docstring)."""
+
+    name = "collisions"
+    stage_order = 50
+
+    def __init__(self, data: ParticleCollisionData):
+        self.data = data
+
+    # --- step --------------------------------------------------------------------------------
+    def begin_step(self, system, t, dt):
+        d = self.data
+        if not d.colliders and not d.self_collisions:
+            return
+        d.ensure_buffers(system)
+        d.filter_ran = False
+        n = system.x.shape[0]
+        tic = time.perf_counter()
+        # the step's start: already written by the previous end_step unless someone changed it
+        if d._saved_revision != system.state_revision:
+            pick(pk.copy_into, pk.copy_into_serial, n)(system.state, d.state0)
+        np.copyto(d.active0, system.active)
+        d.update_poses(t, dt)
+        toc = time.perf_counter()
+        d.profile["save"] += toc - tic
+        if d.check_start and d.colliders:
+            self._push_out_start(system)
+        # resting contacts at the start of the step (reuse end_step's when still valid)
+        if d.any_kernel and (d.any_moving or (d._valid_revision != system.state_revision and not d._restored)):
+            d.resting_count = pick(pk.classify_contacts, pk.classify_contacts_serial, n)(
+                system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
+                d.pose0, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt,
+                d.distance_tolerance, d.rest_speed)
+        d._restored = False
+        d.profile["classify"] += time.perf_counter() - toc
+
+    def end_step(self, system, t, dt):
+        d = self.data
+        if not d.colliders and not d.self_collisions:
+            return
+        x, v = system.x, system.v
+        n = x.shape[0]
+        changed = 0
+        tic = time.perf_counter()
+        # x0, v0 can be refreshed by the kernel itself when nothing runs after it
+        save_next = not d.self_collisions and not d.callables
+        if d.any_kernel or d.self_collisions:
+            classify = not d.self_collisions
+            changed, resting = pick(pk.collide_particles, pk.collide_particles_serial, n)(
+                x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
+                d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
+                d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
+                d.max_substeps, d.max_iterations, classify, d.self_collisions, d.filter_ran, save_next)
+            if classify:
+                d.resting_count = resting
+        else:
+            save_next = False
+        toc = time.perf_counter()
+        d.profile["collide"] += toc - tic
+        if d.callables:
+            changed += _collide_callables(d, system, t, dt)
+            d.profile["callables"] += time.perf_counter() - toc
+        if d.self_collisions:
+            changed += self._self_collide(system, dt)
+        if changed:
+            system.state_modified()
+        d._valid_revision = system.state_revision
+        d._saved_revision = system.state_revision if save_next else None
+        d.profile["steps"] += 1
+
+    # --- parts -------------------------------------------------------------------------------
+    def _push_out_start(self, system):
+        d = self.data
+        d.check_start = False
+        inside = np.zeros(d.cint.shape[0], np.int64)
+        kernel = pick(pk.push_out, pk.push_out_serial, system.x.shape[0])
+        moved = kernel(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
+                       d.pose0, d.ref, d.distance_tolerance, inside)
+        if moved:
+            names = ", ".join(f"{type(c).__name__} #{i}: {int(inside[i])}"
+                              for i, c in enumerate(d.colliders) if inside[i])
+            warnings.warn(f"{moved} particles start inside colliders ({names}); they were pushed out "
+                          "onto the surface on the first step", stacklevel=_user_stacklevel())
+            d.state0[:] = system.state
+            system.state_modified()
+            d._valid_revision = None
+
+    def _self_collide(self, system, dt):
+        d = self.data
+        x, v, radius = system.x, system.v, system.radius
+        tic = time.perf_counter()
+        rmax = float(radius.max()) if radius.size else 0.0
+        if rmax <= 0.0:
+            d.pair_count = 0
+            self._classify_end(system, dt)
+            return 0
+        cell = 2.0 * rmax + d.distance_tolerance
+        inv_cell = 1.0 / cell
+        margin = d.distance_tolerance
+        n = x.shape[0]
+        # a dense grid over the particles' box when it is small enough, else a spatial hash
+        dense = bp.grid_layout(x, cell, d.box_partial, d.box_lo, d.box_hi, d.grid_dims, d.dense_capacity)
+        mask = d.table_size - 1
+        nbuckets = int(np.prod(d.grid_dims)) if dense else d.table_size
+        d.grid_mode = "dense" if dense else "hash"
+        grid = (inv_cell, d.box_lo, d.grid_dims, dense, mask)
+        pick(bp.bin_particles, bp.bin_particles_serial, n)(x, radius, system.active, *grid, d.cell_key, d.bucket)
+        ns = int(bp.counting_sort(d.bucket, nbuckets, d.bucket_start, d.order))
+        # sorted space: the particles in cell order (see broadphase)
+        gather, scatter = pick(bp.gather, bp.gather_serial, n), pick(bp.scatter, bp.scatter_serial, n)
+        order = d.order
+        xs, rs, ks = d.xs[:ns], d.rs[:ns], d.ks[:ns]
+        gather(order, ns, x, xs)
+        gather(order, ns, radius, rs)
+        if not dense:
+            gather(order, ns, d.cell_key, ks)
+        pick(bp.count_pairs, bp.count_pairs_serial, n)(
+            xs, rs, ks, *grid, d.bucket_start, ns, margin, d.pair_counts)
+        total = int(bp.exclusive_scan(d.pair_counts, ns, d.pair_start))
+        if total > d.pair_i.shape[0]:
+            d._alloc_pairs(int(total * 1.5) + 64)
+        pick(bp.fill_pairs, bp.fill_pairs_serial, n)(
+            xs, rs, ks, *grid, d.bucket_start, ns, margin, d.pair_start, d.pair_i, d.pair_j)
+        ncolors = int(bp.color_pairs(d.pair_i, d.pair_j, total, d.used_colors, d.pair_color,
+                                     d.color_start, d.color_order, d.color_cursor))
+        toc = time.perf_counter()
+        d.profile["broad_phase"] += toc - tic
+        d.pair_count, d.color_count = total, ncolors
+        if total:
+            vs, dvs, ims, sups, inp = d.vs[:ns], d.dvs[:ns], d.ims[:ns], d.sups[:ns], d.in_pair[:ns]
+            gather(order, ns, v, vs)
+            gather(order, ns, d.dv_step, dvs)
+            gather(order, ns, system.inv_mass, ims)
+            gather(order, ns, d.support, sups)
+            inp[:] = 0
+            # colour batches pay off when they are large; small pair sets run serially
+            m = n if total >= PARALLEL_PAIRS else 0
+            pick(pk.mark_pairs, pk.mark_pairs_serial, m)(d.pair_i, d.pair_j, d.color_start, d.color_order,
+                                                         ncolors, inp)
+            pick(pk.solve_pairs, pk.solve_pairs_serial, m)(
+                xs, vs, ims, rs, dvs, d.pair_i, d.pair_j, d.color_start, d.color_order, ncolors, inp, sups,
+                d.cint, d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, dt, d.self_restitution,
+                d.self_friction, d.rest_speed, d.iterations)
+            scatter(order, ns, xs, x)
+            scatter(order, ns, vs, v)
+            scatter(order, ns, sups, d.support)
+        self._classify_end(system, dt)
+        d.profile["pair_solve"] += time.perf_counter() - toc
+        return total
+
+    def _classify_end(self, system, dt):
+        # resting contacts for the next step, after the pair solver moved the particles
+        d = self.data
+        if d.any_kernel:
+            d.resting_count = pick(pk.classify_contacts, pk.classify_contacts_serial, system.x.shape[0])(
+                system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci, d.pose1,
+                d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt, d.distance_tolerance, d.rest_speed)
+
+    # --- checkpoints -------------------------------------------------------------------------
+    def get_state(self) -> dict:
+        d = self.data
+        state = {"check_start": d.check_start, "resting_count": d.resting_count}
+        if d._shape is not None:
+            state.update(rest_k=d.rest_k.copy(), rest_n=d.rest_n.copy(), rest_u=d.rest_u.copy())
+            if d.self_collisions:
+                state["support"] = d.support.copy()
+        return state
+
+    def set_state(self, state: dict) -> None:
+        d = self.data
+        d.check_start = bool(state["check_start"])
+        d.resting_count = int(state["resting_count"])
+        # the saved start-of-step copy belongs to another time: begin_step copies again
+        d._saved_revision = None
+        d._valid_revision = None
+        if "rest_k" in state:
+            d._pending_contacts = (state["rest_k"].copy(), state["rest_n"].copy(), state["rest_u"].copy(),
+                                   state.get("support"))
+            if d._shape is not None:
+                d.apply_pending_contacts()
+
+
+# --- NumPy path for unbaked SDF colliders ------------------------------------------------------
+def _collide_callables(d, system, t, dt):
+    x, v = system.x, system.v
+    dim = x.shape[1]
+    idx = np.flatnonzero(system.active & (system.inv_mass > 0))
+    if idx.size == 0:
+        return 0
+    changed = np.zeros(idx.size, bool)
+    tol = d.distance_tolerance
+    r = system.radius[idx]
+    for k, col in d.callables:
+        e, mu = d.restitution[k], d.friction[k]
+        p0, r0 = col.pose(t)
+        p1, r1 = col.pose(t + dt)
+        ref = col._ref[:dim]
+
+        def to_rest(points, p, rot, ref=ref):
+            return ref + (points - p[:dim]) @ rot[:dim, :dim]
+
+        def to_world(points, p, rot, ref=ref):
+            return p[:dim] + (points - ref) @ rot[:dim, :dim].T
+
+        xe, ve = x[idx], v[idx]
+        x0 = d.x0[idx]
+        if d.mode == "a_priori":
+            ls, le = to_rest(x0, p0, r0), to_rest(xe, p1, r1)
+            f0 = col.evaluate_rest(ls)[0] - r
+            f1 = col.evaluate_rest(le)[0] - r
+            length = np.linalg.norm(le - ls, axis=1)
+            cand = np.flatnonzero((np.abs(f0) + np.abs(f1) - length <= 2 * tol) & (f0 > tol) & (length > 0))
+            if cand.size:
+                # conservative advancement on the candidates (vectorised over particles)
+                sigma = np.zeros(cand.size)
+                f = f0[cand].copy()
+                hit = np.zeros(cand.size, bool)
+                live = np.ones(cand.size, bool)
+                seg = le[cand] - ls[cand]
+                for _ in range(d.max_iterations * 4):
+                    sigma[live] += 0.9 * f[live] / length[cand][live]
+                    live &= sigma <= 1.0
+                    if not live.any():
+                        break
+                    f[live] = col.evaluate_rest(ls[cand][live] + sigma[live, None] * seg[live])[0] - r[cand][live]
+                    hit |= live & (f <= tol)
+                    live &= ~hit
+                hit |= live  # iteration cap: stop conservatively
+                if hit.any():
+                    rows = cand[hit]
+                    s = sigma[hit][:, None]
+                    lc = ls[rows] + s * seg[hit]
+                    _, g = col.evaluate_rest(lc)
+                    w0, w1 = to_world(lc, p0, r0), to_world(lc, p1, r1)
+                    xc = w0 + s * (w1 - w0)
+                    u = (w1 - w0) / dt
+                    n0, n1 = g @ r0[:dim, :dim].T, g @ r1[:dim, :dim].T
+                    n = n0 + s * (n1 - n0)
+                    n /= np.linalg.norm(n, axis=1)[:, None]
+                    v0 = d.v0[idx[rows]]
+                    vc = v0 + s * (ve[rows] - v0)
+                    pushed_in = np.minimum(0, ((ve[rows] - v0) * n).sum(1))[:, None]
+                    vc = _np_response(vc, u, n, e, mu, 2 * np.abs(pushed_in) + d.rest_speed)
+                    xe[rows] = xc + (1 - s) * dt * vc
+                    ve[rows] = vc
+                    changed[rows] = True
+        # end-of-step projection
+        le = to_rest(xe, p1, r1)
+        dist, g = col.evaluate_rest(le)
+        f = dist - r
+        rows = np.flatnonzero(f < -tol)
+        if rows.size:
+            n = g[rows] @ r1[:dim, :dim].T
+            xe[rows] -= f[rows, None] * n
+            u = (to_world(le[rows], p1, r1) - to_world(le[rows], p0, r0)) / dt
+            dv = ((ve[rows] - d.v0[idx[rows]]) * n).sum(1)
+            ve[rows] = _np_response(ve[rows], u, n, e, mu, 2 * np.abs(np.minimum(0, dv))[:, None] + d.rest_speed)
+            changed[rows] = True
+        x[idx] = xe
+        v[idx] = ve
+    return int(changed.sum())
+
+
+def _np_response(v, u, n, restitution, friction, rest_speed):
+    # NumPy twin of response.surface_response for (M, D) arrays
+    w = v - u
+    wn = (w * n).sum(1)[:, None]
+    going_in = wn[:, 0] < 0
+    e = np.where(-wn > rest_speed, restitution, 0.0)
+    tang = w - wn * n
+    dvn = -(1 + e) * wn
+    tl = np.linalg.norm(tang, axis=1)[:, None]
+    # rows not heading in are returned unchanged; only the others need a finite scale
+    limit = friction * np.maximum(dvn, 0.0)
+    scale = np.zeros_like(tl)
+    np.divide(limit, tl, out=scale, where=tl > limit)
+    scale = np.where(tl > limit, 1.0 - scale, 0.0)
+    out = u + scale * tang - e * wn * n
+    return np.where(going_in[:, None], out, v)
+
+
+# --- entry points called by ParticleSystem -----------------------------------------------------
+def _data(system) -> ParticleCollisionData:
+    data = getattr(system, "_collision", None)
+    if data is None:
+        data = ParticleCollisionData()
+        system._collision = data
+    if not any(isinstance(s, ParticleCollisionStage) and s.data is data for s in system.stages):
+        stage = ParticleCollisionStage(data)
+        if hasattr(system, "add_stage"):
+            system.add_stage(stage)
+        else:
+            system.stages.append(stage)
+    if not any(isinstance(f, RestingContactFilter) and f.data is data for f in system.force_filters):
+        system.force_filters.append(RestingContactFilter(system, data))
+    return data
+
+
+def _unit_interval(value, name):
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number in [0, 1]; got {value!r}") from None
+    if not (0.0 <= x <= 1.0):
+        raise ValueError(f"{name} must be in [0, 1] (0 = inelastic, 1 = elastic); got {value!r}")
+    return x
+
+
+def _nonnegative(value, name):
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a finite number >= 0; got {value!r}") from None
+    if not (np.isfinite(x) and x >= 0.0):
+        raise ValueError(f"{name} must be a finite number >= 0 (Coulomb coefficient); got {value!r}")
+    return x
+
+
+def attach_collider(system, collider, *, restitution=0.5, friction=0.0):
+    """Attach `collider` to `system` with its restitution (in [0, 1]) and friction (>= 0).
+
+    Returns the collider. Particles that start inside it are pushed out on the next step (with a
+    warning that says how many).
+    """
+    if not isinstance(collider, Collider):
+        raise ValueError(f"collider must be one of inertia.colliders (Plane, Sphere, Box, Capsule, "
+                         f"Cylinder, Container, Mesh, SDF); got {type(collider).__name__}")
+    if collider.dim != system.x.shape[1]:
+        raise ValueError(f"collider is {collider.dim}-D but the particle system is {system.x.shape[1]}-D")
+    restitution = _unit_interval(restitution, "restitution")
+    friction = _nonnegative(friction, "friction")
+    _data(system).add(collider, restitution, friction)
+    return collider
+
+
+def set_collision_mode(system, mode):
+    """Select continuous ("a_priori", default) or discrete ("a_posteriori") collision detection."""
+    if mode not in COLLISION_MODES:
+        raise ValueError(f"collision_mode must be one of {COLLISION_MODES}; got {mode!r}")
+    _data(system).mode = mode
+
+
+def get_collision_mode(system) -> str:
+    data = getattr(system, "_collision", None)
+    return "a_priori" if data is None else data.mode
+
+
+def set_self_collisions(system, flag):
+    """Switch particle-particle collisions on or off (particles need radius > 0)."""
+    if not isinstance(flag, (bool, np.bool_)):
+        raise ValueError(f"self_collisions must be True or False; got {flag!r}")
+    data = _data(system)
+    data.self_collisions = bool(flag)
+    if flag and not np.any(np.asarray(system.radius) > 0):
+        warnings.warn("self_collisions is on but every particle has radius 0, so none can touch; "
+                      "give the particles a radius (ParticleSystem(..., radius=...))",
+                      stacklevel=_user_stacklevel())
+
+
+def get_self_collisions(system) -> bool:
+    data = getattr(system, "_collision", None)
+    return False if data is None else data.self_collisions
+
+
+def configure_contacts(system, *, distance_tolerance=None, rest_speed=None, self_restitution=None,
+                       self_friction=None, iterations=None, max_substeps=None):
+    """Set contact options of `system` (defaults and ranges in the module docstring)."""
+    data = _data(system)
+    if distance_tolerance is not None:
+        data.distance_tolerance = _positive(distance_tolerance, "distance_tolerance")
+    if rest_speed is not None:
+        data.rest_speed = _positive(rest_speed, "rest_speed")
+    if self_restitution is not None:
+        data.self_restitution = _unit_interval(self_restitution, "self_restitution")
+    if self_friction is not None:
+        data.self_friction = _nonnegative(self_friction, "self_friction")
+    if iterations is not None:
+        data.iterations = _count(iterations, "iterations")
+    if max_substeps is not None:
+        data.max_substeps = _count(max_substeps, "max_substeps")
+    return data
+
+
+def _positive(value, name):
+    x = _nonnegative(value, name)
+    if x == 0:
+        raise ValueError(f"{name} must be > 0; got {value!r}")
+    return x
+
+
+def _count(value, name):
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1; got {value!r}")
+    return int(value)

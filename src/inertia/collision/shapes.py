@@ -1,0 +1,384 @@
+"""Collider shapes: what a collider *is* (geometry, rest pose, prescribed motion).
+
+Every collider answers, for many points at once, the signed distance (negative inside the
+solid), the unit outward normal and the velocity of the collider's surface material:
+
+    collider.signed_distance(points, t=0.0) -> (M,)
+    collider.normal(points, t=0.0)          -> (M, D)
+    collider.velocity(points, t=0.0)        -> (M, D)
+    collider.query(points, t, distance_out, normal_out, velocity_out)   (preallocated outputs)
+
+``points`` is an (M, D) float64 array, D = ``collider.dim``. Colliders are static unless built
+with ``motion=`` (a ``Motion``, or a callable t -> position of the reference point); a moving
+collider carries particles along and hits them with its surface velocity.
+
+References
+----------
+- Witkin, A. & Baraff, D. (2001), *Physically Based Modeling*, SIGGRAPH course notes,
+  "Particle System Dynamics": point-plane collision.
+- Osher, S. & Fedkiw, R. (2003), *Level Set Methods and Dynamic Implicit Surfaces*: implicit
+  (signed distance) shapes.
+- Quilez, I., "Distance functions": the analytic box, capsule and cylinder distances.
+
+Limitations
+-----------
+- ``Cylinder`` and ``Mesh`` are 3-D only; the others exist in 2-D and 3-D.
+- Shapes are rigid; motions are rigid (see ``inertia.collision.motion``).
+- ``SDF`` trusts the user's function to be (close to) a true distance: 1-Lipschitz, negative
+  inside. Unbaked it is evaluated in NumPy each step (slower, see ``SDF``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import _validate
+from . import distance as _d
+from .motion import Motion, as_rotation
+
+__all__ = ["Collider", "Plane", "Sphere", "Box", "Capsule", "Cylinder", "Container", "SDF"]
+
+
+def _vec3(value, name, dim=None):
+    v = _validate.as_vector(value, name, dim)
+    out = np.zeros(3)
+    out[:v.shape[0]] = v
+    return out, v.shape[0]
+
+
+def _positive(value, name):
+    return _validate.positive_scalar(value, name)
+
+
+def _as_motion(motion):
+    if motion is None or isinstance(motion, Motion):
+        return motion
+    if callable(motion):
+        return Motion(position=motion)
+    raise ValueError(f"motion must be None, an inertia.colliders.Motion or a callable t -> position; "
+                     f"got {type(motion).__name__}")
+
+
+class Collider:
+    """Base class of every collider (see the module docstring for the query interface).
+
+    Attributes
+    ----------
+    dim : int
+        2 or 3.
+    motion : Motion or None
+        Prescribed motion; None for a static collider.
+    rest_point : (D,) float64
+        Reference point (centre; a plane's ``point``) that ``motion`` positions and rotates about.
+    """
+
+    kind = -1
+
+    def __init__(self, dim: int, rest_point: np.ndarray, cf, ci=None, motion=None):
+        self.dim = int(dim)
+        self._ref = np.asarray(rest_point, dtype=np.float64).reshape(3).copy()
+        self._cf = np.ascontiguousarray(cf, dtype=np.float64)
+        self._ci = np.ascontiguousarray(np.zeros(1, np.int64) if ci is None else ci, dtype=np.int64)
+        self.motion = _as_motion(motion)
+
+    # --- pose --------------------------------------------------------------------------------
+    @property
+    def rest_point(self) -> np.ndarray:
+        return self._ref[:self.dim].copy()
+
+    @property
+    def moving(self) -> bool:
+        return self.motion is not None
+
+    def pose(self, t: float = 0.0):
+        """(p (3,), R (3, 3)): where the reference point is and how the shape is rotated at t."""
+        if self.motion is None:
+            return self._ref.copy(), np.eye(3)
+        return self.motion.pose(t, self.dim, self._ref)
+
+    def _packed_pose(self, t):
+        p, r = self.pose(t)
+        return np.concatenate([p, r.reshape(-1)])
+
+    def _rigid_velocity(self, t):
+        """(v_ref (3,), omega (3,)) at t by central differences of the pose."""
+        if self.motion is None:
+            return np.zeros(3), np.zeros(3)
+        h = 1e-6 * max(1.0, abs(t))
+        p0, r0 = self.pose(t - h)
+        p1, r1 = self.pose(t + h)
+        v = (p1 - p0) / (2 * h)
+        # R1 R0^T = exp([w] 2h)
+        dr = r1 @ r0.T
+        omega = np.array([dr[2, 1] - dr[1, 2], dr[0, 2] - dr[2, 0], dr[1, 0] - dr[0, 1]]) / (4 * h)
+        return v, omega
+
+    # --- queries -----------------------------------------------------------------------------
+    def _points(self, points):
+        return _validate.as_points(points, "points", dim=self.dim)
+
+    def query(self, points, t, distance_out, normal_out, velocity_out) -> None:
+        """Fill distance_out (M,), normal_out (M, D), velocity_out (M, D) at world points (M, D)."""
+        points = self._points(points)
+        pose = self._packed_pose(t)
+        v, w = self._rigid_velocity(t)
+        _d.query_points(points, self.kind, self._cf, self._ci, pose, self._ref, self.moving, v, w,
+                        distance_out, normal_out, velocity_out)
+
+    def _query_new(self, points, t):
+        points = self._points(points)
+        m = points.shape[0]
+        d, n, v = np.empty(m), np.empty((m, self.dim)), np.empty((m, self.dim))
+        self.query(points, t, d, n, v)
+        return d, n, v
+
+    def signed_distance(self, points, t: float = 0.0) -> np.ndarray:
+        """(M,) signed distance of each point to the surface (negative inside the solid)."""
+        return self._query_new(points, t)[0]
+
+    def normal(self, points, t: float = 0.0) -> np.ndarray:
+        """(M, D) unit outward normal (gradient of the signed distance)."""
+        return self._query_new(points, t)[1]
+
+    def velocity(self, points, t: float = 0.0) -> np.ndarray:
+        """(M, D) velocity of the collider's surface material at the points."""
+        return self._query_new(points, t)[2]
+
+    def __repr__(self):
+        return f"{type(self).__name__}(dim={self.dim}{', moving' if self.moving else ''})"
+
+
+class Plane(Collider):
+    """Half-space below the plane through ``point`` with unit outward ``normal``.
+
+    Parameters: ``point`` (D,), ``normal`` (D,) non-zero (normalised here); free space is on the
+    side the normal points to. 2-D: a line. Reference point: ``point``.
+    """
+
+    kind = _d.PLANE
+
+    def __init__(self, point=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0), *, motion=None):
+        p, dim = _vec3(point, "point")
+        n, ndim = _vec3(normal, "normal")
+        if ndim != dim:
+            raise ValueError(f"point and normal must have the same number of components; got {dim} and {ndim}")
+        length = np.linalg.norm(n)
+        if not length > 1e-12:
+            raise ValueError(f"normal must be a non-zero vector; got {n[:dim].tolist()}")
+        n = n / length
+        self.point, self.normal_vector = p[:dim].copy(), n[:dim].copy()
+        super().__init__(dim, p, [n[0], n[1], n[2], float(n @ p)], motion=motion)
+
+
+class Sphere(Collider):
+    """Solid ball of ``radius`` > 0 around ``center`` (a disc in 2-D). Reference point: centre."""
+
+    kind = _d.SPHERE
+
+    def __init__(self, center=(0.0, 0.0, 0.0), radius=1.0, *, motion=None):
+        c, dim = _vec3(center, "center")
+        self.center, self.radius = c[:dim].copy(), _positive(radius, "radius")
+        super().__init__(dim, c, [c[0], c[1], c[2], self.radius], motion=motion)
+
+
+class Box(Collider):
+    """Solid oriented box: ``center`` (D,), ``half_extents`` (D,) > 0, ``rotation`` (see
+    ``inertia.colliders.as_rotation``: 2-D angle, 3-D matrix / quaternion (w, x, y, z) /
+    rotation vector). Reference point: centre."""
+
+    kind = _d.BOX
+
+    def __init__(self, center=(0.0, 0.0, 0.0), half_extents=(0.5, 0.5, 0.5), rotation=None, *,
+                 motion=None):
+        c, dim = _vec3(center, "center")
+        h = _validate.as_vector(half_extents, "half_extents", dim)
+        if np.any(h <= 0):
+            raise ValueError(f"half_extents must all be > 0; got {h.tolist()}")
+        r = as_rotation(rotation, dim, "rotation")
+        self.center, self.half_extents, self.rotation = c[:dim].copy(), h.copy(), r[:dim, :dim].copy()
+        h3 = np.full(3, _d.BIG)
+        h3[:dim] = h
+        super().__init__(dim, c, np.concatenate([c, r.reshape(-1), h3]), motion=motion)
+
+
+class Capsule(Collider):
+    """Solid capsule: all points within ``radius`` > 0 of the segment ``a``-``b`` (2-D: a
+    stadium). Reference point: the segment's midpoint."""
+
+    kind = _d.CAPSULE
+
+    def __init__(self, a=(0.0, 0.0, -0.5), b=(0.0, 0.0, 0.5), radius=0.25, *, motion=None):
+        pa, dim = _vec3(a, "a")
+        pb, bdim = _vec3(b, "b")
+        if bdim != dim:
+            raise ValueError(f"a and b must have the same number of components; got {dim} and {bdim}")
+        self.a, self.b, self.radius = pa[:dim].copy(), pb[:dim].copy(), _positive(radius, "radius")
+        super().__init__(dim, 0.5 * (pa + pb), np.concatenate([pa, pb, [self.radius]]), motion=motion)
+
+
+class Cylinder(Collider):
+    """Solid capped cylinder (3-D only): ``center``, ``radius`` > 0, ``half_height`` > 0 along the
+    unit ``axis`` (default +z). Reference point: centre."""
+
+    kind = _d.CYLINDER
+
+    def __init__(self, center=(0.0, 0.0, 0.0), radius=0.5, half_height=0.5, *, axis=(0.0, 0.0, 1.0),
+                 motion=None):
+        c, _dim = _vec3(center, "center", 3)
+        u = _validate.as_vector(axis, "axis", 3)
+        length = np.linalg.norm(u)
+        if not length > 1e-12:
+            raise ValueError(f"axis must be a non-zero vector; got {u.tolist()}")
+        u = u / length
+        self.center, self.axis = c.copy(), u
+        self.radius, self.half_height = _positive(radius, "radius"), _positive(half_height, "half_height")
+        super().__init__(3, c, np.concatenate([c, u, [self.radius, self.half_height]]), motion=motion)
+
+
+class Container(Collider):
+    """A closed box that particles live *inside*: its walls are inward-facing planes.
+
+    ``Container(center, half_extents, rotation=None)`` builds the 2*D walls of an oriented box;
+    ``Container.from_planes(points, normals)`` any convex region (normals point inward, into the
+    free space). The signed distance is positive inside (free space) and negative outside.
+    Reference point: centre (the mean of the plane points for ``from_planes``).
+    """
+
+    kind = _d.CONTAINER
+
+    def __init__(self, center=(0.0, 0.0, 0.0), half_extents=(0.5, 0.5, 0.5), rotation=None, *,
+                 motion=None):
+        c, dim = _vec3(center, "center")
+        h = _validate.as_vector(half_extents, "half_extents", dim)
+        if np.any(h <= 0):
+            raise ValueError(f"half_extents must all be > 0; got {h.tolist()}")
+        r = as_rotation(rotation, dim, "rotation")
+        self.center, self.half_extents = c[:dim].copy(), h.copy()
+        normals, points = [], []
+        for axis in range(dim):
+            for sign in (-1.0, 1.0):
+                out = sign * r[:, axis]            # outward axis of the box
+                normals.append(-out)               # walls face inward
+                points.append(c + h[axis] * out)
+        self._init_planes(dim, c, np.array(points), np.array(normals), motion)
+
+    @classmethod
+    def from_planes(cls, points, normals, *, motion=None) -> "Container":
+        """Convex container bounded by planes through ``points`` (P, D) with inward ``normals`` (P, D)."""
+        pts = _validate.as_points(points, "points")
+        nrm = _validate.as_points(normals, "normals", dim=pts.shape[1], count=pts.shape[0])
+        lengths = np.linalg.norm(nrm, axis=1)
+        if np.any(lengths <= 1e-12):
+            raise ValueError(f"normals must be non-zero; rows {np.flatnonzero(lengths <= 1e-12).tolist()} are zero")
+        dim = pts.shape[1]
+        p3 = np.zeros((pts.shape[0], 3))
+        n3 = np.zeros((pts.shape[0], 3))
+        p3[:, :dim], n3[:, :dim] = pts, nrm / lengths[:, None]
+        self = cls.__new__(cls)
+        self.center, self.half_extents = pts.mean(axis=0), None
+        self._init_planes(dim, p3.mean(axis=0), p3, n3, motion)
+        return self
+
+    def _init_planes(self, dim, ref, points, normals, motion):
+        cf = np.concatenate([np.concatenate([n, [n @ p]]) for p, n in zip(points, normals, strict=True)])
+        self.plane_points, self.plane_normals = points[:, :dim].copy(), normals[:, :dim].copy()
+        Collider.__init__(self, dim, ref, cf, np.array([len(points)], np.int64), motion=motion)
+
+
+class SDF(Collider):
+    """A user-defined implicit shape.
+
+    Parameters
+    ----------
+    function : callable (M, D) -> (M,)
+        Signed distance in the rest frame, vectorised with NumPy, negative inside the solid. It
+        should be a true distance (or at least 1-Lipschitz) for the time-of-impact search.
+    gradient : callable (M, D) -> (M, D), optional
+        Its gradient; default: central differences with step ``1e-6 * scale``.
+    dim : int
+        2 or 3 (default 3).
+    bake : dict, optional
+        ``{"bounds": (lo, hi), "resolution": n}`` samples the function once on a grid with n
+        cells along the longest side; the collider then runs inside the compiled kernels (fast)
+        with the grid's limitations (see ``inertia.collision.distance``). Unbaked, the function is
+        called from Python once or a few times per step on the candidate particles.
+    motion : Motion or callable, optional
+    rest_point : (D,), optional
+        Reference point for ``motion`` (default: the origin).
+    """
+
+    kind = _d.CALLABLE
+
+    def __init__(self, function, *, gradient=None, dim=3, bake=None, motion=None, rest_point=None,
+                 scale=1.0):
+        if not callable(function):
+            raise ValueError(f"function must be a callable (M, D) -> (M,); got {type(function).__name__}")
+        if gradient is not None and not callable(gradient):
+            raise ValueError(f"gradient must be a callable (M, D) -> (M, D); got {type(gradient).__name__}")
+        if dim not in (2, 3):
+            raise ValueError(f"dim must be 2 or 3; got {dim!r}")
+        self.function, self.gradient_function = function, gradient
+        self.fd_step = 1e-6 * _positive(scale, "scale")
+        ref = np.zeros(3)
+        if rest_point is not None:
+            ref, _dim = _vec3(rest_point, "rest_point", dim)
+        Collider.__init__(self, dim, ref, np.zeros(1), motion=motion)
+        self.baked = False
+        if bake is not None:
+            self._bake(bake)
+
+    def _bake(self, bake):
+        from .mesh import bake_callable
+        if not isinstance(bake, dict) or "bounds" not in bake:
+            raise ValueError("bake must be a dict with 'bounds': (lo, hi) and optionally 'resolution': n")
+        lo = _validate.as_vector(bake["bounds"][0], "bake bounds lo", self.dim)
+        hi = _validate.as_vector(bake["bounds"][1], "bake bounds hi", self.dim)
+        if np.any(hi <= lo):
+            raise ValueError(f"bake bounds must have hi > lo in every component; got lo={lo.tolist()}, hi={hi.tolist()}")
+        resolution = int(bake.get("resolution", 64))
+        if resolution < 2:
+            raise ValueError(f"bake resolution must be >= 2; got {resolution}")
+        self._cf, self._ci = bake_callable(self.evaluate_rest, lo, hi, resolution, self.dim)
+        self.kind = _d.GRID
+        self.baked = True
+
+    def evaluate_rest(self, points):
+        """(d (M,), unit gradient (M, D)) of the user's function at rest-frame points (M, D)."""
+        points = np.ascontiguousarray(points, dtype=np.float64)
+        d = np.asarray(self.function(points), dtype=np.float64).reshape(-1)
+        if d.shape[0] != points.shape[0]:
+            raise ValueError(f"the SDF function must return one value per point ({points.shape[0]}); got {d.shape[0]}")
+        if self.gradient_function is not None:
+            g = np.asarray(self.gradient_function(points), dtype=np.float64).reshape(points.shape)
+        else:
+            g = np.empty_like(points)
+            h = self.fd_step
+            for c in range(points.shape[1]):
+                p = points.copy()
+                p[:, c] += h
+                fp = np.asarray(self.function(p), dtype=np.float64).reshape(-1)
+                p[:, c] -= 2 * h
+                fm = np.asarray(self.function(p), dtype=np.float64).reshape(-1)
+                g[:, c] = (fp - fm) / (2 * h)
+        length = np.linalg.norm(g, axis=1)
+        good = length > 0
+        g[good] /= length[good, None]
+        g[~good] = 0.0
+        if g.shape[1] >= 1:
+            g[~good, -1] = 1.0
+        return d, g
+
+    def query(self, points, t, distance_out, normal_out, velocity_out) -> None:
+        if self.baked:
+            return Collider.query(self, points, t, distance_out, normal_out, velocity_out)
+        points = self._points(points)
+        p, r = self.pose(t)
+        dim = self.dim
+        rest = self._ref[:dim] + (points - p[:dim]) @ r[:dim, :dim]  # R^T (x - p) row-wise
+        d, g = self.evaluate_rest(rest)
+        distance_out[:] = d
+        normal_out[:] = g @ r[:dim, :dim].T
+        v, w = self._rigid_velocity(t)
+        rel = np.zeros((points.shape[0], 3))
+        rel[:, :dim] = points - p[:dim]
+        velocity_out[:] = (v + np.cross(w, rel))[:, :dim]

@@ -1,0 +1,122 @@
+"""The particle collision stage: entry points, bad input, warnings, checkpoints."""
+
+import numpy as np
+import pytest
+
+import inertia as ia
+
+from .conftest import particles, state_hash
+
+C = ia.colliders
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"restitution": 1.5}, r"restitution must be in \[0, 1\]"),
+    ({"restitution": -0.1}, r"restitution must be in \[0, 1\]"),
+    ({"restitution": "a"}, "restitution must be a number"),
+    ({"friction": -0.2}, "friction must be a finite number >= 0"),
+    ({"friction": np.inf}, "friction must be a finite number >= 0"),
+])
+def test_bad_contact_parameters(kwargs, match):
+    ps = particles([[0.0, 0.0, 1.0]])
+    with pytest.raises(ValueError, match=match):
+        ps.add_collider(C.Plane(), **kwargs)
+
+
+def test_bad_collider_mode_and_flags():
+    ps = particles([[0.0, 0.0, 1.0]])
+    with pytest.raises(ValueError, match="collider must be one of inertia.colliders"):
+        ps.add_collider("plane")
+    with pytest.raises(ValueError, match="collider is 2-D but the particle system is 3-D"):
+        ps.add_collider(C.Plane(point=(0, 0), normal=(0, 1)))
+    with pytest.raises(ValueError, match=r"collision_mode must be one of \('a_priori', 'a_posteriori'\)"):
+        ps.collision_mode = "continuous"
+    with pytest.raises(ValueError, match="self_collisions must be True or False"):
+        ps.self_collisions = "yes"
+    with pytest.raises(ValueError, match="iterations must be an integer >= 1"):
+        C.configure_contacts(ps, iterations=0)
+    with pytest.raises(ValueError, match="distance_tolerance must be"):
+        C.configure_contacts(ps, distance_tolerance=-1.0)
+    assert ps.collision_mode == "a_priori" and ps.self_collisions is False
+    ps.collision_mode = "a_posteriori"
+    assert ps.collision_mode == "a_posteriori"
+
+
+def test_self_collisions_without_radius_warns():
+    ps = particles([[0.0, 0.0, 1.0], [0.0, 0.0, 2.0]])
+    with pytest.warns(UserWarning, match="radius 0"):
+        ps.self_collisions = True
+
+
+def test_particles_starting_inside_are_pushed_out_with_a_warning():
+    pos = np.array([[0.0, 0.0, -0.2], [0.1, 0.0, -0.5], [0.0, 0.0, 1.0], [3.0, 0.0, 0.1]])
+    ps = particles(pos, radius=0.0)
+    ps.add_collider(C.Plane(), restitution=0.0)
+    ps.add_collider(C.Sphere(center=(3, 0, 0), radius=0.5), restitution=0.0)
+    sim = ia.Simulation(ps, dt=1e-3)
+    with pytest.warns(UserWarning, match=r"3 particles start inside colliders \(Plane #0: 2, Sphere #1: 1\)"):
+        sim.step()
+    assert ps.x[0, 2] >= -1e-9 and ps.x[1, 2] >= -1e-9
+    assert np.linalg.norm(ps.x[3] - [3, 0, 0]) >= 0.5 - 1e-9
+
+
+def test_collider_queries_fill_preallocated_outputs():
+    col = C.Sphere(center=(0, 0, 0), radius=1.0, motion=lambda t: (t, 0.0, 0.0))
+    p = np.array([[2.0, 0.0, 0.0], [1.0, 1.0, 0.0]])
+    d, n, v = np.empty(2), np.empty((2, 3)), np.empty((2, 3))
+    col.query(p, 1.0, d, n, v)
+    np.testing.assert_allclose(d, [0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(n, [[1, 0, 0], [0, 1, 0]], atol=1e-12)
+    np.testing.assert_allclose(v, [[1, 0, 0], [1, 0, 0]], atol=1e-6)
+
+
+def _scene():
+    rng = np.random.default_rng(11)
+    pos = rng.uniform([-1, -1, 0.2], [1, 1, 1.5], size=(300, 3))
+    ps = particles(pos, rng.normal(0, 1, size=(300, 3)), radius=0.03)
+    ps.add_collider(C.Container(center=(0, 0, 1), half_extents=(1.2, 1.2, 1.0)), restitution=0.4, friction=0.3)
+    ps.add_collider(C.Sphere(center=(0, 0, 0.3), radius=0.3, motion=lambda t: (0.2 * np.sin(t), 0.0, 0.3)),
+                    restitution=0.6, friction=0.1)
+    ps.add_collider(C.Box(center=(0.5, 0.5, 0.2), half_extents=(0.2, 0.1, 0.2), rotation=(0, 0, 0.5)))
+    return ps
+
+
+@pytest.mark.filterwarnings("ignore:.*start inside colliders")  # random particles, some inside
+@pytest.mark.parametrize("self_collisions", [False, True])
+def test_checkpoint_restore_continues_bit_identically(self_collisions):
+    ps = _scene()
+    ps.self_collisions = self_collisions
+    sim = ia.Simulation(ps, dt=2e-3)
+    sim.run(0.2)
+    saved = sim.save_state()
+    sim.run(0.2)
+    first = state_hash(ps)
+    sim.restore_state(saved)
+    sim.run(0.2)
+    assert state_hash(ps) == first
+
+
+@pytest.mark.filterwarnings("ignore:.*start inside colliders")  # random particles, some inside
+def test_2d_particles_rest_in_a_2d_container_with_a_circle():
+    rng = np.random.default_rng(5)
+    ps = particles(rng.uniform([-0.8, 0.2], [0.8, 1.5], size=(50, 2)), radius=0.0)
+    ps.add_collider(C.Container(center=(0, 1), half_extents=(1, 1)), restitution=0.3, friction=0.5)
+    ps.add_collider(C.Sphere(center=(0, 0.3), radius=0.25), restitution=0.3, friction=0.5)
+    ps.add_collider(C.Capsule(a=(-0.7, 0.6), b=(-0.2, 0.8), radius=0.05), restitution=0.3, friction=0.5)
+    ps.add_collider(C.Box(center=(0.5, 0.5), half_extents=(0.2, 0.05), rotation=0.3), restitution=0.3)
+    sim = ia.Simulation(ps, dt=1e-3)
+    sim.run(3.0)
+    cont = ps._collision.colliders[0]
+    assert np.all(cont.signed_distance(ps.x) >= -1e-6)
+    for col in ps._collision.colliders[1:]:
+        assert np.all(col.signed_distance(ps.x) >= -1e-6)
+    assert np.abs(ps.v).max() < 0.5  # settling (particles on the round top may still slide)
+
+
+def test_profile_counts_steps():
+    ps = particles([[0.0, 0.0, 1.0]])
+    ps.add_collider(C.Plane())
+    sim = ia.Simulation(ps, dt=1e-3)
+    sim.run(0.01)
+    prof = ps._collision.profile
+    assert prof["steps"] == 10 and prof["collide"] > 0
