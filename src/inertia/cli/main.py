@@ -155,17 +155,18 @@ def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool) -> None:
         probe.unlink()
     except OSError as exc:
         raise InputError(f"output directory {out} is not writable: {exc.strerror or exc}") from None
+    # temporary files left by a run that was killed mid-write (never the files themselves); cleaned
+    # first, so that a refused run also leaves the directory tidy
+    from inertia.io import remove_stale_partials
+    for directory in (out, out / STATES_NAME):
+        if directory.is_dir():
+            remove_stale_partials(directory)
     has_run = (out / CHECKPOINT_NAME).exists() or (out / STATES_NAME).exists()
     if resume:
         if not (out / CHECKPOINT_NAME).exists():
             raise InputError(f"nothing to resume: {out} has no {CHECKPOINT_NAME} (run without --resume)")
     elif has_run and not overwrite:
         raise InputError(f"{out} already holds a run; pass --resume to continue it or --overwrite to replace it")
-    # temporary files left by a run that was killed mid-write (never the files themselves)
-    from inertia.io import remove_stale_partials
-    for directory in (out, out / STATES_NAME):
-        if directory.is_dir():
-            remove_stale_partials(directory)
 
 
 # ------------------------------------------------------------------------------------------------
