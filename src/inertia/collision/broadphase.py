@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from ._jit import serial_twin
+from .._jit import serial_twin
 
 OFFSET = 1 << 20
 MAX_COLORS = 64  # colours 0..62 are parallel batches, colour 63 is the serial overflow

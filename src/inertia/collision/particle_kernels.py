@@ -32,7 +32,7 @@ import math
 from numba import njit, prange
 
 from . import distance as _d
-from ._jit import serial_twin
+from .._jit import serial_twin
 from .broadphase import MAX_COLORS
 from .response import surface_response
 from .toi import may_hit, segment_toi
