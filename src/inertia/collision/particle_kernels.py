@@ -71,13 +71,15 @@ def _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt):
     return (bx - ax) * inv_dt, (by - ay) * inv_dt, (bz - az) * inv_dt
 
 
-@njit(cache=True)
-def _classify_one(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref, inv_dt, tol,
-                  rest_speed, keep, rest_k, rest_n, rest_u):
-    # resting contact: within tol of a surface and not moving along its normal
+@njit(cache=True, inline="always")
+def _resting_collider(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref, inv_dt, tol,
+                      rest_speed, keep, near, rest_n, rest_u):
+    """The collider particle i rests on (-1 if none): within tol of its surface and not moving along
+    its normal; `keep` wins ties, `near` is a bitmask of the colliders to consider (-1: all).
+    Writes that contact's normal and surface velocity into rest_n[i], rest_u[i]."""
     kbest = -1
     for k in range(cint.shape[0]):
-        if cint[k, 0] == _d.CALLABLE:
+        if cint[k, 0] == _d.CALLABLE or not (near >> min(k, 62)) & 1:
             continue
         d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose_at, ref, k, x, y, z)
         if d - r > tol:
@@ -90,7 +92,14 @@ def _classify_one(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1
             kbest = k
             rest_n[i, 0], rest_n[i, 1], rest_n[i, 2] = nx, ny, nz
             rest_u[i, 0], rest_u[i, 1], rest_u[i, 2] = ux, uy, uz
-    rest_k[i] = kbest
+    return kbest
+
+
+@njit(cache=True)
+def _classify_one(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref, inv_dt, tol,
+                  rest_speed, keep, rest_k, rest_n, rest_u):
+    rest_k[i] = _resting_collider(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref,
+                                  inv_dt, tol, rest_speed, keep, -1, rest_n, rest_u)
 
 
 @njit(cache=True, parallel=True)
@@ -350,21 +359,8 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
 
     # 4. resting-contact state for the next step (only near colliders can hold it)
     if classify:
-        kbest = -1
-        for k in range(ncol):
-            if cint[k, 0] == _d.CALLABLE or not (near >> min(k, 62)) & 1:
-                continue
-            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, ex, ey, ez)
-            if d - r > tol:
-                continue
-            ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
-            wn = (evx - ux) * nx + (evy - uy) * ny + (evz - uz) * nz
-            if abs(wn) > rest_speed:
-                continue
-            if kbest < 0 or k == kr:
-                kbest = k
-                rest_n[i, 0], rest_n[i, 1], rest_n[i, 2] = nx, ny, nz
-                rest_u[i, 0], rest_u[i, 1], rest_u[i, 2] = ux, uy, uz
+        kbest = _resting_collider(i, ex, ey, ez, evx, evy, evz, r, cint, cf, ci, pose1, pose0, pose1,
+                                  ref, inv_dt, tol, rest_speed, kr, near, rest_n, rest_u)
         if kbest != kr:
             rest_k[i] = kbest
         return ex, ey, ez, evx, evy, evz, modified, kbest >= 0

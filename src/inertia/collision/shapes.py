@@ -181,6 +181,15 @@ class Sphere(Collider):
         super().__init__(dim, c, [c[0], c[1], c[2], self.radius], motion=motion)
 
 
+def _center_extents_rotation(center, half_extents, rotation):
+    """Validated (center as 3-vector, half_extents (D,) > 0, rotation (3, 3), dim) of a box-like shape."""
+    c, dim = _vec3(center, "center")
+    h = _validate.as_vector(half_extents, "half_extents", dim)
+    if np.any(h <= 0):
+        raise ValueError(f"half_extents must all be > 0; got {h.tolist()}")
+    return c, h, as_rotation(rotation, dim, "rotation"), dim
+
+
 class Box(Collider):
     """Solid oriented box: ``center`` (D,), ``half_extents`` (D,) > 0, ``rotation`` (see
     ``inertia.colliders.as_rotation``: 2-D angle, 3-D matrix / quaternion (w, x, y, z) /
@@ -190,11 +199,7 @@ class Box(Collider):
 
     def __init__(self, center=(0.0, 0.0, 0.0), half_extents=(0.5, 0.5, 0.5), rotation=None, *,
                  motion=None):
-        c, dim = _vec3(center, "center")
-        h = _validate.as_vector(half_extents, "half_extents", dim)
-        if np.any(h <= 0):
-            raise ValueError(f"half_extents must all be > 0; got {h.tolist()}")
-        r = as_rotation(rotation, dim, "rotation")
+        c, h, r, dim = _center_extents_rotation(center, half_extents, rotation)
         self.center, self.half_extents, self.rotation = c[:dim].copy(), h.copy(), r[:dim, :dim].copy()
         h3 = np.full(3, _d.BIG)
         h3[:dim] = h
@@ -248,11 +253,7 @@ class Container(Collider):
 
     def __init__(self, center=(0.0, 0.0, 0.0), half_extents=(0.5, 0.5, 0.5), rotation=None, *,
                  motion=None):
-        c, dim = _vec3(center, "center")
-        h = _validate.as_vector(half_extents, "half_extents", dim)
-        if np.any(h <= 0):
-            raise ValueError(f"half_extents must all be > 0; got {h.tolist()}")
-        r = as_rotation(rotation, dim, "rotation")
+        c, h, r, dim = _center_extents_rotation(center, half_extents, rotation)
         self.center, self.half_extents = c[:dim].copy(), h.copy()
         normals, points = [], []
         for axis in range(dim):

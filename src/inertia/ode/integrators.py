@@ -356,7 +356,6 @@ class PositionVerlet(_CachedAcceleration):
             self.x_prev[:] = x - dt * v + 0.5 * dt * dt * self.a
             self.dt = dt
         K.verlet_advance(x, self.x_prev, v, self.a, self.a_prev, dt)
-        s.state_revision  # the integrator's own change does not bump the revision
         self._remember(t + dt)
 
 
