@@ -1,0 +1,1 @@
+"""Rigid bodies: builders, free-body motion, materials (see docs/architecture.md)."""
