@@ -217,6 +217,7 @@ def _connect(client, scheduler, workers, dashboard, connect_timeout):
            "PYTHONPATH": os.pathsep.join([src, *filter(None, [os.environ.get("PYTHONPATH")])])}
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0" if dashboard else None,
+                           scheduler_kwargs=None if dashboard else {"dashboard": False},
                            silence_logs=logging.ERROR, env=env)
     try:
         c = Client(cluster)
