@@ -391,7 +391,10 @@ def sweep(scene, params, metrics=None, *, client=None, design: str | None = None
 
     session_start = time.perf_counter()
     interrupted = None
-    with _connect(client, scheduler, workers, dashboard, connect_timeout) as (c, threads, link):
+    # nothing left to run (a finished sweep resumed): no cluster is started
+    connection = _connect(client, scheduler, workers, dashboard, connect_timeout) if todo else \
+        contextlib.nullcontext((None, None, None))
+    with connection as (c, threads, link):
         job["numba_threads"] = threads
         report(0, link, c)
         try:
