@@ -99,6 +99,9 @@ def test_a_sweep_end_to_end_on_the_embedded_cluster(scene, tmp_path):
     pytest.importorskip("distributed")
     import pandas as pd
 
+    from inertia import load_scene
+
+    load_scene(scene).run()          # compile once here (on-disk cache): the 2 workers then load, not compile
     out = tmp_path / "out"
     result = invoke(scene, "--out", out, "--workers", "2", "-p", "particles[0].restitution=0.2:0.8:3",
                     "-m", "max_height", "-m", "vmax=peak(max(speed))")
