@@ -214,7 +214,7 @@ def _connect(client, scheduler, workers, dashboard, connect_timeout):
     threads = max(1, cores // n)
     src = str(Path(__file__).resolve().parents[2])
     env = {"NUMBA_NUM_THREADS": str(threads), "OMP_NUM_THREADS": "1",
-           "PYTHONPATH": os.pathsep.join([src, *filter(None, [os.environ.get("PYTHONPATH")])])}
+           "PYTHONPATH": os.pathsep.join(dict.fromkeys([src, *filter(None, os.environ.get("PYTHONPATH", "").split(os.pathsep))]))}
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                            dashboard_address="127.0.0.1:0" if dashboard else None,
                            scheduler_kwargs=None if dashboard else {"dashboard": False},
