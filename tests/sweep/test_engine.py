@@ -178,3 +178,13 @@ def test_failing_variants_are_rows_and_the_sweep_goes_on(tmp_path):
     assert "pinned" in errors[1] or "7" in errors[1]
     assert "step" in frame[frame["status"] == "diverged"]["error"].iloc[0]
     assert frame[frame["status"] != "completed"]["final_energy"].isna().all()
+
+
+def test_the_package_is_the_function(ball_scene):
+    # `ia.sweep(...)` works when inertia exports the package (`from . import sweep`) and `ia.sweep.params` too
+    import inertia.sweep as package
+
+    frame = package(ball_scene(duration=0.05), {"particles[0].restitution": [0.5]}, metrics=["max_height"],
+                    client="serial")
+    assert frame["max_height"].iloc[0] == pytest.approx(1.05)
+    assert package.params.parse_key_path("a.b") == ("a", "b")

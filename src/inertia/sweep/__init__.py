@@ -29,3 +29,18 @@ __all__ = ["sweep", "SweepProgress", "SweepInterrupted", "SweepInputError", "Par
            "parse_metric", "parse_key_path", "apply_overrides", "compile_expression", "make_design", "variant_seed",
            "run_variant", "variant_data", "require_dependencies", "BUILTINS", "QUANTITIES", "DESIGNS",
            "OUTPUT_KINDS", "DEFAULT_METRICS", "DEFAULT_MAX_VARIANTS"]
+
+
+# `ia.sweep(...)`: the package itself calls `sweep`, so exporting it from `inertia` as ``from . import sweep``
+# keeps both ``ia.sweep(scene, params)`` and ``ia.sweep.params`` working (a function of the same name as
+# the package would hide the package from ``import inertia.sweep as s``).
+import sys as _sys
+import types as _types
+
+
+class _CallablePackage(_types.ModuleType):
+    def __call__(self, *args, **kwargs):
+        return sweep(*args, **kwargs)
+
+
+_sys.modules[__name__].__class__ = _CallablePackage
