@@ -188,3 +188,8 @@ def test_the_package_is_the_function(ball_scene):
                     client="serial")
     assert frame["max_height"].iloc[0] == pytest.approx(1.05)
     assert package.params.parse_key_path("a.b") == ("a", "b")
+
+
+def test_a_swept_seed_is_the_seed_the_variant_runs_with(ball_scene):
+    frame = sweep(ball_scene(duration=0.02), {"simulation.seed": [5, 9]}, metrics=["max_height"], client="serial")
+    assert list(frame["seed"]) == [5, 9] and list(frame["simulation.seed"]) == [5, 9]

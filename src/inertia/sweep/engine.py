@@ -437,7 +437,8 @@ def _run_on_cluster(c, job, todo, variants, seed, spec, record, stop_after, stat
                 row = future.result()
             else:
                 exc = future.exception()
-                row = {"variant": i, "seed": variant_seed(seed, i),
+                used = variants[i].get("simulation.seed", variant_seed(seed, i))
+                row = {"variant": i, "seed": int(used) if isinstance(used, (int, float)) else -1,
                        **{k: _cell(v) for k, v in variants[i].items()},
                        "status": "lost", "error": f"{type(exc).__name__}: {exc}", "wall_time": math.nan}
             record(row, running=min(pending, slots), link=link, client_obj=c)

@@ -82,7 +82,9 @@ def run_variant(job: dict, index: int, values: dict, seed: int) -> dict:
 
     started = time.perf_counter()
     _limit_threads(job.get("numba_threads"))
-    row: dict[str, Any] = {"variant": int(index), "seed": int(seed)}
+    # the seed the scene runs with: derived from the sweep seed and index, unless simulation.seed is swept
+    used_seed = values.get("simulation.seed", seed)
+    row: dict[str, Any] = {"variant": int(index), "seed": int(used_seed) if isinstance(used_seed, (int, float)) else -1}
     metric_names = [m.name for m in job["metrics"]]
     outputs = set(job.get("outputs") or ())
     keep = job.get("out_dir") is not None and bool(outputs & {"states", "plot", "mp4", "gif"})
