@@ -131,6 +131,10 @@ def main() -> None:
     print(f"ratio serial/cluster = {t_serial / t_cluster:.2f}x with {workers} workers "
           f"(ideal {workers}x); scheduling overhead per variant {overhead * 1e3:.1f} ms per worker slot")
     print(f"ratio including start-up = {t_serial / (t_cluster + t_start):.2f}x")
+    cpu_serial, cpu_worker = float(serial["cpu_time"].mean()), float(table["cpu_time"].mean())
+    print(f"cpu    : {cpu_serial * 1e3:6.1f} ms per variant in this process, {cpu_worker * 1e3:6.1f} ms on a worker "
+          f"-> on an idle machine the cluster would reach about {workers * cpu_serial / cpu_worker:.2f}x "
+          f"(workers x serial cpu / worker cpu; a load-independent estimate)")
     print("memory : workers " + ", ".join(f"{v:.0f} MB" for v in worker_rss.values())
           + f"; this process {rss_mb():.0f} MB")
     print(f"results equal bit for bit: {same} (max difference {diff:g}); "

@@ -110,7 +110,7 @@ def test_a_sweep_end_to_end_on_the_embedded_cluster(scene, tmp_path):
     assert "3/3 done" in result.output and "0 failed" in result.output
     table = pd.read_parquet(out / "results.parquet")
     assert list(table.columns) == ["variant", "seed", "particles[0].restitution", "max_height", "vmax", "status",
-                                   "error", "wall_time", "pid"]
+                                   "error", "wall_time", "cpu_time", "pid"]
     assert list(table["status"]) == ["completed"] * 3
     csv = pd.read_csv(out / "results.csv")
     assert list(csv["variant"]) == [0, 1, 2]

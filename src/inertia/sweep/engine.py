@@ -153,7 +153,7 @@ def _metrics(metrics) -> list[Metric]:
     for n in names:
         if names.count(n) > 1:
             raise SweepInputError(f"--metric {n}: given twice")
-        if n in ("variant", "seed", "status", "error", "wall_time", "pid"):
+        if n in ("variant", "seed", "status", "error", "wall_time", "cpu_time", "pid"):
             raise SweepInputError(f"--metric {n}: the name is taken by a table column; choose another")
     if not out:
         raise SweepInputError("a sweep needs at least one metric")
@@ -305,7 +305,8 @@ def sweep(scene, params, metrics=None, *, client=None, design: str | None = None
 
     Raises `SweepInputError` (a ValueError) for bad requests, `inertia.scene.SceneError` for a bad scene.
     The DataFrame columns: variant, seed, one per parameter (its key path), one per metric, status
-    ("completed", "diverged", "error", "lost"), error, wall_time (s), pid (the process that ran it).
+    ("completed", "diverged", "error", "lost"), error, wall_time and cpu_time (s, of the process that ran
+    the variant, from scene validation to the last metric), pid (that process).
     """
     require_dependencies()
     started = time.perf_counter()
@@ -440,7 +441,8 @@ def _run_on_cluster(c, job, todo, variants, seed, spec, record, stop_after, stat
                 used = variants[i].get("simulation.seed", variant_seed(seed, i))
                 row = {"variant": i, "seed": int(used) if isinstance(used, (int, float)) else -1,
                        **{k: _cell(v) for k, v in variants[i].items()},
-                       "status": "lost", "error": f"{type(exc).__name__}: {exc}", "wall_time": math.nan}
+                       "status": "lost", "error": f"{type(exc).__name__}: {exc}", "wall_time": math.nan,
+                       "cpu_time": math.nan}
             record(row, running=min(pending, slots), link=link, client_obj=c)
             if stop_after is not None and state["finished"] >= stop_after and pending:
                 return f"stopped after {state['finished']} variants"

@@ -80,7 +80,7 @@ def run_variant(job: dict, index: int, values: dict, seed: int) -> dict:
     from ..world import Run
     from .metrics import Probe
 
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     _limit_threads(job.get("numba_threads"))
     # the seed the scene runs with: derived from the sweep seed and index, unless simulation.seed is swept
     used_seed = values.get("simulation.seed", seed)
@@ -147,6 +147,7 @@ def run_variant(job: dict, index: int, values: dict, seed: int) -> dict:
     row["status"] = status
     row["error"] = error
     row["wall_time"] = time.perf_counter() - started
+    row["cpu_time"] = time.process_time() - cpu_started
     row["pid"] = os.getpid()
     return row
 

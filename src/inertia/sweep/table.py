@@ -29,7 +29,7 @@ CSV_NAME = "results.csv"
 PLOT_NAME = "summary.png"
 
 FIRST = ("variant", "seed")
-LAST = ("status", "error", "wall_time", "pid")
+LAST = ("status", "error", "wall_time", "cpu_time", "pid")
 
 
 def _json_safe(value):
@@ -82,7 +82,7 @@ def rows_to_frame(rows: dict[int, dict], param_keys: list[str], metric_names: li
     columns = [*FIRST, *param_keys, *metric_names, *LAST]
     ordered = [rows[i] for i in sorted(rows)]
     frame = pd.DataFrame([{c: r.get(c) for c in columns} for r in ordered], columns=columns)
-    for name in metric_names + ["wall_time"]:
+    for name in metric_names + ["wall_time", "cpu_time"]:
         frame[name] = pd.to_numeric(frame[name], errors="coerce").astype(float)
     frame["variant"] = frame["variant"].astype("int64")
     frame["seed"] = frame["seed"].astype("int64")
