@@ -96,14 +96,15 @@ def test_missing_extra_is_named(scene, tmp_path, monkeypatch):
 
 
 def test_a_sweep_end_to_end_on_the_embedded_cluster(scene, tmp_path):
+    # the default cluster: one worker per usable core, 127.0.0.1, the dashboard on a free local port
     pytest.importorskip("distributed")
     import pandas as pd
 
     from inertia import load_scene
 
-    load_scene(scene).run()          # compile once here (on-disk cache): the 2 workers then load, not compile
+    load_scene(scene).run()          # compile once here (on-disk cache): the workers then load, not compile
     out = tmp_path / "out"
-    result = invoke(scene, "--out", out, "--workers", "2", "-p", "particles[0].restitution=0.2:0.8:3",
+    result = invoke(scene, "--out", out, "-p", "particles[0].restitution=0.2:0.8:3",
                     "-m", "max_height", "-m", "vmax=peak(max(speed))")
     assert result.exit_code == 0, result.output
     assert "dask dashboard: http://127.0.0.1:" in result.output
