@@ -79,8 +79,9 @@ def test_time_to_rest_follows_the_closed_form(cluster_client, ball_scene):
     """
     g, h0, dt, fps = 9.81, 1.0, 0.001, 100.0
     restitutions = [0.3, 0.5, 0.7]
+    # (through the scheduler's address, as `inertia sweep --scheduler tcp://...` connects)
     frame = sweep(ball_scene(duration=3.2), {"particles[0].restitution": restitutions}, metrics=["time_to_rest"],
-                  client=cluster_client)
+                  scheduler=cluster_client.scheduler.address)
     assert set(frame["status"]) == {"completed"}
     for e, measured in zip(restitutions, frame["time_to_rest"]):
         closed_form = math.sqrt(2 * h0 / g) * (1 + e) / (1 - e)

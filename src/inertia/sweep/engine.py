@@ -42,7 +42,7 @@ from typing import Any, Callable
 
 from .design import design_size, make_design, variant_seed
 from .metrics import BUILTINS, Metric, parse_metric
-from .params import Param, SweepInputError, apply_overrides, parse_param, thaw
+from .params import Param, SweepInputError, _freeze, apply_overrides, parse_param, thaw
 from .runner import OUTPUT_KINDS, _cell, run_variant
 from .table import (CSV_NAME, JOURNAL_NAME, PARQUET_NAME, PLOT_NAME, SPEC_NAME, Journal, plot_summary,
                     rows_to_frame, write_table)
@@ -134,10 +134,6 @@ def _params(params, data) -> list[Param]:
     if not out:
         raise SweepInputError("a sweep needs at least one --param KEY=VALUES")
     return out
-
-
-def _freeze(value):
-    return tuple(_freeze(v) for v in value) if isinstance(value, list) else value
 
 
 def _metrics(metrics) -> list[Metric]:
