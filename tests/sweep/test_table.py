@@ -2,7 +2,9 @@
 
 import math
 
-import pandas as pd
+import pytest
+
+pd = pytest.importorskip("pandas")
 
 from inertia.sweep.params import Param
 from inertia.sweep.table import Journal, plot_summary, rows_to_frame, write_table

@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .design import design_size, make_design, variant_seed
-from .metrics import BUILTINS, Metric, parse_metric
+from .metrics import Metric, parse_metric
 from .params import Param, SweepInputError, _freeze, apply_overrides, parse_param, thaw
 from .runner import OUTPUT_KINDS, _cell, run_variant
 from .table import (CSV_NAME, JOURNAL_NAME, PARQUET_NAME, PLOT_NAME, SPEC_NAME, Journal, plot_summary,
