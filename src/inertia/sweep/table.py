@@ -135,7 +135,11 @@ def plot_summary(frame, params, metric_names: list[str], path) -> Path | None:
             xs = np.asarray([labels.index(str(v)) if str(v) in labels else -1 for v in column], dtype=float)
         for i, name in enumerate(metric_names):
             ax = axes[i][j]
-            ax.scatter(xs, done[name].to_numpy(dtype=float), s=12, alpha=0.8)
+            ys = done[name].to_numpy(dtype=float)
+            ax.scatter(xs, ys, s=12, alpha=0.8)
+            if not np.isfinite(ys).any():
+                ax.text(0.5, 0.5, "no finite values (NaN)", transform=ax.transAxes, ha="center", va="center",
+                        fontsize=8, color="0.4")
             if labels is not None:
                 ax.set_xticks(range(len(labels)), labels, rotation=30, ha="right", fontsize=7)
             elif p.scale == "log10":
