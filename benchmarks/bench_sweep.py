@@ -79,7 +79,7 @@ def main() -> None:
     params = {"particles[0].restitution": "0.1:0.9"}
     cores = len(os.sched_getaffinity(0))
     workers = args.workers or cores
-    print(f"bench_sweep: {n} variants of a {args.duration:g} s bouncing ball (500 steps per 0.5 s), "
+    print(f"bench_sweep: {n} variants of a {args.duration:g} s bouncing ball ({round(args.duration / 0.001)} steps), "
           f"{cores} cores, {workers} workers; load average before: {os.getloadavg()[0]:.2f}")
 
     # the baseline gets the workers' Numba threads per variant (1 on 2 cores with 2 workers), so the ratio
