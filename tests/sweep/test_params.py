@@ -38,6 +38,9 @@ def test_integer_keys_sample_whole_numbers():
     assert p.integer
     drawn = p.from_unit(np.linspace(0, 0.999, 40))
     assert set(drawn) == {1, 2, 3, 4} and all(isinstance(v, int) for v in drawn)
+    assert set(parse_param("simulation.substeps=1.5:3.5", BASE).from_unit(np.linspace(0, 0.999, 20))) == {2, 3}
+    with pytest.raises(SweepInputError, match="holds no whole number"):
+        parse_param("simulation.substeps=1.2:1.8", BASE)
 
 
 @pytest.mark.parametrize("spec, words", [

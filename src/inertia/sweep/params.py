@@ -180,15 +180,18 @@ class Param:
             out = self.low + (self.high - self.low) * u
         if self.integer:
             # whole numbers low..high, each with an equal share of [0, 1)
-            n = int(self.high) - int(self.low) + 1
-            return [int(self.low) + int(min(k, n - 1)) for k in (u * n).astype(np.int64)]
+            first, last = math.ceil(self.low), math.floor(self.high)
+            n = last - first + 1
+            return [first + int(min(k, n - 1)) for k in (u * n).astype(np.int64)]
         return [float(v) for v in out]
 
     def checked_values(self) -> list:
         """The values to validate up front: every discrete value, or the ends of a range."""
         if not self.continuous:
             return list(self.values)
-        return [int(self.low), int(self.high)] if self.integer else [float(self.low), float(self.high)]
+        if self.integer:
+            return [math.ceil(self.low), math.floor(self.high)]
+        return [float(self.low), float(self.high)]
 
 
 def parse_param(spec: str, base: dict | None = None) -> Param:
@@ -261,6 +264,6 @@ def _parse_range(key: str, text: str, base: dict | None) -> Param:
         else:
             values = tuple(float(v) for v in points)
         return Param(key, values=values, low=low, high=high, scale=scale)
-    if integer and int(high) - int(low) < 0:
+    if integer and math.floor(high) < math.ceil(low):
         raise SweepInputError(f"--param {key}: the integer range {text!r} holds no whole number")
     return Param(key, low=low, high=high, scale=scale, integer=integer)
