@@ -634,6 +634,10 @@ def schema(
         out_console.print(f"wrote {out}")
 
 
+from .sweep import register as _register_sweep  # noqa: E402 - inertia sweep (src/inertia/cli/sweep.py)
+_register_sweep(app)
+
+
 @app.callback(invoke_without_command=True)
 def _main(version: Annotated[bool, typer.Option("--version", help="Print the version and exit.")] = False):
     """Inertia: physically based simulation for games and graphics."""
