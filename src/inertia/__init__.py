@@ -26,7 +26,7 @@ from .simulation import Simulation, SimulationState
 __all__ = [
     "ParticleSystem", "Tracers", "Simulation", "SimulationState", "SimulationDiverged",
     "Emitter", "PointSource", "BoxSource", "SphereSource", "DiskSource", "Cone",
-    "forces", "integrators", "colliders", "fields", "load_scene", "load_states", "World",
+    "forces", "integrators", "sweep", "colliders", "fields", "load_scene", "load_states", "World",
     "__version__",
 ]
 
@@ -48,7 +48,7 @@ def __getattr__(name):
     if name == "World":
         from .world import World
         return World
-    if name in ("colliders", "fields", "render", "io", "viewer", "scene", "world"):
+    if name in ("colliders", "fields", "render", "io", "viewer", "scene", "world", "sweep"):
         import importlib
         module = importlib.import_module(f".{name}", __name__)
         globals()[name] = module
