@@ -26,10 +26,10 @@ def revolution_integrals(radius_sq, z0, z1, rho, breaks=()):
     """Mass, z-centroid and inertia (about the centroid) of a solid of revolution about z, by integrating
     thin discs of squared radius s2(z): dm = rho pi s2 dz, dI_zz = dm s2 / 2, dI_xx = dm (s2 / 4 + z^2).
     (s2 is a polynomial on each piece for all our shapes, so Gauss-Kronrod quadrature is exact to rounding.)"""
-    def q(f):
-        return quad(f, z0, z1, points=breaks or None, epsabs=0, epsrel=1e-12, limit=200)[0]
+    def q(f, epsabs=0.0):
+        return quad(f, z0, z1, points=breaks or None, epsabs=epsabs, epsrel=1e-12, limit=200)[0]
     m = q(lambda z: rho * math.pi * radius_sq(z))
-    zc = q(lambda z: rho * math.pi * radius_sq(z) * z) / m
+    zc = q(lambda z: rho * math.pi * radius_sq(z) * z, epsabs=1e-13 * m * (z1 - z0)) / m
     izz = q(lambda z: rho * math.pi * radius_sq(z) ** 2 / 2)
     ixx = q(lambda z: rho * math.pi * radius_sq(z) * (radius_sq(z) / 4 + (z - zc) ** 2))
     return m, zc, ixx, izz
