@@ -210,3 +210,38 @@ def test_bad_arguments_raise():
         FreeBodies([1.0], [1, 1, 1], gravity=(0, 1))
     with pytest.raises(ValueError, match="second-order"):
         Simulation(FreeBodies([1.0], [1, 1, 1]), "velocity_verlet", dt=0.01)
+
+
+DETERMINISM_SCRIPT = """
+import hashlib
+import numpy as np
+from inertia.rigid.free_body import FreeBodies
+from inertia.simulation import Simulation
+rng = np.random.default_rng(5)
+n = 400  # 5200 state entries: above the serial-twin threshold, so the parallel kernels run
+inertia = np.sort(rng.uniform(0.5, 1.0, size=(n, 3)), axis=1)
+q = rng.normal(size=(n, 4))
+bodies = FreeBodies(rng.uniform(1, 2, n), inertia, positions=rng.normal(size=(n, 3)), orientations=q,
+                    velocities=rng.normal(size=(n, 3)), angular_velocities=rng.normal(size=(n, 3)) * 3,
+                    gravity=(0, 0, -9.81))
+bodies.body_torque[:] = rng.normal(size=(n, 3)) * 0.1
+Simulation(bodies, "rk4", dt=1e-3).run(0.1)
+print(hashlib.sha256(bodies.state.tobytes()).hexdigest())
+"""
+GOLDEN_HASH = "192a0060d9805bc11f4b2209a11baf256cc7b29ce5a40595a250972e836b7a69"
+
+
+def run_with_threads(threads):
+    import os
+    import subprocess
+    import sys
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    out = subprocess.run([sys.executable, "-c", DETERMINISM_SCRIPT], env=env, capture_output=True, text=True,
+                         check=True)
+    return out.stdout.strip().splitlines()[-1]
+
+
+def test_bit_identical_at_one_and_two_threads_against_golden_hash():
+    one, two = run_with_threads(1), run_with_threads(2)
+    assert one == two
+    assert one == GOLDEN_HASH
