@@ -4,20 +4,50 @@ Hull building (``build_convex_hull``) runs once at model build time with Qhull (
 ``scipy.spatial.ConvexHull``); it returns outward-wound triangles for mass properties and rendering, and
 merged polygonal faces (planes plus counter-clockwise vertex loops, CSR) for contact clipping.
 
+Queries (Numba kernels) take shapes as rows of the shape table: ``(shape_type, params (4,), pose (7,),
+vert_start, vert_count)`` plus the shared vertex table ``verts (V, 3)`` (local frames).
+- ``support_local``: the farthest point of a shape along a direction (the contract's support function).
+- ``gjk_distance``: distance, witness points and normal between convex shapes.  Spheres and capsules enter
+  as their cores (a point, a segment) and their radius is added afterwards, so GJK converges exactly and a
+  shallow overlap of the rounded parts is still measured exactly (negative distance).
+- ``epa_penetration`` / ``shape_distance``: depth and normal when the cores overlap.  EPA runs on the cores
+  and adds the radii (exact: the Minkowski difference of the whole shapes is that of the cores grown by
+  ra + rb); sphere/capsule pairs whose cores touch have a flat core difference and use a closed form.
+Signs: the normal points from A to B; ``shape_distance`` is negative for penetration; witness_b - witness_a
+= distance * normal.
+
 References
 - Barber, C. B., Dobkin, D. P. and Huhdanpaa, H. (1996). The Quickhull algorithm for convex hulls.
   ACM Transactions on Mathematical Software 22(4), 469-483 (Qhull).
+- Gilbert, E. G., Johnson, D. W. and Keerthi, S. S. (1988). A fast procedure for computing the distance
+  between complex objects in three-dimensional space. IEEE Journal of Robotics and Automation 4(2).
+- van den Bergen, G. (1999). A fast and robust GJK implementation for collision detection of convex objects.
+  Journal of Graphics Tools 4(2) (termination test; simplex kept with its support points for witnesses).
+- van den Bergen, G. (2001). Proximity queries and penetration depth computation on 3D game objects. GDC
+  (the expanding polytope algorithm).
+- Ericson, C. (2005). Real-Time Collision Detection. Morgan Kaufmann, 5.1.5 (closest point on a triangle,
+  used for the simplex) and 5.1.9 (closest points of two segments).
 
 Limitations
 - Hull faces are merged when Qhull reports them on the same plane (its triangulated output keeps one
   hyperplane per merged facet); nearly coplanar faces that Qhull keeps apart stay separate faces.
+- Triangle meshes, planes and heightfields are not convex: the queries refuse them (ValueError).
+- Cylinders are curved without a core: their EPA depth converges to ``EPA_TOLERANCE`` only within
+  ``EPA_MAX_ITERATIONS`` (1e-6 m typical for unit sizes), polytopes and rounded shapes are exact to rounding.
+- The kernels allocate a few small arrays per query (EPA: its polytope, ~70 KB); rigid-core's narrow phase
+  should prefer closed forms/SAT where they exist and call these for the remaining pairs.
+- Hull ``params`` (scale) are ignored: vertices are used as stored.
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
+
+from inertia import math as _m
 
 __all__ = ["ConvexHullData", "build_convex_hull", "support_local", "support_core_local", "core_radius",
            "gjk_distance", "epa_penetration", "shape_distance"]
@@ -115,12 +145,6 @@ def build_convex_hull(points, *, name: str = "points") -> ConvexHullData:
 # =====================================================================================================
 # Support functions, GJK and EPA (Numba kernels)
 # =====================================================================================================
-import math  # noqa: E402
-
-from numba import njit  # noqa: E402
-
-from inertia import math as _m  # noqa: E402
-
 # shape type codes of the shape table (same values as inertia.geometry.shapes, owned by rigid-core)
 SPHERE, BOX, CAPSULE, CYLINDER, CONVEX_HULL, TRIANGLE_MESH, PLANE, HEIGHTFIELD = range(8)
 
@@ -129,7 +153,7 @@ GJK_REL_TOLERANCE = 1e-12   # stop when |v|^2 - v.w <= tol |v|^2 (van den Bergen
 EPA_MAX_ITERATIONS = 128
 EPA_TOLERANCE = 1e-10       # relative gap between the closest face and the support along its normal
 _EPA_MAX_VERTS = EPA_MAX_ITERATIONS + 8
-_EPA_MAX_FACES = 16 * _EPA_MAX_VERTS
+_EPA_MAX_FACES = 8 * _EPA_MAX_VERTS
 
 
 @njit(cache=True)
@@ -513,7 +537,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
             return 0.0, zero, zero, zero, False
         alive[nf] = True
         nf += 1
-    edges = np.zeros((3 * _EPA_MAX_FACES, 2), dtype=np.int64)
+    edges = np.zeros((6 * _EPA_MAX_VERTS + 12, 2), dtype=np.int64)  # horizon: <= 3 x alive faces <= 6 nv
     best = 0
     for _ in range(EPA_MAX_ITERATIONS):
         # the face closest to the origin
