@@ -271,11 +271,11 @@ def _barycentric(a, b, c, p):
     v0 = b - a
     v1 = c - a
     v2 = p - a
-    d00 = np.dot(v0, v0)
-    d01 = np.dot(v0, v1)
-    d11 = np.dot(v1, v1)
-    d20 = np.dot(v2, v0)
-    d21 = np.dot(v2, v1)
+    d00 = _m.dot(v0, v0)
+    d01 = _m.dot(v0, v1)
+    d11 = _m.dot(v1, v1)
+    d20 = _m.dot(v2, v0)
+    d21 = _m.dot(v2, v1)
     den = d00 * d11 - d01 * d01
     if den <= 0.0:
         return -np.inf, -np.inf, -np.inf
@@ -462,9 +462,10 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     Returns (depth, witness_a, witness_b, normal, ok): translating B by depth * normal separates the shapes
     (touching); witness_a is A's deepest point inside B, witness_b B's deepest inside A.  ok is False when
     the shapes do not overlap (use ``gjk_distance``) or the polytope degenerated."""
-    pw = np.zeros((_EPA_MAX_VERTS, 3))
-    pa = np.zeros((_EPA_MAX_VERTS, 3))
-    pb = np.zeros((_EPA_MAX_VERTS, 3))
+    # scratch: only the entries below nv / nf are ever read
+    pw = np.empty((_EPA_MAX_VERTS, 3))
+    pa = np.empty((_EPA_MAX_VERTS, 3))
+    pb = np.empty((_EPA_MAX_VERTS, 3))
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
                         count_b, verts, with_radius, pw, pa, pb)
     zero = np.zeros(3)
@@ -510,16 +511,16 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
             p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, d, with_radius)
             p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -d, with_radius)
             w = p1 - p2
-            height = abs(np.dot(w - pw[0], nrm))
+            height = abs(_m.dot(w - pw[0], nrm))
             if height > best_height:
                 best_height = height
                 pw[3], pa[3], pb[3] = w, p1, p2
         if best_height <= 1e-12 * np.sum(nrm ** 2):
             return 0.0, zero, zero, zero, False
         nv = 4
-    faces = np.zeros((_EPA_MAX_FACES, 3), dtype=np.int64)
-    face_n = np.zeros((_EPA_MAX_FACES, 3))
-    face_d = np.zeros(_EPA_MAX_FACES)
+    faces = np.empty((_EPA_MAX_FACES, 3), dtype=np.int64)
+    face_n = np.empty((_EPA_MAX_FACES, 3))
+    face_d = np.empty(_EPA_MAX_FACES)
     alive = np.zeros(_EPA_MAX_FACES, dtype=np.bool_)
     nf = 0
     # initial faces, each oriented away from the polytope's interior point
@@ -531,13 +532,13 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     for t in range(tri.shape[0]):
         i, j, k = tri[t, 0], tri[t, 1], tri[t, 2]
         nrm = _m.cross(pw[j] - pw[i], pw[k] - pw[i])
-        if np.dot(nrm, pw[i] - centre) < 0.0:
+        if _m.dot(nrm, pw[i] - centre) < 0.0:
             j, k = k, j
         if not _epa_face(pw, i, j, k, faces, face_n, face_d, nf):
             return 0.0, zero, zero, zero, False
         alive[nf] = True
         nf += 1
-    edges = np.zeros((6 * _EPA_MAX_VERTS + 12, 2), dtype=np.int64)  # horizon: <= 3 x alive faces <= 6 nv
+    edges = np.empty((6 * _EPA_MAX_VERTS + 12, 2), dtype=np.int64)  # horizon: <= 3 x alive faces <= 6 nv
     best = 0
     for _ in range(EPA_MAX_ITERATIONS):
         # the face closest to the origin
@@ -553,7 +554,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
         p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, nrm, with_radius)
         p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -nrm, with_radius)
         w = p1 - p2
-        gap = np.dot(w, nrm) - bd
+        gap = _m.dot(w, nrm) - bd
         if gap <= EPA_TOLERANCE * max(1.0, abs(bd)) or nv >= _EPA_MAX_VERTS or nf + 2 * nv >= _EPA_MAX_FACES:
             break
         pw[nv], pa[nv], pb[nv] = w, p1, p2
@@ -561,9 +562,9 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
         # (a tolerance keeps faces coplanar with w: removing only some of a flat patch, by rounding, would
         # leave a horizon that is not a simple loop and fold the polytope)
         ne = 0
-        see_tol = 1e-10 * max(1.0, math.sqrt(np.dot(w, w)))
+        see_tol = 1e-10 * max(1.0, math.sqrt(_m.dot(w, w)))
         for f in range(nf):
-            if alive[f] and np.dot(face_n[f], w - pw[faces[f, 0]]) > see_tol:
+            if alive[f] and _m.dot(face_n[f], w - pw[faces[f, 0]]) > see_tol:
                 alive[f] = False
                 for e in range(3):
                     u = faces[f, e]
@@ -594,7 +595,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     best_margin = -np.inf
     for f in range(nf):
         if alive[f] or f == best:
-            if abs(face_d[f] - depth) <= 1e-9 * max(1.0, abs(depth)) and np.dot(face_n[f], face_n[best]) > 0.999999:
+            if abs(face_d[f] - depth) <= 1e-9 * max(1.0, abs(depth)) and _m.dot(face_n[f], face_n[best]) > 0.999999:
                 b0, b1, b2 = _barycentric(pw[faces[f, 0]], pw[faces[f, 1]], pw[faces[f, 2]], proj)
                 margin = min(b0, min(b1, b2))
                 if margin > best_margin:
@@ -614,17 +615,17 @@ def _closest_segment_params(p1, q1, p2, q2):
     d1 = q1 - p1
     d2 = q2 - p2
     r = p1 - p2
-    a = np.dot(d1, d1)
-    e = np.dot(d2, d2)
-    f = np.dot(d2, r)
+    a = _m.dot(d1, d1)
+    e = _m.dot(d2, d2)
+    f = _m.dot(d2, r)
     if a <= 1e-300 and e <= 1e-300:
         return 0.0, 0.0
     if a <= 1e-300:
         return 0.0, min(max(f / e, 0.0), 1.0)
-    c = np.dot(d1, r)
+    c = _m.dot(d1, r)
     if e <= 1e-300:
         return min(max(-c / a, 0.0), 1.0), 0.0
-    b = np.dot(d1, d2)
+    b = _m.dot(d1, d2)
     den = a * e - b * b
     s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 0.0 else 0.0
     t = (b * s + f) / e
@@ -654,21 +655,21 @@ def _rounded_core_overlap(type_a, params_a, pose_a, type_b, params_b, pose_b):
     cb = p2 + t * (q2 - p2)
     # normal: across both segments if they cross, else perpendicular to the segment(s), towards B's centre
     n = _m.cross(q1 - p1, q2 - p2)
-    if np.dot(n, n) <= 1e-24 * (1.0 + np.dot(q1 - p1, q1 - p1) * np.dot(q2 - p2, q2 - p2)):
+    if _m.dot(n, n) <= 1e-24 * (1.0 + _m.dot(q1 - p1, q1 - p1) * _m.dot(q2 - p2, q2 - p2)):
         axis = q1 - p1 if ha > 0.0 else q2 - p2
         n = pose_b[0:3] - pose_a[0:3]
         if ha > 0.0 or hb > 0.0:
-            u = axis / math.sqrt(np.dot(axis, axis))
-            n = n - np.dot(n, u) * u
-            if np.dot(n, n) <= 1e-24:
+            u = axis / math.sqrt(_m.dot(axis, axis))
+            n = n - _m.dot(n, u) * u
+            if _m.dot(n, n) <= 1e-24:
                 k = 0 if abs(u[0]) <= abs(u[1]) and abs(u[0]) <= abs(u[2]) else (1 if abs(u[1]) <= abs(u[2]) else 2)
                 e = np.zeros(3)
                 e[k] = 1.0
                 n = _m.cross(u, e)
-        elif np.dot(n, n) <= 1e-24:
+        elif _m.dot(n, n) <= 1e-24:
             n = np.array([0.0, 0.0, 1.0])
-    n = n / math.sqrt(np.dot(n, n))
-    if np.dot(n, pose_b[0:3] - pose_a[0:3]) < 0.0:
+    n = n / math.sqrt(_m.dot(n, n))
+    if _m.dot(n, pose_b[0:3] - pose_a[0:3]) < 0.0:
         n = -n
     ra = params_a[0]
     rb = params_b[0]

@@ -57,9 +57,9 @@ def _miss():
 @njit(cache=True)
 def ray_sphere(origin, direction, radius):
     """Entry of the ray into the sphere of ``radius`` at the local origin."""
-    a = np.dot(direction, direction)
-    b = np.dot(origin, direction)
-    c = np.dot(origin, origin) - radius * radius
+    a = _m.dot(direction, direction)
+    b = _m.dot(origin, direction)
+    c = _m.dot(origin, origin) - radius * radius
     if c <= 0.0 or a == 0.0:
         return _miss()  # starts inside (or no direction)
     disc = b * b - a * c
@@ -216,25 +216,25 @@ def ray_triangle(origin, direction, a, b, c):
     e1 = b - a
     e2 = c - a
     pvec = _m.cross(direction, e2)
-    det = np.dot(e1, pvec)
-    scale = math.sqrt(np.dot(e1, e1) * np.dot(e2, e2) * np.dot(direction, direction))
+    det = _m.dot(e1, pvec)
+    scale = math.sqrt(_m.dot(e1, e1) * _m.dot(e2, e2) * _m.dot(direction, direction))
     if abs(det) <= 1e-14 * scale:
         return _miss()  # parallel to the triangle's plane
     inv = 1.0 / det
     tvec = origin - a
-    u = np.dot(tvec, pvec) * inv
+    u = _m.dot(tvec, pvec) * inv
     if u < 0.0 or u > 1.0:
         return _miss()
     qvec = _m.cross(tvec, e1)
-    v = np.dot(direction, qvec) * inv
+    v = _m.dot(direction, qvec) * inv
     if v < 0.0 or u + v > 1.0:
         return _miss()
-    t = np.dot(e2, qvec) * inv
+    t = _m.dot(e2, qvec) * inv
     if t < 0.0:
         return _miss()
     n = _m.cross(e1, e2)
-    n /= math.sqrt(np.dot(n, n))
-    if np.dot(n, direction) > 0.0:
+    n /= math.sqrt(_m.dot(n, n))
+    if _m.dot(n, direction) > 0.0:
         n = -n
     return t, n
 
@@ -294,7 +294,7 @@ def shape_cast(type_a, params_a, pose_a, start_a, count_a, translation, type_b, 
         if d <= tolerance:
             return s, n, wb
         # the gap along n closes at rate translation . n; a convex pair cannot touch before it is used up
-        closing = np.dot(translation, n)
+        closing = _m.dot(translation, n)
         if closing <= 0.0:
             return _MISS, np.zeros(3), np.zeros(3)
         s += (d - 0.5 * tolerance) / closing
