@@ -126,6 +126,7 @@ def bench_self(n, steps, warmup):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10x smaller sizes")
+    parser.add_argument("--only", choices=("colliders", "self"), help="run one of the two benchmarks")
     args = parser.parse_args(argv)
     big = 100_000 if args.quick else 1_000_000
     print(f"inertia collision benchmarks; numba threads = {numba.get_num_threads()}")
@@ -139,7 +140,7 @@ def main(argv=None):
           f"{224 * big / bandwidth * 1e3:.2f} ms as a separate pass (224 B: 2.15x)\n")
 
     print(f"1. {big:,} particles, ground plane + sphere (ratio to the same step without colliders)")
-    for integrator in ("rk4", "semi_implicit_euler"):
+    for integrator in ("rk4", "semi_implicit_euler") if args.only != "self" else ():
         plain, rows = bench_colliders(big, integrator, steps=21, warmup=40)
         print(f"   {integrator:<20s} no colliders {plain:8.2f} ms/step")
         for mode, ms, prof, resting in rows:
@@ -147,6 +148,8 @@ def main(argv=None):
             print(f"   {'':<20s} {mode:<19s} {ms:8.2f} ms/step  ratio {ms / plain:5.2f}x   "
                   f"({parts} ms; {resting:,} resting)")
 
+    if args.only == "colliders":
+        return
     small = big // 10
     print(f"\n2. self-colliding spheres in a box: {small:,} and {big:,}")
     results = {}

@@ -436,32 +436,36 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
 
 
 @njit(cache=True, inline="always")
-def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length2):
-    """Bit k set for each collider k the step's path may reach: a lower bound of its distance
-    at the end point (exact for planes and containers, the bounding sphere otherwise) beyond the
-    path length proves the path cannot reach the surface. Inline math only: this runs for every
-    particle."""
+def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
+    """Bit k set for each collider k the step's path (of length ``length``, ending at e) may
+    reach: a lower bound of its distance at the end point (exact for planes and containers, the
+    bounding sphere otherwise) beyond r + 2 tol + length proves the path cannot reach the
+    surface. Inline math only, no square root: this runs for every particle."""
+    reach = r + 2.0 * tol + length
     near = 0
     for k in range(cnear.shape[0]):
         kind = cnear[k, 0]
         if kind == NEAR_NEVER:
             continue
-        if kind == NEAR_PLANE:
-            lb1 = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
-        elif kind == NEAR_BALL:
-            lb1 = math.sqrt((ex - cnear[k, 1]) ** 2 + (ey - cnear[k, 2]) ** 2 + (ez - cnear[k, 3]) ** 2)
-            lb1 -= cnear[k, 4]
-        elif kind == NEAR_PLANES:
-            o, m = int(cnear[k, 1]), int(cnear[k, 2])
-            lb1 = 1e300
-            for p in range(m):
-                b = o + 4 * p
-                lb1 = min(lb1, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
-        else:
-            lb1 = -1e300  # always a candidate (moving colliders)
-        gap = lb1 - r - 2.0 * tol  # far iff gap > |x1 - x0|
-        if k >= 62 or k == kr or gap <= 0.0 or gap * gap <= length2:
-            near |= 1 << min(k, 62)
+        if k < 62 and k != kr:
+            if kind == NEAR_PLANE:
+                if cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4] > reach:
+                    continue
+            elif kind == NEAR_BALL:
+                dx, dy, dz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
+                far = cnear[k, 4] + reach
+                if far > 0.0 and dx * dx + dy * dy + dz * dz > far * far:
+                    continue
+            elif kind == NEAR_PLANES:
+                o, m = int(cnear[k, 1]), int(cnear[k, 2])
+                lb = 1e300
+                for p in range(m):
+                    b = o + 4 * p
+                    lb = min(lb, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
+                if lb > reach:
+                    continue
+            # NEAR_ALWAYS (moving colliders): always a candidate
+        near |= 1 << min(k, 62)
     return near
 
 
@@ -558,9 +562,9 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
             else:
                 dv_step[i, 0] = dv_step[i, 1] = dv_step[i, 2] = 0.0
         kr = rest_k[i]
-        # 0. colliders near the path (squared length: no sqrt on this path)
-        length2 = (ex - sx) ** 2 + (ey - sy) ** 2 + (ez - sz) ** 2
-        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, length2)
+        # 0. colliders near the path
+        dx, dy, dz = ex - sx, ey - sy, ez - sz
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
         if near != 0 or kr >= 0:
             if started:
                 svx, svy = v0[i, 0], v0[i, 1]
@@ -646,8 +650,8 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
         else:
             ez, evz = 0.0, 0.0
         kr = rest_k[i]
-        length2 = (ex - sx) ** 2 + (ey - sy) ** 2 + (ez - sz) ** 2
-        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, length2)
+        dx, dy, dz = ex - sx, ey - sy, ez - sz
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
         if near != 0 or kr >= 0:
             ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                 i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
