@@ -245,7 +245,7 @@ def _bounce_apexes(ps, sim, count):
 
 @pytest.mark.parametrize("mode", ["a_priori", "a_posteriori"])
 @pytest.mark.parametrize("integrator", ia.integrators.available())
-def test_apex_heights_for_every_integrator(integrator, mode):
+def test_apex_heights_for_every_integrator(one_thread, integrator, mode):
     # h_n = e^(2n) h0 within 2% at dt = 1/600 for every method: before the fix symplectic Euler
     # lost ~0.8% per bounce (-2.6% at the third apex) and explicit Euler gained as much;
     # a-posteriori detection gained e g dt (time inside) per bounce (+0.8% at the third)
