@@ -470,6 +470,37 @@ def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
 
 
 @njit(cache=True)
+def _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, ez):
+    """True when every collider in ``near`` is a static plane or sphere and the chord s -> e
+    stays more than r + 2 tol from it (planes: the end point, the chord being straight; spheres:
+    the chord's closest point to the centre)."""
+    lx, ly, lz = ex - sx, ey - sy, ez - sz
+    l2 = lx * lx + ly * ly + lz * lz
+    for k in range(min(cnear.shape[0], 62)):
+        if not (near >> k) & 1:
+            continue
+        kind = cnear[k, 0]
+        if kind == NEAR_PLANE:
+            f = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
+            # f at the start is larger (heading in) or the chord moves away: the end decides
+            fs = cnear[k, 1] * sx + cnear[k, 2] * sy + cnear[k, 3] * sz - cnear[k, 4]
+            if min(f, fs) - r <= 2.0 * tol:
+                return False
+        elif kind == NEAR_BALL and cint[k, 0] == _d.SPHERE:
+            cx, cy, cz = cnear[k, 1] - sx, cnear[k, 2] - sy, cnear[k, 3] - sz
+            t = 0.0
+            if l2 > 0.0:
+                t = min(max((cx * lx + cy * ly + cz * lz) / l2, 0.0), 1.0)
+            dx, dy, dz = cx - t * lx, cy - t * ly, cz - t * lz
+            reach = cnear[k, 4] + r + 2.0 * tol
+            if dx * dx + dy * dy + dz * dz <= reach * reach:
+                return False
+        else:
+            return False
+    return near >> 62 == 0
+
+
+@njit(cache=True)
 def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                   static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
                   rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started):
@@ -481,6 +512,11 @@ def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_
     # the start velocity and the step's average acceleration (exact for constant forces)
     if not started:
         sx, sy, sz, svx, svy, svz = ex, ey, ez, evx, evy, evz
+    # near only static planes and spheres, and clear of them: the chord stays more than 2 tol
+    # from every surface, so the general path would find no impact, project nothing and find no
+    # resting contact (the margin keeps rounding out of it): nothing to do
+    if kr < 0 and _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, ez):
+        return ex, ey, ez, evx, evy, evz, False, False
     ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
 
     # 1. resting on a static plane and near nothing else (a floor, the bottom of a pile):
