@@ -6,7 +6,10 @@
 1. N particles falling on a ground plane and a sphere: ms per step with the colliders, as a
    ratio to the same step (same integrator, same forces) without colliders. Target <= 1.5x.
    Reported for the default integrator (rk4, fused path) and for semi-implicit Euler, in both
-   collision modes, with the machine's copy bandwidth as a floor reference.
+   collision modes, with the machine's copy bandwidth as a floor reference. With static
+   colliders the collision pass runs inside the integrator's fused kernel ("fused" in the
+   table; ``particle_kernels.step_and_collide``); "separate" forces the separate pass
+   (integrator kernel, then ``collide_particles`` with a saved start-of-step copy) for comparison.
 2. Self-colliding spheres stacked in a box (every particle in contact) at two sizes (10x
    apart): ms per step, the broad-phase share of the step, and the growth ratio (target <= 12x
    for 10x the particles).
@@ -57,11 +60,13 @@ def bench_colliders(n, integrator, steps, warmup):
     are stepped in turn, round after round, so that a change of machine load during the run
     affects the baseline and the collision steps alike."""
     sims = {"none": ia.Simulation(_rain(n), integrator=integrator, dt=1e-3)}
-    for mode in ("a_priori", "a_posteriori"):
+    for mode in ("a_priori", "a_posteriori", "a_priori separate"):
         ps = _rain(n)
         ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.3, friction=0.3)
         ps.add_collider(C.Sphere(center=(0.5, 0.0, 0.5), radius=0.5), restitution=0.5, friction=0.1)
-        ps.collision_mode = mode
+        ps.collision_mode = mode.split()[0]
+        if mode.endswith("separate"):
+            ps._collision.can_fuse = lambda: False
         sims[mode] = ia.Simulation(ps, integrator=integrator, dt=1e-3)
     with warnings.catch_warnings():
         warnings.filterwarnings("ignore", message=".*start inside colliders")  # the sphere is in the rain
@@ -77,10 +82,11 @@ def bench_colliders(n, integrator, steps, warmup):
             times[name].append(time.perf_counter() - t0)
     plain = 1e3 * float(np.median(times["none"]))
     rows = []
-    for mode in ("a_priori", "a_posteriori"):
+    for mode in ("a_priori", "a_posteriori", "a_priori separate"):
         data = sims[mode].system._collision
         prof = {k: 1e3 * (data.profile[k] - profiles[mode][k]) / steps for k in ("save", "classify", "collide")}
-        rows.append((mode, 1e3 * float(np.median(times[mode])), prof, data.resting_count))
+        label = mode if mode.endswith("separate") else f"{mode} {'fused' if data.fused_step else 'separate'}"
+        rows.append((label, 1e3 * float(np.median(times[mode])), prof, data.resting_count))
     return plain, rows
 
 
@@ -120,24 +126,30 @@ def bench_self(n, steps, warmup):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="10x smaller sizes")
+    parser.add_argument("--only", choices=("colliders", "self"), help="run one of the two benchmarks")
     args = parser.parse_args(argv)
     big = 100_000 if args.quick else 1_000_000
     print(f"inertia collision benchmarks; numba threads = {numba.get_num_threads()}")
     bandwidth = copy_bandwidth()
-    # the a-priori stage must keep the start-of-step state: it writes x0, v0 (48 B) and reads x, v,
-    # x0 (72 B) per particle and step, at least 120 B of memory traffic
-    print(f"copy bandwidth {bandwidth / 1e9:.1f} GB/s: moving 120 B/particle for {big:,} particles takes "
-          f"{120 * big / bandwidth * 1e3:.2f} ms (the floor of the collision pass)\n")
+    # the separate pass keeps the start-of-step state: it writes x0, v0 (48 B) and reads x, v, x0
+    # (72 B) per particle and step, at least 120 B of memory traffic on top of the step's 104 B
+    # (read x, v, 1/m; write x, v); the fused pass adds only radius, rest_k and active (13 B)
+    print(f"copy bandwidth {bandwidth / 1e9:.1f} GB/s: per step, {big:,} particles need "
+          f"{104 * big / bandwidth * 1e3:.2f} ms without colliders (104 B each), "
+          f"{117 * big / bandwidth * 1e3:.2f} ms fused (117 B: floor ratio 1.13x), "
+          f"{224 * big / bandwidth * 1e3:.2f} ms as a separate pass (224 B: 2.15x)\n")
 
     print(f"1. {big:,} particles, ground plane + sphere (ratio to the same step without colliders)")
-    for integrator in ("rk4", "semi_implicit_euler"):
+    for integrator in ("rk4", "semi_implicit_euler") if args.only != "self" else ():
         plain, rows = bench_colliders(big, integrator, steps=21, warmup=40)
         print(f"   {integrator:<20s} no colliders {plain:8.2f} ms/step")
         for mode, ms, prof, resting in rows:
             parts = ", ".join(f"{k} {v:.2f}" for k, v in prof.items())
-            print(f"   {'':<20s} {mode:<12s} {ms:8.2f} ms/step  ratio {ms / plain:5.2f}x   "
+            print(f"   {'':<20s} {mode:<19s} {ms:8.2f} ms/step  ratio {ms / plain:5.2f}x   "
                   f"({parts} ms; {resting:,} resting)")
 
+    if args.only == "colliders":
+        return
     small = big // 10
     print(f"\n2. self-colliding spheres in a box: {small:,} and {big:,}")
     results = {}

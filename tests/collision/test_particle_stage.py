@@ -120,3 +120,66 @@ def test_profile_counts_steps():
     sim.run(0.01)
     prof = ps._collision.profile
     assert prof["steps"] == 10 and prof["collide"] > 0
+
+
+def _static_scene(dim, mode, n=300):
+    # static colliders of four kinds, particles with and without radius, drag (affine forces)
+    rng = np.random.default_rng(3)
+    lo, hi = ([-1, -1, 0.0], [1, 1, 1.5]) if dim == 3 else ([-1, 0.0], [1, 1.5])
+    ps = particles(rng.uniform(lo, hi, (n, dim)), rng.normal(0, 2, (n, dim)), radius=rng.uniform(0, 0.02, n))
+    ps.add_force(ia.forces.Drag(0.05))
+    up = (0, 0, 1) if dim == 3 else (0, 1)
+    ps.add_collider(C.Plane(point=(0,) * dim, normal=up), restitution=0.3, friction=0.4)
+    ps.add_collider(C.Sphere(center=(0.3, 0, 0.4)[:dim], radius=0.4), restitution=0.6, friction=0.1)
+    ps.add_collider(C.Container(center=(0, 0, 1)[:dim], half_extents=(1.2,) * dim), restitution=0.8,
+                    friction=0.2)
+    ps.add_collider(C.Box(center=(-0.5, 0.5, 0.2)[:dim], half_extents=(0.2, 0.1, 0.2)[:dim],
+                          rotation=(0, 0, 0.5) if dim == 3 else 0.5), restitution=0.5)
+    ps.collision_mode = mode
+    return ps
+
+
+@pytest.mark.filterwarnings("ignore:.*start inside colliders")  # random particles, some inside
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("mode", ["a_priori", "a_posteriori"])
+@pytest.mark.parametrize("integrator", ["rk4", "semi_implicit_euler"])
+def test_fused_collision_pass_gives_the_bits_of_the_separate_pass(integrator, mode, dim):
+    # static colliders with the fused integrators: the collision pass runs inside the integrator's
+    # kernel (particle_kernels.step_and_collide); it must reproduce the integrator's kernel
+    # followed by collide_particles bit for bit (resting contact, impacts, friction, radius)
+    def make(fuse):
+        ps = _static_scene(dim, mode)
+        if not fuse:
+            ps._collision.can_fuse = lambda: False
+        sim = ia.Simulation(ps, integrator=integrator, dt=1 / 240)
+        sim.run(0.75)
+        return ps
+
+    fused, separate = make(True), make(False)
+    assert fused._collision.fused_step is not None and separate._collision.fused_step is None
+    assert fused._collision.resting_count == separate._collision.resting_count > 0
+    assert state_hash(fused) == state_hash(separate)
+
+
+# sha256 of the state of _static_scene(3, "a_priori", 2000) after 0.5 s of rk4 at dt = 1/240
+FUSED_GOLDEN = "d24935d6ce9721f397c864a45d742ae8de74805295a2eaac6456c445b543dbfe"
+
+
+@pytest.mark.filterwarnings("ignore:.*start inside colliders")  # random particles, some inside
+def test_fused_collision_pass_is_deterministic_at_1_and_2_threads(monkeypatch):
+    import numba
+
+    from inertia.collision import particle_stage
+    monkeypatch.setattr(particle_stage, "SERIAL_BELOW", 0)  # the parallel kernel
+    before = numba.get_num_threads()
+    hashes = []
+    try:
+        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+            numba.set_num_threads(threads)
+            ps = _static_scene(3, "a_priori", 2000)
+            ia.Simulation(ps, integrator="rk4", dt=1 / 240).run(0.5)
+            assert ps._collision.fused_step == "rk4"
+            hashes.append(state_hash(ps))
+    finally:
+        numba.set_num_threads(before)
+    assert set(hashes) == {FUSED_GOLDEN}

@@ -21,8 +21,16 @@ load   (N,)           normal load per unit mass the filter cancelled (m/s^2), la
 static_ok (N,) bool   the applied tangential force is within the static friction cone
 
 All kernels are pure functions: inputs, then outputs, then scalars; nothing is allocated.
-Particles are independent in ``collide_particles`` (parallel, deterministic); the pair solver
+Particles are independent in ``collide_particles`` and ``step_and_collide`` (parallel,
+deterministic: the only reductions are integer counts and a finite flag); the pair solver
 processes colour batches (write-disjoint) in parallel.
+
+The per-particle response (``_collide_near`` -> ``_resting_motion``, ``_full_path``) is shared
+by the separate pass (``collide_particles``, after any integrator) and the fused one
+(``step_and_collide``, inside rk4's and semi-implicit Euler's affine step); both give the same
+bits. It reads the colliders only through ``cint``/``cnear``/``cmat``/``cf``/``ci`` and the
+poses, so moving it onto a shared shape table means replacing ``_eval``/``segment_toi``
+lookups, not the response.
 """
 
 from __future__ import annotations
@@ -35,7 +43,7 @@ from . import distance as _d
 from .._jit import serial_twin
 from .broadphase import MAX_COLORS
 from .response import surface_response
-from .toi import may_hit, segment_toi
+from .toi import may_hit, path_fraction, segment_toi
 
 NEAR_PLANE, NEAR_BALL, NEAR_PLANES, NEAR_ALWAYS, NEAR_NEVER = 0.0, 1.0, 2.0, 3.0, 4.0
 
@@ -220,16 +228,32 @@ def _resting_motion(x0x, x0y, x0z, v0x, v0y, v0z, ax, ay, az, nx, ny, nz, ux, uy
 
 
 @njit(cache=True)
-def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
+def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az,
-               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, resting_done):
+               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, resting_done,
+               started):
     """Steps 1-4 of ``collide_particles`` for one particle near a collider (kept out of the hot
     loop so that the far-from-everything path stays small). Returns the final (x, v), whether
-    anything changed and whether the particle rests afterwards."""
+    anything changed and whether the particle rests afterwards.
+
+    The path of the step (see ``toi``): the parabola with the step's average acceleration a
+    through the integrator's start and end points, p(t) = s + w t + a t^2 / 2 with slope
+    w = (e - s) / h - a h / 2 at the start. The integrator's stored velocity differs from the
+    slope by ``lag = v0 - w`` (0 for the second-order methods and rk4 under constant forces,
+    -a h / 2 for symplectic and implicit Euler, a h / 2 for explicit Euler); responses act on the
+    path's velocity, and the lag is added back to the velocity handed to the next step, so a
+    bounce continues the integrator's own trajectory (apex heights do not drift with the method).
+    """
     ncol = cint.shape[0]
     inv_dt = 1.0 / dt
     r = radius[i]
     modified = resting_done
+    # the integrator's lag behind its path (zero for a particle without a path this step)
+    lagx = lagy = lagz = 0.0
+    if started:
+        lagx = svx - ((ex - sx) * inv_dt - 0.5 * ax * dt)
+        lagy = svy - ((ey - sy) * inv_dt - 0.5 * ay * dt)
+        lagz = svz - ((ez - sz) * inv_dt - 0.5 * az * dt)
     # 1. resting contact (unless the caller applied the resting motion already)
     if kr >= 0 and not resting_done:
         nx, ny, nz = rest_n[i, 0], rest_n[i, 1], rest_n[i, 2]
@@ -239,6 +263,7 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
                                                         ux, uy, uz, cmat[kr, 1], dt, rest_speed)
             ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
             modified = True
+            lagx = lagy = lagz = 0.0  # the resting motion is its own path
         else:
             wx, wy, wz = evx - ux, evy - uy, evz - uz
             wn = wx * nx + wy * ny + wz * nz
@@ -251,8 +276,17 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
                 wn = max(wn, 0.0)
                 evx, evy, evz = ux + tx + wn * nx, uy + ty + wn * ny, uz + tz + wn * nz
                 modified = True
+            # a held contact: no lag along its normal
+            ln = lagx * nx + lagy * ny + lagz * nz
+            lagx, lagy, lagz = lagx - ln * nx, lagy - ln * ny, lagz - ln * nz
+    elif resting_done:
+        lagx = lagy = lagz = 0.0
 
-    # 2. continuous detection along the step's straight path
+    # the path's velocity at the segment start (w) and at the end (p)
+    wsx, wsy, wsz = svx - lagx, svy - lagy, svz - lagz
+    pvx, pvy, pvz = evx - lagx, evy - lagy, evz - lagz
+
+    # 2. continuous detection: the chord finds the contact, the parabolic path its time
     s_start = 0.0
     if a_priori:
         for _ in range(max_sub):
@@ -261,6 +295,7 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
             bsig = 0.0
             bgx = bgy = bgz = 0.0
             blsx = blsy = blsz = blex = bley = blez = 0.0
+            span = (1.0 - s_start) * dt  # H: the rest of the step
             for k in range(ncol):
                 kind = cint[k, 0]
                 if kind == _d.CALLABLE or not (near >> min(k, 62)) & 1:
@@ -281,20 +316,33 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
                 hit, sig, gx, gy, gz = segment_toi(kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley,
                                                    lez, r, tol, max_iter)
                 if hit:
-                    s_abs = s_start + sig * (1.0 - s_start)
+                    # chord fraction -> time fraction on the path (tangent plane at the hit)
+                    if cint[k, 1] & 1:
+                        wnx, wny, wnz = _d.rotate(pose0[k], gx, gy, gz)
+                    else:
+                        wnx, wny, wnz = gx, gy, gz
+                    chord_in = gx * (lex - lsx) + gy * (ley - lsy) + gz * (lez - lsz)
+                    accel_in = 0.5 * (wnx * ax + wny * ay + wnz * az) * span * span
+                    tau = path_fraction(chord_in, accel_in, sig)
+                    s_abs = s_start + tau * (1.0 - s_start)
                     if s_abs < best:
                         best, bk, bsig, bgx, bgy, bgz = s_abs, k, sig, gx, gy, gz
                         blsx, blsy, blsz, blex, bley, blez = lsx, lsy, lsz, lex, ley, lez
             if bk < 0:
                 break
-            # contact point (rest frame -> world at the time of impact), normal, surface velocity
+            # time of impact from the segment start, the contact on the path and its velocity
+            t_hit = (best - s_start) * dt
+            cx = sx + wsx * t_hit + 0.5 * ax * t_hit * t_hit
+            cy = sy + wsy * t_hit + 0.5 * ay * t_hit * t_hit
+            cz = sz + wsz * t_hit + 0.5 * az * t_hit * t_hit
+            cvx, cvy, cvz = wsx + t_hit * ax, wsy + t_hit * ay, wsz + t_hit * az
+            # normal and surface velocity at the chord's contact point (rest frame -> world)
             lcx = blsx + bsig * (blex - blsx)
             lcy = blsy + bsig * (bley - blsy)
             lcz = blsz + bsig * (blez - blsz)
             if cint[bk, 1] & 1:
                 w0x, w0y, w0z = _d.to_world(pose0[bk], ref[bk], lcx, lcy, lcz)
                 w1x, w1y, w1z = _d.to_world(pose1[bk], ref[bk], lcx, lcy, lcz)
-                cx, cy, cz = w0x + best * (w1x - w0x), w0y + best * (w1y - w0y), w0z + best * (w1z - w0z)
                 ux, uy, uz = (w1x - w0x) * inv_dt, (w1y - w0y) * inv_dt, (w1z - w0z) * inv_dt
                 n0x, n0y, n0z = _d.rotate(pose0[bk], bgx, bgy, bgz)
                 n1x, n1y, n1z = _d.rotate(pose1[bk], bgx, bgy, bgz)
@@ -302,26 +350,27 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
                 nl = math.sqrt(nx * nx + ny * ny + nz * nz)
                 nx, ny, nz = nx / nl, ny / nl, nz / nl
             else:
-                cx, cy, cz = lcx, lcy, lcz
                 ux = uy = uz = 0.0
                 nx, ny, nz = bgx, bgy, bgz
-            # velocity at the time of impact (constant acceleration over the step)
-            tau = (best - s_start) * dt
-            cvx, cvy, cvz = svx + tau * ax, svy + tau * ay, svz + tau * az
             an = ax * nx + ay * ny + az * nz
             threshold = 2.0 * max(0.0, -an) * dt + rest_speed
+            # a slow impact is inelastic and the contact holds the particle: the acceleration
+            # into the surface and the integrator's lag along the normal are cancelled for the
+            # rest of the step. A real bounce keeps both (it leaves under gravity).
+            held = an < 0.0 and -((cvx - ux) * nx + (cvy - uy) * ny + (cvz - uz) * nz) <= threshold
             cvx, cvy, cvz, _hit = surface_response(cvx, cvy, cvz, ux, uy, uz, nx, ny, nz,
                                                    cmat[bk, 0], cmat[bk, 1], threshold)
-            # a contact that holds the particle cancels the acceleration into the surface
-            if an < 0.0 and (cvx - ux) * nx + (cvy - uy) * ny + (cvz - uz) * nz <= threshold:
+            if held:
                 ax, ay, az = ax - an * nx, ay - an * ny, az - an * nz
-            # finish the step from the contact: x = xc + v rem + a rem^2 / 2
+                ln = lagx * nx + lagy * ny + lagz * nz
+                lagx, lagy, lagz = lagx - ln * nx, lagy - ln * ny, lagz - ln * nz
+            # finish the step from the contact on the path: x = xc + v rem + a rem^2 / 2
             rem = (1.0 - best) * dt
             ex = cx + rem * cvx + 0.5 * rem * rem * ax
             ey = cy + rem * cvy + 0.5 * rem * rem * ay
             ez = cz + rem * cvz + 0.5 * rem * rem * az
-            evx, evy, evz = cvx + rem * ax, cvy + rem * ay, cvz + rem * az
-            sx, sy, sz, svx, svy, svz = cx, cy, cz, cvx, cvy, cvz
+            pvx, pvy, pvz = cvx + rem * ax, cvy + rem * ay, cvz + rem * az
+            sx, sy, sz, wsx, wsy, wsz = cx, cy, cz, cvx, cvy, cvz
             s_start = best
             modified = True
             near = -1  # the path changed: every collider is a candidate now
@@ -329,6 +378,7 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
     if modified:
         near = -1
     # 3. end-of-step projection (the a-posteriori response; a safety net a priori)
+    span = (1.0 - s_start) * dt
     for _ in range(3):
         pushed = False
         for k in range(ncol):
@@ -340,7 +390,7 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
                 continue
             # Witkin & Baraff: (X - P).N < eps and N.V < 0 (relative to the surface)
             ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
-            heading_in = (evx - ux) * nx + (evy - uy) * ny + (evz - uz) * nz < 0.0
+            heading_in = (pvx - ux) * nx + (pvy - uy) * ny + (pvz - uz) * nz < 0.0
             deep = f < -tol or (f < 0.0 and k == kr)
             if not (deep or heading_in):
                 continue
@@ -348,14 +398,32 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
                 ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
             if heading_in:
                 an = ax * nx + ay * ny + az * nz
+                cvx, cvy, cvz = pvx, pvy, pvz
+                if not a_priori and an < 0.0 and f < 0.0 and span > 0.0:
+                    # detected after the fact: the velocity the particle gained inside the
+                    # collider is not kept. The impact time on the path from the signed
+                    # distances at the segment's start and end; remove a_N (time inside).
+                    fs = _eval(cint, cf, ci, pose0, ref, k, sx, sy, sz)[0] - r
+                    inside = span  # started inside: the whole step
+                    if fs > 0.0:
+                        tau = path_fraction(f - fs, 0.5 * an * span * span, fs / (fs - f))
+                        inside = (1.0 - tau) * span
+                    cvx, cvy, cvz = cvx - an * inside * nx, cvy - an * inside * ny, cvz - an * inside * nz
                 threshold = 2.0 * max(0.0, -an) * dt + rest_speed
-                evx, evy, evz, _hit = surface_response(evx, evy, evz, ux, uy, uz, nx, ny, nz,
+                held = an < 0.0 and -((cvx - ux) * nx + (cvy - uy) * ny + (cvz - uz) * nz) <= threshold
+                pvx, pvy, pvz, _hit = surface_response(cvx, cvy, cvz, ux, uy, uz, nx, ny, nz,
                                                        cmat[k, 0], cmat[k, 1], threshold)
+                if held:
+                    ln = lagx * nx + lagy * ny + lagz * nz
+                    lagx, lagy, lagz = lagx - ln * nx, lagy - ln * ny, lagz - ln * nz
             pushed = True
             modified = True
         if not pushed:
             break
         near = -1
+    if modified:
+        # the velocity handed to the next step: the path's plus the integrator's lag
+        evx, evy, evz = pvx + lagx, pvy + lagy, pvz + lagz
 
     # 4. resting-contact state for the next step (only near colliders can hold it)
     if classify:
@@ -365,6 +433,118 @@ def _full_path(i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, r
             rest_k[i] = kbest
         return ex, ey, ez, evx, evy, evz, modified, kbest >= 0
     return ex, ey, ez, evx, evy, evz, modified, False
+
+
+@njit(cache=True, inline="always")
+def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
+    """Bit k set for each collider k the step's path (of length ``length``, ending at e) may
+    reach: a lower bound of its distance at the end point (exact for planes and containers, the
+    bounding sphere otherwise) beyond r + 2 tol + length proves the path cannot reach the
+    surface. Inline math only, no square root: this runs for every particle."""
+    reach = r + 2.0 * tol + length
+    near = 0
+    for k in range(cnear.shape[0]):
+        kind = cnear[k, 0]
+        if kind == NEAR_NEVER:
+            continue
+        if k < 62 and k != kr:
+            if kind == NEAR_PLANE:
+                if cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4] > reach:
+                    continue
+            elif kind == NEAR_BALL:
+                dx, dy, dz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
+                far = cnear[k, 4] + reach
+                if far > 0.0 and dx * dx + dy * dy + dz * dz > far * far:
+                    continue
+            elif kind == NEAR_PLANES:
+                o, m = int(cnear[k, 1]), int(cnear[k, 2])
+                lb = 1e300
+                for p in range(m):
+                    b = o + 4 * p
+                    lb = min(lb, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
+                if lb > reach:
+                    continue
+            # NEAR_ALWAYS (moving colliders): always a candidate
+        near |= 1 << min(k, 62)
+    return near
+
+
+@njit(cache=True)
+def _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, ez):
+    """True when every collider in ``near`` is a static plane or sphere and the chord s -> e
+    stays more than r + 2 tol from it (planes: the end point, the chord being straight; spheres:
+    the chord's closest point to the centre)."""
+    lx, ly, lz = ex - sx, ey - sy, ez - sz
+    l2 = lx * lx + ly * ly + lz * lz
+    for k in range(min(cnear.shape[0], 62)):
+        if not (near >> k) & 1:
+            continue
+        kind = cnear[k, 0]
+        if kind == NEAR_PLANE:
+            f = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
+            # f at the start is larger (heading in) or the chord moves away: the end decides
+            fs = cnear[k, 1] * sx + cnear[k, 2] * sy + cnear[k, 3] * sz - cnear[k, 4]
+            if min(f, fs) - r <= 2.0 * tol:
+                return False
+        elif kind == NEAR_BALL and cint[k, 0] == _d.SPHERE:
+            cx, cy, cz = cnear[k, 1] - sx, cnear[k, 2] - sy, cnear[k, 3] - sz
+            t = 0.0
+            if l2 > 0.0:
+                t = min(max((cx * lx + cy * ly + cz * lz) / l2, 0.0), 1.0)
+            dx, dy, dz = cx - t * lx, cy - t * ly, cz - t * lz
+            reach = cnear[k, 4] + r + 2.0 * tol
+            if dx * dx + dy * dy + dz * dz <= reach * reach:
+                return False
+        else:
+            return False
+    return near >> 62 == 0
+
+
+@njit(cache=True)
+def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
+                  static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
+                  rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started):
+    """Steps 1-4 of ``collide_particles`` for particle i, whose path may reach a collider (or
+    which rests on one). Start (s, sv) and end (e, ev) of the integrator's step in, final
+    (x, v) out, with whether they changed and whether the particle rests afterwards."""
+    inv_dt = 1.0 / dt
+    r = radius[i]
+    # the start velocity and the step's average acceleration (exact for constant forces)
+    if not started:
+        sx, sy, sz, svx, svy, svz = ex, ey, ez, evx, evy, evz
+    # near only static planes and spheres, and clear of them: the chord stays more than 2 tol
+    # from every surface, so the general path would find no impact, project nothing and find no
+    # resting contact (the margin keeps rounding out of it): nothing to do
+    if kr < 0 and _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, ez):
+        return ex, ey, ez, evx, evy, evz, False, False
+    ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+
+    # 1. resting on a static plane and near nothing else (a floor, the bottom of a pile):
+    #    the resting motion, and if the particle is still on the plane without normal motion,
+    #    done without the general path
+    modified = False
+    resting_done = False
+    if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62 and not filter_ran:
+        nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
+        if ax * nx + ay * ny + az * nz < 0.0:
+            ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
+                                                        0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
+            ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+            modified = resting_done = True
+        f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
+        wn = evx * nx + evy * ny + evz * nz
+        if -tol <= f <= tol and abs(wn) <= rest_speed:
+            if f < 0.0:
+                ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
+                modified = True
+            # resting: rest_k, rest_n (the plane's normal) and rest_u (0) stay
+            return ex, ey, ez, evx, evy, evz, modified, classify
+
+    # 2-4. near a collider: the general path
+    return _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
+                      static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay,
+                      az, dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran,
+                      resting_done, started)
 
 
 @njit(cache=True, parallel=True)
@@ -382,26 +562,25 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
        surface and stop sliding that friction stops within the step; if it did not run (fused
        integrator), recompute the step's motion with the filtered acceleration
        (``_resting_motion``);
-    2. a priori: the earliest time of impact along the straight path x0 -> x over the colliders,
-       move there, respond, finish the step with the remaining time from the contact; up to
-       ``max_sub`` impacts;
+    2. a priori: the earliest time of impact on the step's path (the chord finds the contact,
+       the parabola with the step's acceleration its time), move there, respond, finish the
+       step from the contact; up to ``max_sub`` impacts;
     3. the end position is projected out of any collider it is inside (the whole response in
-       a-posteriori mode; a safety net a priori);
+       a-posteriori mode, without the velocity gained inside; a safety net a priori);
     4. (classify) the resting-contact state for the next step;
     5. (save_next) x0, v0 = the final x, v (the next step's start, saving begin_step a copy).
-    Returns (number of particles changed, number resting).
+    Returns (number of particles changed, number resting, finite): finite is False when a value
+    this kernel wrote is NaN or infinite.
     """
     n, dim = x.shape
-    ncol = cint.shape[0]
-    inv_dt = 1.0 / dt
     changed = 0
     resting = 0
+    check = 0.0  # sum of (written value) * 0: NaN as soon as one is NaN or infinite
     for i in prange(n):
         if not active[i] or inv_mass[i] == 0.0:
             if rest_k[i] != -1:
                 rest_k[i] = -1
             continue
-        r = radius[i]
         ex, ey = x[i, 0], x[i, 1]
         ez = x[i, 2] if dim == 3 else 0.0
         evx, evy = v[i, 0], v[i, 1]
@@ -419,98 +598,111 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
             else:
                 dv_step[i, 0] = dv_step[i, 1] = dv_step[i, 2] = 0.0
         kr = rest_k[i]
-        modified = False
-
-        # 0. colliders near the path (bit k of `near`): a lower bound of the distance at the end
-        #    point (exact for planes and containers, the bounding sphere otherwise) beyond the
-        #    path length proves the path cannot reach the surface. Inline math only: this runs
-        #    for every particle.
-        length2 = (ex - sx) ** 2 + (ey - sy) ** 2 + (ez - sz) ** 2  # squared: no sqrt on this path
-        near = 0
-        for k in range(ncol):
-            kind = cnear[k, 0]
-            if kind == NEAR_NEVER:
-                continue
-            if kind == NEAR_PLANE:
-                lb1 = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
-            elif kind == NEAR_BALL:
-                lb1 = math.sqrt((ex - cnear[k, 1]) ** 2 + (ey - cnear[k, 2]) ** 2 + (ez - cnear[k, 3]) ** 2)
-                lb1 -= cnear[k, 4]
-            elif kind == NEAR_PLANES:
-                o, m = int(cnear[k, 1]), int(cnear[k, 2])
-                lb1 = 1e300
-                for p in range(m):
-                    b = o + 4 * p
-                    lb1 = min(lb1, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
+        # 0. colliders near the path
+        dx, dy, dz = ex - sx, ey - sy, ez - sz
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
+        if near != 0 or kr >= 0:
+            if started:
+                svx, svy = v0[i, 0], v0[i, 1]
+                svz = v0[i, 2] if dim == 3 else 0.0
             else:
-                lb1 = -1e300  # always a candidate (moving colliders)
-            gap = lb1 - r - 2.0 * tol  # far iff gap > |x1 - x0|
-            if k >= 62 or k == kr or gap <= 0.0 or gap * gap <= length2:
-                near |= 1 << min(k, 62)
-        if near == 0 and kr < 0:
-            # far from every collider: nothing to do
-            if save_next:
-                x0[i, 0], x0[i, 1], v0[i, 0], v0[i, 1] = ex, ey, evx, evy
+                svx, svy, svz = evx, evy, evz
+            ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
+                i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
+                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
+                rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started)
+            if mod:
+                changed += 1
+                check += (ex + ey + ez + evx + evy + evz) * 0.0
+                x[i, 0], x[i, 1] = ex, ey
+                v[i, 0], v[i, 1] = evx, evy
                 if dim == 3:
-                    x0[i, 2], v0[i, 2] = ez, evz
-            continue
-        # near: the start velocity and the step's average acceleration (exact for constant forces)
-        if started:
-            svx, svy = v0[i, 0], v0[i, 1]
-            svz = v0[i, 2] if dim == 3 else 0.0
-        else:
-            svx, svy, svz = evx, evy, evz
-        ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
-
-        # 1. resting on a static plane and near nothing else (a floor, the bottom of a pile):
-        #    the resting motion, and if the particle is still on the plane without normal motion,
-        #    done without the general path
-        resting_done = False
-        if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62 and not filter_ran:
-            nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
-            if ax * nx + ay * ny + az * nz < 0.0:
-                ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
-                                                            0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
-                ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
-                modified = resting_done = True
-            f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
-            wn = evx * nx + evy * ny + evz * nz
-            if -tol <= f <= tol and abs(wn) <= rest_speed:
-                if f < 0.0:
-                    ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
-                    modified = True
-                if modified:
-                    changed += 1
-                    x[i, 0], x[i, 1] = ex, ey
-                    v[i, 0], v[i, 1] = evx, evy
-                    if dim == 3:
-                        x[i, 2], v[i, 2] = ez, evz
-                if save_next:
-                    x0[i, 0], x0[i, 1], v0[i, 0], v0[i, 1] = ex, ey, evx, evy
-                    if dim == 3:
-                        x0[i, 2], v0[i, 2] = ez, evz
-                if classify:
-                    resting += 1  # rest_k, rest_n (the plane's normal) and rest_u (0) stay
-                continue
-
-        # 2-4. near a collider: the general path
-        ex, ey, ez, evx, evy, evz, mod, rests = _full_path(
-            i, x, v, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load, static_ok,
-            near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az, dt, tol, rest_speed,
-            a_priori, max_sub, max_iter, classify, filter_ran, resting_done)
-        if mod or modified:
-            changed += 1
-            x[i, 0], x[i, 1] = ex, ey
-            v[i, 0], v[i, 1] = evx, evy
-            if dim == 3:
-                x[i, 2], v[i, 2] = ez, evz
+                    x[i, 2], v[i, 2] = ez, evz
+            if rests:
+                resting += 1
+        # 5. the next step's start (far from every collider: the state as it is)
         if save_next:
             x0[i, 0], x0[i, 1], v0[i, 0], v0[i, 1] = ex, ey, evx, evy
             if dim == 3:
                 x0[i, 2], v0[i, 2] = ez, evz
-        if rests:
-            resting += 1
-    return changed, resting
+    return changed, resting, check == 0.0
+
+
+@njit(cache=True, inline="always")
+def _affine_step(x, v, g, f, k, w, h, rk4):
+    """One step of one coordinate under the affine force f = m g + F - k v (1/m = w): the
+    arithmetic of ``particles.kernels.affine_rk4`` (rk4) or ``affine_kick_drift``, so that the
+    fused step gives the same bits as the integrator followed by ``collide_particles``."""
+    if rk4:
+        base = g + f * w
+        kw = k * w
+        a1 = base - kw * v
+        v1 = v + 0.5 * h * a1
+        a2 = base - kw * v1
+        v2 = v + 0.5 * h * a2
+        a3 = base - kw * v2
+        v3 = v + h * a3
+        a4 = base - kw * v3
+        return x + h / 6.0 * (v + 2.0 * v1 + 2.0 * v2 + v3), v + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    vc = v + h * (g + (f - k * v) * w)
+    return x + h * vc, vc
+
+
+@njit(cache=True, parallel=True)
+def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk4, cint, cnear, cmat, cf,
+                     ci, pose, ref, rest_k, rest_n, rest_u, load, static_ok, dt, tol, rest_speed,
+                     a_priori, max_sub, max_iter):
+    """The fused integrator step (rk4 or semi-implicit Euler, affine forces) and the collision
+    pass against static colliders, in one pass over memory.
+
+    Each particle's start (x, v) and end of step stay in registers: no start-of-step copy is
+    written or read (the separate path moves x0, v0 through memory twice). Particles whose
+    path cannot reach a collider are written back at once; the others go through the same
+    ``_collide_near`` as ``collide_particles``, so the results are the same bits as the
+    integrator's fused kernel followed by ``collide_particles``. pose (K, 12): the static
+    colliders' poses (unused by static shapes). Returns (changed, resting, finite), finite False
+    when any value of the state (pinned and inactive particles included) is NaN or infinite.
+    """
+    n, dim = x.shape
+    changed = 0
+    resting = 0
+    check = 0.0
+    for i in prange(n):
+        w = inv_mass[i]
+        if not active[i] or w == 0.0:
+            if rest_k[i] != -1:
+                rest_k[i] = -1
+            for c in range(dim):
+                check += x[i, c] * 0.0 + v[i, c] * 0.0
+            continue
+        sx, svx = x[i, 0], v[i, 0]
+        sy, svy = x[i, 1], v[i, 1]
+        sz = x[i, 2] if dim == 3 else 0.0
+        svz = v[i, 2] if dim == 3 else 0.0
+        ex, evx = _affine_step(sx, svx, gravity[0], force[0], damping, w, dt, rk4)
+        ey, evy = _affine_step(sy, svy, gravity[1], force[1], damping, w, dt, rk4)
+        if dim == 3:
+            ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
+        else:
+            ez, evz = 0.0, 0.0
+        kr = rest_k[i]
+        dx, dy, dz = ex - sx, ey - sy, ez - sz
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
+        if near != 0 or kr >= 0:
+            ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
+                i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
+                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
+                rest_speed, a_priori, max_sub, max_iter, True, False, True)
+            if mod:
+                changed += 1
+            if rests:
+                resting += 1
+        check += (ex + ey + ez + evx + evy + evz) * 0.0
+        x[i, 0], x[i, 1] = ex, ey
+        v[i, 0], v[i, 1] = evx, evy
+        if dim == 3:
+            x[i, 2], v[i, 2] = ez, evz
+    return changed, resting, check == 0.0
 
 
 @njit(cache=True, parallel=True)
@@ -797,6 +989,7 @@ copy_into_serial = serial_twin(copy_into)
 classify_contacts_serial = serial_twin(classify_contacts)
 push_out_serial = serial_twin(push_out)
 collide_particles_serial = serial_twin(collide_particles)
+step_and_collide_serial = serial_twin(step_and_collide)
 resting_filter_serial = serial_twin(resting_filter)
 mark_pairs_serial = serial_twin(mark_pairs)
 solve_pairs_serial = serial_twin(solve_pairs)

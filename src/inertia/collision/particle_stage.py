@@ -18,6 +18,12 @@ begin_step (before the integrator)
     classify  x, v -> ``rest_k``, ``rest_n``, ``rest_u``: particles resting on a surface (within
               ``distance_tolerance`` of it, relative normal speed <= ``rest_speed``); reused from the
               previous end_step when nothing else changed the state and no collider moves
+    fuse      when the integrator announces its fused method (``integrator_fused_step``: rk4's
+              ``fused_rk4``, semi-implicit Euler's ``kick_drift``), all forces are affine and the
+              colliders are static and compiled (no moving collider, no unbaked SDF, no
+              self-collisions), nothing is saved: the integrator's kernel runs the collision pass
+              per particle with the step's start in registers (``particle_kernels.step_and_collide``,
+              the same bits as the separate pass below, one pass over memory instead of three)
 integrator
     non-fused steps: the force filter ``RestingContactFilter`` runs in every force evaluation:
     for resting particles it cancels the applied force into the surface and applies Coulomb
@@ -25,6 +31,8 @@ integrator
     ``kick_drift``, all forces affine) skip it (``fusable = True``) and end_step applies the
     same physics to the step's motion (``particle_kernels._resting_motion``).
 end_step (after the integrator)
+    fused     the kernel's counts; the state is known finite when its pass found no NaN/inf
+              (``system.finite_revision``: ``Simulation.step`` then skips its own check)
     collide   x0, v0, x, v -> x, v (``particle_kernels.collide_particles``): a cheap distance
               bound skips particles whose path cannot reach any collider, and particles resting
               on a static plane take an inline path; the others get resting clean-up, a-priori
@@ -57,10 +65,27 @@ References
 - Mirtich, B. (1996), PhD thesis (conservative advancement); Redon et al. (2002) (continuous
   collision detection on the interpolated straight path).
 
+Impacts on the step's path (issue 8)
+------------------------------------
+The path of a step is the parabola with the step's average acceleration through the
+integrator's start and end points (exact for constant forces with every integrator; see
+``toi.path_fraction``). The impact time is a fraction of the time step on that path (not of
+the chord); a real bounce leaves under the applied acceleration, and only an impact slower than
+the resting speed (inelastic) holds the particle and cancels the acceleration into the surface
+for the rest of the step. The velocity the integrator stores can lag the path's slope (by
+-a h / 2 for symplectic Euler, + a h / 2 for explicit Euler, 0 for the second-order methods
+and rk4): responses act on the path's velocity and the lag is handed on, so the apex heights of
+a bouncing ball are e^(2n) h0 with every integrator. A posteriori, the impact time on the path
+comes from the signed distances at the step's start and end, and the normal velocity gained
+after it (inside the collider) is removed before the response.
+
 Limitations
 -----------
-- The continuous (a-priori) search follows the straight chord of each step; curved paths are
-  linearised, so impacts are found up to O(a dt^2) in position (exact for constant forces).
+- The continuous (a-priori) search follows the straight chord of each step to find contacts
+  (the parabolic path lies within |a| dt^2 / 8 of it); impact times are exact for planes and
+  container walls, second order in that deviation for curved surfaces.
+- A posteriori, the time a particle spent inside a collider is lost (it restarts from the
+  surface with the response velocity): up to one step per impact.
 - Self-collisions are discrete (end-of-step overlap): particles moving more than about their
   radius per step can pass through each other.
 - A particle rests on one collider at a time (the force filter uses that normal); in corners
@@ -158,6 +183,12 @@ class ParticleCollisionData:
         self._restored = False
         self._pending_contacts = None
         self.filter_ran = False
+        # the fused step (``step_and_collide``): the integrator's fused method that will run the
+        # collision pass inside its own kernel this step ("kick_drift", "rk4" or None; set by
+        # begin_step), and that kernel's (changed, resting, finite) for end_step
+        self.fused_step = None
+        self.fused_armed = False  # between that begin_step and the integrator's kernel
+        self.fused_result = None
         self._pack()
 
     # --- model -------------------------------------------------------------------------------
@@ -199,6 +230,24 @@ class ParticleCollisionData:
         self.callables = [(i, c) for i, c in enumerate(self.colliders) if c.kind == _d.CALLABLE]
         self.any_moving = any(c.moving for c in self.colliders)
         self.any_kernel = any(c.kind != _d.CALLABLE for c in self.colliders)
+
+    def can_fuse(self) -> bool:
+        """True when the collision pass can run inside the integrator's fused kernel: only
+        static compiled colliders (no moving ones, no unbaked SDFs) and no self-collisions."""
+        return self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
+
+    def run_fused(self, system, affine, rk4, dt):
+        """The integrator's fused step with the collision pass (``particle_kernels.step_and_collide``)."""
+        g, force, damping = affine
+        self.fused_armed = False
+        n = system.x.shape[0]
+        tic = time.perf_counter()
+        self.fused_result = pick(pk.step_and_collide, pk.step_and_collide_serial, n)(
+            system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
+            self.cint, self.cnear, self.cmat, self.cf, self.ci, self.pose1, self.ref, self.rest_k,
+            self.rest_n, self.rest_u, self.load, self.static_ok, dt, self.distance_tolerance,
+            self.rest_speed, self.mode == "a_priori", self.max_substeps, self.max_iterations)
+        self.profile["collide"] += time.perf_counter() - tic
 
     def update_poses(self, t, dt):
         """pose0 / pose1 of the moving colliders at t and t + dt."""
@@ -345,12 +394,23 @@ class ParticleCollisionStage:
             return
         d.ensure_buffers(system)
         d.filter_ran = False
+        d.fused_result = None
         n = system.x.shape[0]
         tic = time.perf_counter()
-        # the step's start: already written by the previous end_step unless someone changed it
-        if d._saved_revision != system.state_revision:
-            pick(pk.copy_into, pk.copy_into_serial, n)(system.state, d.state0)
-        np.copyto(d.active0, system.active)
+        # the collision pass runs inside the integrator's fused kernel when it can: then the
+        # kernel keeps the step's start in registers and nothing is saved here
+        fused = getattr(system, "integrator_fused_step", None)
+        if fused is not None and d.can_fuse() and system._affine_terms() is not None:
+            d.fused_step = fused
+            d.fused_armed = True
+            d._saved_revision = None
+        else:
+            d.fused_step = None
+            d.fused_armed = False
+            # the step's start: already written by the previous end_step unless someone changed it
+            if d._saved_revision != system.state_revision:
+                pick(pk.copy_into, pk.copy_into_serial, n)(system.state, d.state0)
+            np.copyto(d.active0, system.active)
         d.update_poses(t, dt)
         toc = time.perf_counter()
         d.profile["save"] += toc - tic
@@ -369,15 +429,19 @@ class ParticleCollisionStage:
         d = self.data
         if not d.colliders and not d.self_collisions:
             return
+        if d.fused_step is not None:
+            self._end_fused_step(system)
+            return
         x, v = system.x, system.v
         n = x.shape[0]
         changed = 0
+        finite = True
         tic = time.perf_counter()
         # x0, v0 can be refreshed by the kernel itself when nothing runs after it
         save_next = not d.self_collisions and not d.callables
         if d.any_kernel or d.self_collisions:
             classify = not d.self_collisions
-            changed, resting = pick(pk.collide_particles, pk.collide_particles_serial, n)(
+            changed, resting, finite = pick(pk.collide_particles, pk.collide_particles_serial, n)(
                 x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
                 d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
                 d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
@@ -393,10 +457,29 @@ class ParticleCollisionStage:
             d.profile["callables"] += time.perf_counter() - toc
         if d.self_collisions:
             changed += self._self_collide(system, dt)
+            finite = False  # not tracked by the pair solver: the simulation checks the state
         if changed:
-            system.state_modified()
+            # the compiled pass reports whether what it wrote is finite (callables: not tracked)
+            system.state_modified(finite=finite and not d.callables)
         d._valid_revision = system.state_revision
         d._saved_revision = system.state_revision if save_next else None
+        d.profile["steps"] += 1
+
+    def _end_fused_step(self, system):
+        # the integrator's kernel ran the collision pass (``run_fused``)
+        d = self.data
+        if d.fused_result is None:
+            raise RuntimeError(f"internal error: the integrator did not take its fused step "
+                               f"{d.fused_step!r} announced to the collision stage")
+        changed, resting, finite = d.fused_result
+        d.fused_result = None
+        d.resting_count = resting
+        if changed:
+            system.state_modified()
+        # the kernel checked every value of the state it read and wrote
+        system.finite_revision = system.state_revision if finite else None
+        d._valid_revision = system.state_revision
+        d._saved_revision = None
         d.profile["steps"] += 1
 
     # --- parts -------------------------------------------------------------------------------

@@ -30,10 +30,30 @@ References
 - Moller, T. & Trumbore, B. (1997), "Fast, minimum storage ray-triangle intersection", JGT 2(1).
 - Amanatides, J. & Woo, A. (1987), "A fast voxel traversal algorithm for ray tracing".
 
+From the chord to the time of impact (``path_fraction``)
+--------------------------------------------------------
+The chord finds *whether* and *where* the particle meets a surface; the *time* of the impact
+comes from the particle's path. Over a step (or the rest of it, length H) the collision stage
+takes the path as the parabola with the step's average acceleration a through the integrator's
+start and end points, ``p(tau) = s + tau (e - s) - a H^2 tau (1 - tau) / 2`` (tau the fraction of
+the time step; exact for constant forces with every integrator: the positions of explicit and
+symplectic Euler lie on such a parabola too, with a start slope that differs from their stored
+velocity by -+ a h / 2). Near the chord's hit point (fraction sigma, normal n) the surface is
+its tangent plane, so the contact function along the path is the quadratic
+
+    F(tau) = L (tau - sigma) - A tau (1 - tau),   L = n.(e - s),  A = n.a H^2 / 2,
+
+with F(0) = -L sigma >= 0 and F(1) = L (1 - sigma) <= 0: the time of impact is its first root
+in [0, 1] at which the path goes in (exact for planes and container walls; second order in the
+chord's deviation a H^2 / 8 for curved surfaces). Taking sigma itself as the time puts the
+impact early when the acceleration points into the surface and the impact speed too low, by
+a few per cent at the speeds where a bouncing particle comes to rest.
+
 Limitations
 -----------
-- The path within a step is the straight chord from start to end, not the curved trajectory;
-  a collider rotating during the step is linearised (error O(angle^2) per step).
+- Detection follows the straight chord from start to end, not the curved trajectory (the
+  parabola lies within |a| H^2 / 8 of it: 3.4 um for gravity at dt = 1/600 s); a collider
+  rotating during the step is linearised (error O(angle^2) per step).
 - Mesh triangle tests do not round the offset triangles' edges: a sphere may clip a mesh edge
   by up to its radius within a step (the end-of-step projection then pushes it out).
 - Baked SDFs without triangles can miss features thinner than a grid cell.
@@ -265,3 +285,32 @@ def may_hit(kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol):
     b = _d.distance_lower_bound(kind, cf, o, ci, io, ex, ey, ez) - r
     length = math.sqrt((ex - sx) ** 2 + (ey - sy) ** 2 + (ez - sz) ** 2)
     return a + b - length <= 2.0 * tol
+
+
+@njit(cache=True)
+def path_fraction(chord_in, accel_in, sigma):
+    """Time of impact, as a fraction of the (remaining) step, on the parabolic path.
+
+    chord_in = n.(e - s) (< 0: the chord heads in), accel_in = n.a H^2 / 2, sigma = the chord's
+    hit fraction (see the module docstring). Returns the first root in [0, 1] of
+    F(tau) = accel_in tau^2 + (chord_in - accel_in) tau - chord_in sigma at which the path heads
+    in; a path that starts on the surface moving out returns at its second root.
+    """
+    qa = accel_in
+    qb = chord_in - accel_in
+    qc = -chord_in * sigma
+    if chord_in >= 0.0 or abs(qa) <= 1e-12 * abs(chord_in):
+        return sigma  # no curvature (the chord is the path), or no inward chord to refine
+    disc = max(qb * qb - 4.0 * qa * qc, 0.0)
+    q = -0.5 * (qb + math.copysign(math.sqrt(disc), qb))
+    r1 = q / qa
+    r2 = qc / q if q != 0.0 else r1
+    lo, hi = min(r1, r2), max(r1, r2)
+    eps = 1e-12
+    # starting on the surface and moving out (F(0) = 0, F'(0) > 0): the root at 0 is a departure
+    departing = qc == 0.0 and qb > 0.0
+    if -eps <= lo <= 1.0 + eps and not (departing and lo <= eps):
+        return min(max(lo, 0.0), 1.0)
+    if -eps <= hi <= 1.0 + eps:
+        return min(max(hi, 0.0), 1.0)
+    return sigma

@@ -62,13 +62,15 @@ class Integrator:
     """Base class: advances ``system.state`` in place by ``step(t, dt)``.
 
     Attributes: ``name``, ``order`` (global order of accuracy), ``symplectic``,
-    ``second_order_only`` (needs y = [x, v]).
+    ``second_order_only`` (needs y = [x, v]), ``fused_step`` (the system's fused method the
+    step tries first, or None).
     """
 
     name = "base"
     order = 0
     symplectic = False
     second_order_only = False
+    fused_step = None  # the system's fused method this integrator tries first ("kick_drift", "rk4")
 
     def __init__(self, system, **options):
         if options:
@@ -139,6 +141,7 @@ class RK4(Integrator):
     """Classical fourth-order Runge-Kutta."""
 
     name, order = "rk4", 4
+    fused_step = "rk4"
 
     def __init__(self, system, **options):
         super().__init__(system, **options)
@@ -301,6 +304,7 @@ class SemiImplicitEuler(Integrator):
     """
 
     name, order, symplectic, second_order_only = "semi_implicit_euler", 1, True, True
+    fused_step = "kick_drift"
 
     def __init__(self, system, **options):
         super().__init__(system, **options)

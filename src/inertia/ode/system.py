@@ -32,6 +32,16 @@ Optional capabilities, probed by the integrators that can use them:
 the state (collision response, a restored checkpoint, an emitter spawning particles);
 multistep integrators (position Verlet) restart their history when it changes.
 
+``integrator_fused_step`` (set by ``Simulation.step`` before the step's stages begin) names the
+fused method the integrator will try this step ("kick_drift", "rk4" or None), so a stage can
+prepare to run inside it (the collision pass, see ``collision.particle_stage``).
+
+``finite_revision`` is the divergence check's witness: the ``state_revision`` at which a fused
+kernel, in the same pass that wrote the state, found every value finite (None: unknown).
+``Simulation.step`` clears it before integrating and skips its own pass over the state when the
+witness still matches after the stages; a stage that changes the state and knows that what it
+wrote is finite calls ``state_modified(finite=True)`` to carry the witness over.
+
 Limitations: constraints are not part of this interface; they are separate step stages.
 """
 
@@ -55,6 +65,8 @@ class PhaseSpaceSystem:
     second_order: bool = False
     position_size: int = 0
     state_revision: int = 0
+    integrator_fused_step: str | None = None
+    finite_revision: int | None = None
 
     def derivative(self, y: np.ndarray, t: float, out: np.ndarray) -> None:  # pragma: no cover
         raise NotImplementedError
@@ -62,9 +74,14 @@ class PhaseSpaceSystem:
     def acceleration(self, x: np.ndarray, v: np.ndarray, t: float, out: np.ndarray) -> None:
         raise NotImplementedError  # pragma: no cover
 
-    def state_modified(self) -> None:
-        """Record that the state was changed outside an integrator step."""
+    def state_modified(self, finite: bool = False) -> None:
+        """Record that the state was changed outside an integrator step.
+
+        finite=True: the caller knows the values it wrote are finite, so a finite state stays
+        known to be finite (the divergence check's witness carries over)."""
+        known = finite and self.finite_revision is not None and self.finite_revision == self.state_revision
         self.state_revision += 1
+        self.finite_revision = self.state_revision if known else None
 
     # The optional capabilities default to "absent".
     def kick_drift(self, t: float, dt: float) -> bool:

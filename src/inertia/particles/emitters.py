@@ -260,7 +260,11 @@ class Emitter:
                    self._lifetimes[:count], self.id, s.x, s.v, s.active, s._emitter_owner,
                    s.particle_age, s.particle_lifetime, s.mass, s.inv_mass, s.node_free)
         if count or retired:
-            s.state_modified()
+            # retiring zeroes velocities; spawned values are finite unless a user distribution
+            # made them otherwise (then the simulation checks the whole state)
+            spawned_finite = count == 0 or bool(np.isfinite(self._positions[:count]).all()
+                                                and np.isfinite(self._velocities[:count]).all())
+            s.state_modified(finite=spawned_finite)
 
     def get_state(self):
         s = self.system

@@ -45,15 +45,27 @@ def affine_derivative(v, inv_mass, gravity, force, damping, out_x, out_v):
 
 @parallel_kernel
 def affine_kick_drift(x, v, inv_mass, gravity, force, damping, h):
-    """Semi-implicit Euler for affine forces in one pass: reads x, v, 1/m; writes x, v."""
+    """Semi-implicit Euler for affine forces in one pass: reads x, v, 1/m; writes x, v.
+
+    Returns True when every value of the new state is finite (pinned and inactive particles,
+    which it does not move, included): the divergence check, folded into the same pass as
+    sum(value * 0), which is 0 or NaN as soon as one value is NaN or infinite.
+    """
     n, d = x.shape
+    check = 0.0
     for i in prange(n):
         w = inv_mass[i]
         if w != 0.0:
             for c in range(d):
                 vc = v[i, c] + h * (gravity[c] + (force[c] - damping * v[i, c]) * w)
                 v[i, c] = vc
-                x[i, c] += h * vc
+                xc = x[i, c] + h * vc
+                x[i, c] = xc
+                check += (xc + vc) * 0.0
+        else:
+            for c in range(d):
+                check += (x[i, c] + v[i, c]) * 0.0
+    return check == 0.0
 
 
 @parallel_kernel
@@ -61,12 +73,16 @@ def affine_rk4(x, v, inv_mass, gravity, force, damping, h):
     """Classical RK4 for affine forces, particle by particle in registers (one pass over memory).
 
     Each particle's ODE x' = v, v' = g + (F - k v) / m is independent of the others, so the four
-    stages need no scratch arrays. Pinned particles (1/m = 0) do not move.
+    stages need no scratch arrays. Pinned particles (1/m = 0) do not move. Returns True when
+    every value of the new state is finite (the divergence check, as in ``affine_kick_drift``).
     """
     n, d = x.shape
+    check = 0.0
     for i in prange(n):
         w = inv_mass[i]
         if w == 0.0:
+            for c in range(d):
+                check += (x[i, c] + v[i, c]) * 0.0
             continue
         for c in range(d):
             base = gravity[c] + force[c] * w
@@ -79,8 +95,12 @@ def affine_rk4(x, v, inv_mass, gravity, force, damping, h):
             a3 = base - kw * v2
             v3 = v0 + h * a3
             a4 = base - kw * v3
-            x[i, c] += h / 6.0 * (v0 + 2.0 * v1 + 2.0 * v2 + v3)
-            v[i, c] = v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            xc = x[i, c] + h / 6.0 * (v0 + 2.0 * v1 + 2.0 * v2 + v3)
+            vc = v0 + h / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+            x[i, c] = xc
+            v[i, c] = vc
+            check += (xc + vc) * 0.0
+    return check == 0.0
 
 
 @parallel_kernel

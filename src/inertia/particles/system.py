@@ -211,19 +211,26 @@ class ParticleSystem(PhaseSpaceSystem):
         self.acceleration(y[:m], y[m:], t, out[m:])
 
     def kick_drift(self, t, dt) -> bool:
-        """Fused semi-implicit Euler step when all forces are affine per particle."""
-        affine = self._affine_terms()
-        if affine is None:
-            return False
-        K.affine_kick_drift(self.x, self.v, self.inv_mass, affine[0], affine[1], affine[2], dt)
-        return True
+        """Fused semi-implicit Euler step when all forces are affine per particle.
+
+        The kernel also checks the new state for NaN/inf (``finite_revision``) and, when the
+        collision stage prepared for it, runs the collision pass in the same pass over memory."""
+        return self._fused_step(dt, "kick_drift", K.affine_kick_drift)
 
     def fused_rk4(self, t, dt) -> bool:
         """Fused RK4 step when all forces are affine per particle (each particle is independent)."""
+        return self._fused_step(dt, "rk4", K.affine_rk4)
+
+    def _fused_step(self, dt, method, kernel) -> bool:
         affine = self._affine_terms()
         if affine is None:
             return False
-        K.affine_rk4(self.x, self.v, self.inv_mass, affine[0], affine[1], affine[2], dt)
+        collision = self._collision
+        if collision is not None and collision.fused_armed and collision.fused_step == method:
+            collision.run_fused(self, affine, method == "rk4", dt)  # end_step reports the check
+            return True
+        finite = kernel(self.x, self.v, self.inv_mass, affine[0], affine[1], affine[2], dt)
+        self.finite_revision = self.state_revision if finite else None
         return True
 
     # implicit integration -------------------------------------------------------
