@@ -42,8 +42,12 @@ def renderer_for(states, render: dict | None, colliders=()):
     for key, name in (("azimuth", "azimuth"), ("elevation", "elevation"), ("fov", "fov_y")):
         if camera.get(key) is not None:
             options[name] = float(camera[key])
+    # One speed scale for the whole run (as the viewer): a colour is the same speed in every frame.
+    from inertia.render.colormaps import run_speed_max
+
+    speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
-                        theme=render.get("theme", "dark"), **options)
+                        theme=render.get("theme", "dark"), speed_max=speed_max, **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
     renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active)

@@ -76,7 +76,7 @@ import numpy as np
 from .._validate import as_points, as_vector, positive_scalar
 from . import kernels as K
 from .base import Field
-from .noise import _GRADIENTS, PARALLEL_MIN_POINTS, NoiseParameters, lattice_tables
+from .noise import _GRADIENTS, NoiseParameters, lattice_tables
 
 __all__ = ["CurlNoise"]
 
@@ -177,7 +177,8 @@ class CurlNoise(Field):
         pts = np.ascontiguousarray(((0.5 + n * alpha) % 1.0) * (64.0 / self.params.frequency))
         out = np.empty_like(pts)
         p = self.params
-        K.curl_noise(pts, self._offsets, self._perm, self._grads, *_no_boundaries(D), np.zeros(D), out,
+        # The serial build: a scene with a few tracers then never compiles the parallel one.
+        K.curl_noise.serial(pts, self._offsets, self._perm, self._grads, *_no_boundaries(D), np.zeros(D), out,
                      0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, 1.0)
         return float(np.sqrt(np.mean(np.sum(out * out, axis=1))))
@@ -189,8 +190,7 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        kernel = K.curl_noise if points.shape[0] >= PARALLEL_MIN_POINTS else K.curl_noise_serial
-        kernel(points, self._offsets, self._perm, self._grads, *bnd, self.mean_velocity, out,
+        K.curl_noise(points, self._offsets, self._perm, self._grads, *bnd, self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, self.boundary_width)
 
@@ -315,7 +315,7 @@ class _Boundaries:
         # Candidate walls: (collider index, distance (M,), normal (M, D) or None, hessian fn).
         # A container's walls are its planes (a smooth distance each), any other collider is
         # one wall whose distance and normal come from its query.
-        stack = M < PARALLEL_MIN_POINTS
+        stack = points.size < K.SERIAL_BELOW
         fd = [D == 3 and not callable(getattr(c, "distance_hessian", None))
               and getattr(c, "plane_normals", None) is None for c in cols]
         walls = []

@@ -2,9 +2,9 @@
 
 Pure functions over arrays (inputs, then the outputs they fill, then scalars); no Python objects
 and no allocation per point. The parallel kernels split the points into chunks and give each
-chunk its own small scratch arrays, so nothing is allocated inside the per-point loop; each has
-a ``*_serial`` twin (the same ``*_range`` body on one thread) that the classes use for small
-batches, where starting threads would cost more than the work.
+chunk its own small scratch arrays, so nothing is allocated inside the per-point loop; they are
+``inertia._jit.parallel_kernel`` objects, which run their serial twin (the same code on one
+thread) for small batches, where starting threads would cost more than the work.
 
 References
 ----------
@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .._jit import parallel_kernel
+
 KIND_SIMPLEX = 0
 KIND_PERLIN = 1
 
@@ -43,6 +45,12 @@ _FAST = {"contract", "reassoc", "nsz", "arcp"}
 
 # Points per parallel chunk: large enough to amortise the chunk's scratch arrays.
 _CHUNK = 1024
+
+# Elements of the points array (M * S) below which the parallel kernels run their serial twin
+# (``inertia._jit``): a point costs ~0.1-1 us here, ~100 times a particle update, so threads
+# pay from a few thousand points on an idle machine; 16384 (5,461 points in 3-D) leaves a
+# margin for a loaded one.
+SERIAL_BELOW = 16384
 
 # Simplex kernel radius squared: 0.5 keeps every corner's kernel inside the simplices that share
 # that corner in 2-D, 3-D and 4-D, so the noise is C^2. (Gustavson's reference code uses 0.6 in
@@ -660,7 +668,7 @@ def fractal_noise_range(start, stop, points, offsets, perm, grads, value_out, gr
                     hess_out[i, k, j] = hh[k, j]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(serial_below=SERIAL_BELOW)
 def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
                   t, kind, order, frequency, lacunarity, gain, octaves, time_frequency, scale):
     """`fractal_noise_range` over all points, in parallel chunks."""
@@ -670,16 +678,6 @@ def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
         fractal_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
                             value_out, grad_out, hess_out, t, kind, order, frequency,
                             lacunarity, gain, octaves, time_frequency, scale)
-
-
-@njit(cache=True)
-def fractal_noise_serial(points, offsets, perm, grads, value_out, grad_out, hess_out,
-                         t, kind, order, frequency, lacunarity, gain, octaves, time_frequency,
-                         scale):
-    """`fractal_noise` on one thread (few points)."""
-    fractal_noise_range(0, points.shape[0], points, offsets, perm, grads, value_out, grad_out,
-                        hess_out, t, kind, order, frequency, lacunarity, gain, octaves,
-                        time_frequency, scale)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -924,7 +922,7 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
         out[i, 2] = v2
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(serial_below=SERIAL_BELOW)
 def curl_noise(points, offsets, perm, grads,
                slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
@@ -940,21 +938,6 @@ def curl_noise(points, offsets, perm, grads,
                          rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                          out, t, kind, frequency, lacunarity, gain, octaves, time_frequency,
                          scale, boundary_width)
-
-
-@njit(cache=True)
-def curl_noise_serial(points, offsets, perm, grads,
-                      slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
-                      rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-                      out,
-                      t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
-                      boundary_width):
-    """`curl_noise` on one thread: for few points, where starting threads costs more."""
-    curl_noise_range(0, points.shape[0], points, offsets, perm, grads,
-                     slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
-                     rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-                     out, t, kind, frequency, lacunarity, gain, octaves, time_frequency,
-                     scale, boundary_width)
 
 
 @njit(cache=True)
