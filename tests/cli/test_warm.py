@@ -34,3 +34,4 @@ def test_warmup_covers_every_bundled_example_and_renders_it():
     for _, data in warm._examples():
         sim = data["simulation"]
         assert abs(sim["duration"] * sim["fps"] - 2.0) < 1e-9  # two frames each
+        assert sim["duration"] == 2.0  # long enough for falling particles to land

@@ -140,7 +140,9 @@ def _scenes():
 
 
 def _examples():
-    """The bundled examples, cut to two frames: exactly the kernels `inertia run NAME` compiles."""
+    """The bundled examples, cut to their first 2 s recorded as two frames: the kernels
+    `inertia run NAME` compiles (2 s, so that falling particles reach the ground and the
+    contact kernels that only run then are compiled too)."""
     import tomllib
 
     from .main import bundled_examples
@@ -149,7 +151,8 @@ def _examples():
     for name, path in bundled_examples().items():
         data = tomllib.loads(path.read_text())
         sim = data.setdefault("simulation", {})
-        sim["duration"] = 2.0 / float(sim.get("fps", 30.0))
+        sim["duration"] = min(float(sim.get("duration", 2.0)), 2.0)
+        sim["fps"] = 2.0 / sim["duration"]
         data.pop("output", None)
         scenes.append((f"example {name}", data))
     return scenes
