@@ -1,6 +1,7 @@
 """Benchmark: 3-D curl-noise sampling and tracer advection at 10^6 points.
 
     python benchmarks/bench_curl_noise.py [--points 1000000] [--repeat 5]
+    python benchmarks/bench_curl_noise.py --leak [--leak-dt 0.005]   # issue 8's container check
 
 Reports, for 3-D curl-noise with 3 octaves (3 potentials x 3 octaves = 9 noise evaluations
 with gradient per point):
@@ -16,6 +17,11 @@ with gradient per point):
       what the same work costs in NumPy;
 - tracer advection of the same points with RK4 (``ia.Tracers`` + ``ia.Simulation``): ms per
   step (4 field evaluations per step).
+
+``--leak`` instead runs issue 8's containment check: 3000 tracers spread uniformly inside
+``Container(half_extents=(1, 1, 1))`` in ``CurlNoise(dim=3, seed=7)``, RK4 at ``--leak-dt`` for
+10 s, and prints how many left and the least signed distance seen (before the continuous wall
+blend, 53 of 3000 left). Takes minutes; the test suite runs 400 tracers near the edges.
 
 Timings are the best of ``--repeat`` runs after one warm-up call (Numba compilation excluded).
 """
@@ -81,7 +87,11 @@ def main(argv=None):
     parser.add_argument("--points", type=int, default=1_000_000)
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--steps", type=int, default=5, help="RK4 steps timed for advection")
+    parser.add_argument("--leak", action="store_true", help="run the 3000-tracer container check only")
+    parser.add_argument("--leak-dt", type=float, default=0.005)
     args = parser.parse_args(argv)
+    if args.leak:
+        return leak_check(args.leak_dt)
     M = args.points
     rng = np.random.default_rng(0)
     pts = rng.uniform(-1.0, 1.0, (M, 3))
@@ -155,6 +165,25 @@ def main(argv=None):
         step_s = (time.perf_counter() - t0) / args.steps
         print(f"RK4 advection, simplex 4-D (t) {'sphere' if boundaries else 'free  '}: "
               f"{step_s * 1e3:9.2f} ms/step ({M * 4 / step_s / 1e6:.2f} Mpoint-evaluations/s)")
+
+
+def leak_check(dt: float, count: int = 3000, duration: float = 10.0) -> None:
+    """Issue 8: tracers must never leave a 3-D container."""
+    room = ia.colliders.Container(half_extents=(1.0, 1.0, 1.0))
+    field = ia.fields.CurlNoise(dim=3, seed=7, boundaries=[room])
+    x0 = np.random.default_rng(1).uniform(-0.999, 0.999, (count, 3))
+    tracers = ia.Tracers(x0, field)
+    sim = ia.Simulation(tracers, integrator="rk4", dt=dt)
+    left = np.zeros(count, dtype=bool)
+    least = np.inf
+    t0 = time.perf_counter()
+    for _ in range(int(round(duration / dt))):
+        sim.step()
+        d = room.signed_distance(tracers.x)
+        left |= d < 0.0
+        least = min(least, float(d.min()))
+    print(f"container leak check: {int(left.sum())} of {count} tracers left over {duration:g} s "
+          f"(RK4, dt = {dt:g}); least signed distance {least:.3g}; {time.perf_counter() - t0:.0f} s")
 
 
 if __name__ == "__main__":

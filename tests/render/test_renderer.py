@@ -14,6 +14,7 @@ from render_scenes import colliders_3d, random_cloud  # noqa: E402
 
 import inertia.render.renderer as renderer_module  # noqa: E402
 from inertia.render import Camera, Renderer, colormap, parse_color  # noqa: E402
+from inertia.render.renderer import THEMES  # noqa: E402
 
 W, H = 160, 120
 
@@ -79,10 +80,16 @@ def test_speed_colours_use_the_colour_map():
     velocities = np.array([[0.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
     image = renderer.frame(points, radius=0.15, velocities=velocities)
     slow, fast = _pixel(image, points[:1], camera), _pixel(image, points[1:], camera)
-    # viridis: dark purple at 0, yellow at the top.
-    assert slow[2] > slow[1] and fast[0] > 120 and fast[1] > 120 and fast[2] < 100
+    # The default "speed" map (turbo from 0.1 to 0.9): blue at rest, orange-red at the top.
+    assert slow[2] > 100 and slow[2] > slow[0] and fast[0] > 90 and fast[0] > fast[1] and fast[0] > 2 * fast[2]
     expected = renderer.particle_colors(2, velocities=velocities)
-    np.testing.assert_allclose(expected, colormap("viridis", [0.0, 2.0], vmin=0.0, vmax=2.0))
+    np.testing.assert_allclose(expected, colormap("speed", [0.0, 2.0], vmin=0.0, vmax=2.0))
+    # Resting particles stay readable on the dark theme: the map's low end is > 1.3 times as
+    # bright (Rec. 709 luma of the sRGB values) as the ground; viridis's is under half.
+    luma = np.array([0.2126, 0.7152, 0.0722])
+    ground = float(np.array(THEMES["dark"]["ground"]) @ luma)
+    assert float(colormap("speed", [0.0], vmin=0.0, vmax=1.0)[0] @ luma) > 1.3 * ground
+    assert float(colormap("viridis", [0.0], vmin=0.0, vmax=1.0)[0] @ luma) < 0.5 * ground
 
 
 def test_group_colours_honour_named_group_colours():

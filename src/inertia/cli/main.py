@@ -213,6 +213,8 @@ def run(
     from inertia.scene import build, read_scene, with_overrides
     from inertia.world import Run
 
+    from .warm import compile_notice_on
+
     t_start = time.perf_counter()
     path = resolve_scene(scene)
     loaded = with_overrides(read_scene(path), duration=duration, fps=fps, seed=seed)
@@ -242,7 +244,8 @@ def run(
 
         runner.progress = report
         try:
-            result = runner.execute()
+            with compile_notice_on(bar, task, "simulating"):  # a cold Numba cache says so
+                result = runner.execute()
         except ValueError as exc:       # a checkpoint that does not fit this scene
             if "cannot resume" in str(exc):
                 raise InputError(str(exc)) from None
@@ -295,14 +298,16 @@ def _write_outputs(states_path, out, output, render, colliders, quiet) -> dict:
     from inertia.io import load_states
 
     from .outputs import write_outputs
+    from .warm import compile_notice_on
 
     states = load_states(states_path)
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
                   TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
                   console=console, disable=quiet) as bar:
         task = bar.add_task("writing outputs", total=states.frame_count)
-        return write_outputs(states, out, output, render, colliders,
-                             progress=lambda stage, done, total: bar.update(task, completed=done))
+        with compile_notice_on(bar, task, "writing outputs"):
+            return write_outputs(states, out, output, render, colliders,
+                                 progress=lambda stage, done, total: bar.update(task, completed=done))
 
 
 def _summary(outputs: dict, result, timings: dict) -> None:

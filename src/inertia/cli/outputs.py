@@ -42,8 +42,12 @@ def renderer_for(states, render: dict | None, colliders=()):
     for key, name in (("azimuth", "azimuth"), ("elevation", "elevation"), ("fov", "fov_y")):
         if camera.get(key) is not None:
             options[name] = float(camera[key])
+    # One speed scale for the whole run (as the viewer): a colour is the same speed in every frame.
+    from inertia.render.colormaps import run_speed_max
+
+    speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
-                        theme=render.get("theme", "dark"), **options)
+                        theme=render.get("theme", "dark"), speed_max=speed_max, **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
     renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active)
@@ -88,6 +92,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
+    legend = _legend(states, renderer, render)
     indices = range(states.frame_count) if frames is None else frames
     for f in indices:
         image = renderer.frame(
@@ -95,7 +100,29 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             velocities=None if states.velocities is None else states.velocities[f],
             colors=colors, groups=groups, active=states.active(f), colliders=draw,
             t=float(states.times[f]))
+        if legend is not None:
+            from inertia.render.legend import overlay
+
+            overlay(image, legend)
         yield f, image
+
+
+def _legend(states, renderer, render: dict | None):
+    """A legend image (h, w, 4) when colours mean groups and there are two or more; else None."""
+    from inertia.render.colormaps import group_palette, resolve_color_mode
+
+    names = list(states.metadata.get("groups") or [])
+    groups = states.groups()
+    if len(names) < 2 or groups is None:
+        return None
+    if resolve_color_mode(renderer.color_by, None, states.velocities, groups) != "group":
+        return None
+    try:
+        from inertia.render.legend import legend_image
+    except ImportError:  # pragma: no cover - matplotlib is in the [cli] extra
+        return None
+    palette = group_palette(states.metadata.get("group_colors"), len(names))[: len(names)]
+    return legend_image(names, palette, frame_height=renderer.height, theme=(render or {}).get("theme", "dark"))
 
 
 def plot_energy(states, path) -> Path:

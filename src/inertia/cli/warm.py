@@ -1,18 +1,56 @@
 """`inertia warmup`: compile the Numba kernels ahead of time by running tiny scenes.
 
 Every kernel is ``@njit(cache=True)``, so compiling once fills the on-disk cache (beside the
-sources, or under ``NUMBA_CACHE_DIR``) and later runs start warm. The scenes below touch every
-integrator, force, emitter, tracer field and collider type for a few steps, in 2-D and 3-D,
-then render one small frame.
+sources, or under ``NUMBA_CACHE_DIR``) and later runs start warm. First every bundled example
+runs for two frames and renders one (what `inertia run NAME` compiles, render kernels
+included); then the scenes below touch every integrator, force, emitter, tracer field and
+collider type for a few steps, in 2-D and 3-D.
+
+Limitations: kernels have a serial and a parallel build (``inertia._jit``); tiny scenes compile
+the serial builds only, so the first run of a scene above ``inertia._jit.SERIAL_BELOW``
+elements (or a frame above 600,000 pixels) still compiles the parallel ones.
 """
 
 from __future__ import annotations
 
+import contextlib
 import tempfile
 from typing import Callable
 
 
-__all__ = ["warm_all", "WARM_SCENES"]
+__all__ = ["warm_all", "WARM_SCENES", "compile_notice", "COMPILING"]
+
+#: What the progress bars say while Numba compiles (a cold on-disk cache).
+COMPILING = "compiling kernels (first run only)"
+
+
+@contextlib.contextmanager
+def compile_notice(on_start: Callable[[], None], on_end: Callable[[], None] | None = None):
+    """Call ``on_start()`` when Numba starts compiling and ``on_end()`` when it is done.
+
+    Listens to Numba's ``numba:compile`` event, which fires only on a cache miss (a kernel
+    loaded from the on-disk cache raises none), so a warm run says nothing. Nested compiles
+    (a kernel compiling the functions it calls) count once.
+    """
+    from numba.core import event
+
+    depth = 0
+
+    class _Listener(event.Listener):
+        def on_start(self, ev):
+            nonlocal depth
+            depth += 1
+            if depth == 1:
+                on_start()
+
+        def on_end(self, ev):
+            nonlocal depth
+            depth -= 1
+            if depth == 0 and on_end is not None:
+                on_end()
+
+    with event.install_listener("numba:compile", _Listener()):
+        yield
 
 
 def _base(dim: int, integrator: str, **extra) -> dict:
@@ -101,10 +139,35 @@ def _scenes():
     return scenes
 
 
+def _examples():
+    """The bundled examples, cut to their first 2 s recorded as two frames: the kernels
+    `inertia run NAME` compiles (2 s, so that falling particles reach the ground and the
+    contact kernels that only run then are compiled too)."""
+    import tomllib
+
+    from .main import bundled_examples
+
+    scenes = []
+    for name, path in bundled_examples().items():
+        data = tomllib.loads(path.read_text())
+        sim = data.setdefault("simulation", {})
+        sim["duration"] = min(float(sim.get("duration", 2.0)), 2.0)
+        sim["fps"] = 2.0 / sim["duration"]
+        data.pop("output", None)
+        scenes.append((f"example {name}", data))
+    return scenes
+
+
 WARM_SCENES = _scenes
 
 
 def _run_scene(data: dict, render: bool) -> None:
+    """Run a scene for its (short) duration; render its last frame small and plot its energy.
+
+    The frame goes through the same renderer path as `inertia run` (``render_frames``) with the
+    scene's own [render] table, so colour modes and collider primitives match; a small frame
+    runs the same (serial) builds as the default 960 x 540 video.
+    """
     from inertia.io import load_states
     from inertia.scene import build, parse_scene
     from inertia.world import Run
@@ -119,7 +182,8 @@ def _run_scene(data: dict, render: bool) -> None:
             from .outputs import plot_energy, render_frames
 
             states = load_states(result.states_path)
-            for _ in render_frames(states, {"width": 64, "height": 48}, world.colliders, frames=[states.frame_count - 1]):
+            table = {**data.get("render", {}), "width": 64, "height": 48}
+            for _ in render_frames(states, table, world.colliders, frames=[states.frame_count - 1]):
                 pass
             plot_energy(states, f"{tmp}/energy.png")
 
@@ -130,16 +194,30 @@ def warm_all(report: Callable[[str], None] | None = None, *, only: str | None = 
     Raises RuntimeError listing the failures after trying all.
     """
     done, failures = [], []
-    for i, (name, data) in enumerate(_scenes()):
+    for i, (name, data) in enumerate(_examples() + _scenes()):
         if only is not None and only not in name:
             continue
         if report is not None:
             report(name)
         try:
-            _run_scene(data, render=name.endswith(("a_priori", "rk4")) or i == 0)
+            _run_scene(data, render=name.startswith("example") or name.endswith(("a_priori", "rk4")) or i == 0)
             done.append(name)
         except Exception as exc:  # noqa: BLE001 - keep compiling the rest, then report
             failures.append(f"{name}: {type(exc).__name__}: {exc}")
     if failures:
         raise RuntimeError("warm-up scenes failed:\n  " + "\n  ".join(failures))
     return done
+
+
+def compile_notice_on(bar, task, label: str):
+    """`compile_notice` for a rich progress bar: while Numba compiles, the task's description
+    reads ``COMPILING`` (and the line is printed once, so logs show it too); then ``label``."""
+    said = []
+
+    def start():
+        bar.update(task, description=COMPILING)
+        if not said and not getattr(bar, "disable", False):
+            said.append(True)
+            bar.console.print(f"[dim]{COMPILING}...[/]")
+
+    return compile_notice(start, lambda: bar.update(task, description=label))

@@ -7,19 +7,30 @@ it is incompressible by construction; its derivatives are the analytic derivativ
     2-D: a scalar potential psi,            v = (d psi / dy, -d psi / dx)
     3-D: a vector potential (psi0, psi1, psi2) of three decorrelated noises, v = curl psi
 
-Boundaries (any collider of ``inertia.colliders``, static or kinematic). With d(x, t) the
-signed distance to the closest collider, n = grad d its outward normal, d0 the boundary width
-and Bridson's ramp alpha = ramp(d / d0) (= (15 r - 10 r^3 + 3 r^5) / 8 for |r| < 1, 1 beyond):
+Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
+walls within the boundary width d0: a collider is one wall, a ``Container`` one wall per plane
+(its own distance field has kinks on the medial planes, each plane's does not). Wall k has the
+signed distance d_k, the normal n_k = grad d_k and Bridson's ramp a_k = ramp(d_k / d0)
+(= (15 r - 10 r^3 + 3 r^5) / 8 for |r| < 1, 1 beyond). With alpha = prod_k a_k,
+c_k = (1 - a_k) prod_{j != k} a_j and gamma_K = (1 - prod_{k in K} a_k) prod_{k not in K} a_k
+for collider K:
 
-    2-D: psi' = alpha psi + (1 - alpha) psi_R
-    3-D: psi' = alpha psi + (1 - alpha) n (n . psi) + (1 - alpha) psi_R
+    2-D: psi' = alpha psi + sum_K gamma_K psi_R,K
+    3-D: psi' = alpha psi + sum_k c_k n_k (n_k . psi) + sum_K gamma_K psi_R,K
+
+With a single wall this is Bridson's psi' = a psi + (1 - a) n (n . psi) + (1 - a) psi_R. Every
+weight is a product of C^2 ramps, so psi' and the velocity are continuous where the closest
+wall changes (a box's edges and corners, two colliders near each other).
 
 An optional mean flow U joins the noise potential before the ramp (psi_U = U x (x - c) / 2),
 so that the wind, too, goes around the obstacles.
 
-At the surface (alpha = 0) psi' - psi_R is normal to the surface (zero in 2-D), so the curl
-of psi' has the normal component of the collider's own velocity: the flow is tangent to a
-static surface and carries no fluid through a moving one. psi_R is the potential of the
+On wall k (a_k = 0) only c_k n_k (n_k . psi) and gamma_K psi_R survive; when no other
+collider is within d0 there, gamma_K = 1 and psi' - psi_R is normal to the surface (zero in
+2-D), so the curl of psi' has the normal component of the collider's own velocity: the flow is
+tangent to a static surface and carries no fluid through a moving one. (The flux through a
+patch of surface is the circulation of psi' around its rim, which only the tangential part of
+psi' carries.) psi_R is the potential of the
 collider's rigid motion u_R = V + W x (x - c) (the paper's "moving boundaries"):
 
     2-D: psi_R = V_x (y - c_y) - V_y (x - c_x) - W (|x - c|^2 - R^2) / 2
@@ -38,19 +49,18 @@ References
 
 Limitations
 -----------
-- Several colliders: the closest one (least signed distance) shapes the potential (see
-  below for what happens where two are within d0 of a point).
-- 3-D boundaries need grad n (the Hessian of the signed distance). It is taken from the
-  collider's ``distance_hessian(points, t)`` when it has one, otherwise by central differences
-  of ``collider.normal`` with step 1e-3 d0 (O(step^2) error in the curvature term only;
-  the tangency at the surface does not depend on it). Across an edge of the distance field
-  (the medial planes inside a ``Container``, where the normal jumps) one-sided differences are
-  used; the potential has a kink there, and the velocity a jump in its tangential part.
-- Where the closest collider changes (two colliders both within d0) the normal-blend term of
-  the 3-D potential switches from one normal to the other, so the velocity jumps across that
-  surface and is divergence-free only on either side of it. Keep colliders at least d0 apart
-  (or lower ``boundary_width``) where exact incompressibility matters; tangency at every
-  surface holds regardless.
+- Several colliders: where a moving collider is within d0 of another collider's surface,
+  gamma_K < 1 there and the fluid's normal speed at that surface is only approximately the
+  collider's own (static colliders, and a moving one alone within d0, are exact). The mean
+  flow's potential is taken about the centre of the nearest wall's collider, so with a mean
+  flow U the velocity jumps by O(|U|) where the nearest collider changes (not between the
+  walls of one container).
+- 3-D boundaries need grad n (the Hessian of the signed distance). A container's planes have
+  none; other colliders give it by ``distance_hessian(points, t)`` when they have one,
+  otherwise it is taken by central differences of ``collider.normal`` with step 1e-3 d0
+  (O(step^2) error in the curvature term only; the tangency at the surface does not depend
+  on it). Across an edge of a collider's own distance field (a baked mesh's medial surfaces)
+  one-sided differences are used; the velocity then jumps in its tangential part there.
 - Collider motion is taken as rigid (translation + rotation) at each instant; a deforming
   collider would need a potential for its deformation velocity, which is not built.
 - ``jacobian`` / ``divergence`` (analytic) are available without boundaries only.
@@ -66,7 +76,7 @@ import numpy as np
 from .._validate import as_points, as_vector, positive_scalar
 from . import kernels as K
 from .base import Field
-from .noise import _GRADIENTS, PARALLEL_MIN_POINTS, NoiseParameters, lattice_tables
+from .noise import _GRADIENTS, NoiseParameters, lattice_tables
 
 __all__ = ["CurlNoise"]
 
@@ -167,7 +177,8 @@ class CurlNoise(Field):
         pts = np.ascontiguousarray(((0.5 + n * alpha) % 1.0) * (64.0 / self.params.frequency))
         out = np.empty_like(pts)
         p = self.params
-        K.curl_noise(pts, self._offsets, self._perm, self._grads, *_no_boundaries(D), np.zeros(D), out,
+        # The serial build: a scene with a few tracers then never compiles the parallel one.
+        K.curl_noise.serial(pts, self._offsets, self._perm, self._grads, *_no_boundaries(D), np.zeros(D), out,
                      0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, 1.0)
         return float(np.sqrt(np.mean(np.sum(out * out, axis=1))))
@@ -179,8 +190,7 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        kernel = K.curl_noise if points.shape[0] >= PARALLEL_MIN_POINTS else K.curl_noise_serial
-        kernel(points, self._offsets, self._perm, self._grads, *bnd, self.mean_velocity, out,
+        K.curl_noise(points, self._offsets, self._perm, self._grads, *bnd, self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, self.boundary_width)
 
@@ -219,48 +229,61 @@ class CurlNoise(Field):
                             p.time_frequency, self._scale)
             psi[:, c] = value
         U = self.mean_velocity
-        if self.boundaries.colliders:
-            slot, dist, normal, _, coll, V, W, C, R2 = self.boundaries.prepare(pts, t)
-            near = np.flatnonzero(slot >= 0)
-            r = dist / self.boundary_width
-            alpha = np.where(r >= 1, 1.0, np.where(r <= -1, -1.0, (15 * r - 10 * r**3 + 3 * r**5) / 8))
-            x = pts[near] - C[coll]
-            # Far from boundaries the mean flow's potential is taken about the origin; near
-            # one, about its centre (they differ by a constant: same curl).
-            far = slot < 0
-            if self.dim == 2:
-                psi[far, 0] += U[0] * pts[far, 1] - U[1] * pts[far, 0]
-                psi[near, 0] += U[0] * x[:, 1] - U[1] * x[:, 0]
-            else:
-                psi[far] += 0.5 * np.cross(U, pts[far])
-                psi[near] += 0.5 * np.cross(U, x)
-            if self.dim == 2:
-                psi_r = (V[coll, 0] * x[:, 1] - V[coll, 1] * x[:, 0]
-                         - 0.5 * W[coll, 0] * (np.sum(x * x, axis=1) - R2[coll]))
-                psi[near, 0] = alpha * psi[near, 0] + (1 - alpha) * psi_r
-            else:
-                psi_r = 0.5 * np.cross(V[coll], x) + 0.5 * (R2[coll] - np.sum(x * x, axis=1))[:, None] * W[coll]
-                s = np.sum(normal * psi[near], axis=1)
-                psi[near] = (alpha[:, None] * psi[near] + (1 - alpha)[:, None] * normal * s[:, None]
-                             + (1 - alpha)[:, None] * psi_r)
-        else:
+        if not self.boundaries.colliders:
             if self.dim == 2:
                 psi[:, 0] += U[0] * pts[:, 1] - U[1] * pts[:, 0]
             else:
                 psi += 0.5 * np.cross(U, pts)
+            return psi[:, 0].copy() if self.dim == 2 else psi
+        # With boundaries: point by point, the formula of `kernels.curl_noise_range` (a second,
+        # independent implementation that the tests difference against the kernel's curl).
+        slot, count, dist, normal, _, coll, V, W, C, R2 = self.boundaries.prepare(pts, t)
+        d0 = self.boundary_width
+        for i in range(M):
+            if slot[i] < 0:
+                if self.dim == 2:
+                    psi[i, 0] += U[0] * pts[i, 1] - U[1] * pts[i, 0]
+                else:
+                    psi[i] += 0.5 * np.cross(U, pts[i])
+                continue
+            rows = np.arange(slot[i], slot[i] + count[i])
+            r = np.clip(dist[rows] / d0, -1.0, 1.0)
+            a = (15 * r - 10 * r**3 + 3 * r**5) / 8
+            walls_of = coll[rows]
+            x = pts[i] - C[walls_of[np.argmin(dist[rows])]]
+            total = psi[i] + (0.5 * np.cross(U, x) if self.dim == 3 else U[0] * x[1] - U[1] * x[0])
+            new = np.prod(a) * total
+            if self.dim == 3:
+                for j, row in enumerate(rows):
+                    c_j = (1 - a[j]) * np.prod(np.delete(a, j))
+                    new = new + c_j * normal[row] * (normal[row] @ total)
+            for k in np.unique(walls_of):
+                gamma = (1 - np.prod(a[walls_of == k])) * np.prod(a[walls_of != k])
+                xk = pts[i] - C[k]
+                if self.dim == 2:
+                    psi_r = V[k, 0] * xk[1] - V[k, 1] * xk[0] - 0.5 * W[k, 0] * (xk @ xk - R2[k])
+                else:
+                    psi_r = 0.5 * np.cross(V[k], xk) + 0.5 * (R2[k] - xk @ xk) * W[k]
+                new = new + gamma * psi_r
+            psi[i] = new
         return psi[:, 0].copy() if self.dim == 2 else psi
 
 
 class _Boundaries:
-    """Gathers, for each sample, the geometry of the closest collider near every point.
+    """Gathers, for each sample, the walls within the boundary width d0 of every point.
 
+    A wall is one collider, or one plane of a ``Container`` (whose distance is the least of its
+    planes', with a normal that jumps across the medial planes; each plane alone is smooth).
     ``prepare(points, t)`` returns the arrays the ``curl_noise`` kernel reads:
-      slot (M,) int64         -- index into the arrays below, -1 where d >= d0 (no effect)
-      distance (m,)           -- signed distance d to the closest collider, m = near points
-      normal (m, D)           -- its outward unit normal
-      hessian (m, D, D)       -- grad n (3-D only; zeros in 2-D)
-      collider (m,) int64     -- which collider
+      slot (M,) int64         -- first row of the point's walls below, -1 where none is within d0
+      count (M,) int64        -- how many walls are within d0 (rows slot .. slot + count - 1)
+      distance (w,)           -- signed distance d to the wall (positive in the free space)
+      normal (w, D)           -- its unit normal grad d
+      hessian (w, D, D)       -- grad n (3-D only; zeros in 2-D and for planes)
+      collider (w,) int64     -- which collider the wall belongs to
       velocity (K, D), spin (K, D), center (K, D), radius2 (K,) -- rigid motion per collider
+    Rows of one point are in a fixed order (collider, then plane), so results do not depend on
+    the thread count.
     """
 
     def __init__(self, colliders, dim: int, width: float):
@@ -284,78 +307,77 @@ class _Boundaries:
         self._buffers = None  # per collider: distance (M,), normal (M, D), velocity (M, D)
 
     def prepare(self, points, t):
+        """The wall lists the kernel reads (see the class docstring)."""
         D = self.dim
         M = points.shape[0]
         cols = self.colliders
-        # 3-D colliders without an analytic distance Hessian get it from normals at x +- h e_a.
-        # For small batches those 2 D shifted copies ride along in the one query per collider
-        # (a collider query has a fixed cost that dominates at a few hundred points).
-        fd = [D == 3 and not callable(getattr(c, "distance_hessian", None)) for c in cols]
-        stack = M < PARALLEL_MIN_POINTS
-        rows = [M * (2 * D + 1) if (f and stack) else M for f in fd]
-        if self._buffers is None or [b[0].shape[0] for b in self._buffers] != rows:
-            self._buffers = [(np.empty(r), np.empty((r, D)), np.empty((r, D))) for r in rows]
         h = _HESSIAN_STEP * self.width
+        # Candidate walls: (collider index, distance (M,), normal (M, D) or None, hessian fn).
+        # A container's walls are its planes (a smooth distance each), any other collider is
+        # one wall whose distance and normal come from its query.
+        stack = points.size < K.SERIAL_BELOW
+        fd = [D == 3 and not callable(getattr(c, "distance_hessian", None))
+              and getattr(c, "plane_normals", None) is None for c in cols]
+        walls = []
         for k, c in enumerate(cols):
-            d_k, n_k, v_k = self._buffers[k]
-            query_points = points if rows[k] == M else _shifted_stack(points, h)
+            planes = _planes(c, t, D)
+            if planes is not None:
+                for p0, n0 in zip(*planes, strict=True):
+                    walls.append((k, (points - p0) @ n0, n0, None))
+                continue
+            rows = M * (2 * D + 1) if (fd[k] and stack) else M
+            query_points = points if rows == M else _shifted_stack(points, h)
+            d_k, n_k = np.empty(rows), np.empty((rows, D))
             if callable(getattr(c, "query", None)):
-                c.query(query_points, t, d_k, n_k, v_k)
+                c.query(query_points, t, d_k, n_k, np.empty((rows, D)))
             else:
                 d_k[:] = c.signed_distance(query_points, t)
-                if rows[k] == M:
-                    n_k.fill(np.nan)  # not known yet: asked below for the near points only
-                else:
-                    n_k[:] = c.normal(query_points, t)
-        # Closest collider and its signed distance at every point.
-        dist = self._buffers[0][0][:M]
-        closest = np.zeros(M, dtype=np.int64)
-        if len(cols) > 1:
-            dist = dist.copy()
-            for k in range(1, len(cols)):
-                dk = self._buffers[k][0][:M]
-                nearer = dk < dist
-                dist[nearer] = dk[nearer]
-                closest[nearer] = k
-        near = np.flatnonzero(dist < self.width)
-        if self._slot.shape[0] != M:
-            self._slot = np.empty(M, dtype=np.int64)
-        slot = self._slot
-        slot.fill(-1)
-        slot[near] = np.arange(near.shape[0])
-        m = near.shape[0]
-        n_dist = np.ascontiguousarray(dist[near])
-        n_coll = np.ascontiguousarray(closest[near])
-        normal = np.empty((m, D))
-        hessian = np.zeros((m, D, D))
-        # Normal and grad n of the closest collider at the near points.
-        for k, c in enumerate(cols):
-            sel = np.flatnonzero(n_coll == k)
-            if sel.size == 0:
+                n_k = None if rows == M else np.asarray(c.normal(query_points, t), dtype=np.float64)
+            walls.append((k, d_k, n_k, c))
+        # Per point, the walls within d0, in a fixed order (collider, then plane): CSR lists.
+        within = np.stack([w[1][:M] < self.width for w in walls])  # (walls, M)
+        count = within.sum(axis=0).astype(np.int64)
+        start = np.zeros(M, dtype=np.int64)
+        np.cumsum(count[:-1], out=start[1:])
+        total = int(count.sum())
+        slot = np.where(count > 0, start, -1)
+        dist = np.empty(total)
+        normal = np.empty((total, D))
+        hessian = np.zeros((total, D, D))
+        coll = np.empty(total, dtype=np.int64)
+        # Rank of wall w among the walls within d0 of each point gives its row.
+        rank = np.cumsum(within, axis=0) - 1
+        for w, (k, d_k, n_k, c) in enumerate(walls):
+            idx = np.flatnonzero(within[w])
+            if idx.size == 0:
                 continue
-            idx = near[sel]
-            nk = self._buffers[k][1][idx]
+            rows = start[idx] + rank[w, idx]
+            dist[rows] = d_k[idx]
+            coll[rows] = k
+            if c is None:  # a container's plane: constant normal, zero Hessian
+                normal[rows] = n_k
+                continue
             pts = np.ascontiguousarray(points[idx])
-            if np.isnan(nk[0, 0]):
-                nk = np.asarray(c.normal(pts, t), dtype=np.float64)
-            normal[sel] = nk
+            nk = (np.asarray(c.normal(pts, t), dtype=np.float64) if n_k is None
+                  else np.ascontiguousarray(n_k[idx]))
+            normal[rows] = nk
             if D != 3:
                 continue
             if not fd[k]:
-                hessian[sel] = np.asarray(c.distance_hessian(pts, t), dtype=np.float64)
+                hessian[rows] = np.asarray(c.distance_hessian(pts, t), dtype=np.float64)
                 continue
-            if rows[k] == M:
+            if n_k is None or n_k.shape[0] == M:
                 shifted = np.asarray(c.normal(_shifted_stack(pts, h)[pts.shape[0]:], t),
                                      dtype=np.float64).reshape(2 * D, -1, D)
                 at = np.arange(pts.shape[0])
             else:
-                shifted = self._buffers[k][1][M:].reshape(2 * D, M, D)
+                shifted = n_k[M:].reshape(2 * D, M, D)
                 at = idx
-            H = np.empty((sel.shape[0], D, D))
-            K.hessian_from_normals(np.ascontiguousarray(nk), shifted, at, H, h, _KINK)
-            hessian[sel] = H
+            H = np.empty((idx.shape[0], D, D))
+            K.hessian_from_normals(nk, shifted, at, H, h, _KINK)
+            hessian[rows] = H
         velocity, spin, center, radius2 = self._rigid_motion(t)
-        return (slot, n_dist, normal, hessian, n_coll, velocity, spin, center, radius2)
+        return (slot, count, dist, normal, hessian, coll, velocity, spin, center, radius2)
 
     def _rigid_motion(self, t):
         """Per collider: V (K, D), W (K, D) (2-D: W[:, 0] = omega), centre c (K, D), R^2 (K,)."""
@@ -403,9 +425,28 @@ def _shifted_stack(points, h):
 
 def _no_boundaries(D):
     """Empty boundary arrays: the kernel's boundary-free path."""
-    return (np.empty(0, np.int64), np.empty(0), np.empty((0, D)), np.empty((0, D, D)),
+    return (np.empty(0, np.int64), np.empty(0, np.int64), np.empty(0), np.empty((0, D)), np.empty((0, D, D)),
             np.empty(0, np.int64), np.empty((0, D)), np.empty((0, D)), np.empty((0, D)),
             np.empty(0))
+
+
+def _planes(collider, t, dim):
+    """World points (P, D) and unit normals (P, D) of a container's planes at time t, else None."""
+    normals = getattr(collider, "plane_normals", None)
+    points = getattr(collider, "plane_points", None)
+    if normals is None or points is None or not callable(getattr(collider, "pose", None)):
+        return None
+    p, rot = collider.pose(t)
+    rest = np.zeros((len(points), 3))
+    rest[:, :dim] = points
+    rest_n = np.zeros((len(normals), 3))
+    rest_n[:, :dim] = normals
+    ref = np.zeros(3)
+    ref[:dim] = np.asarray(getattr(collider, "rest_point", np.zeros(dim)), dtype=np.float64)[:dim]
+    world = p + (rest - ref) @ rot.T
+    world_n = rest_n @ rot.T
+    world_n /= np.linalg.norm(world_n, axis=1)[:, None]
+    return np.ascontiguousarray(world[:, :dim]), np.ascontiguousarray(world_n[:, :dim])
 
 
 def _reference_point(collider, t, dim):

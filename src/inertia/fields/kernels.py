@@ -2,9 +2,9 @@
 
 Pure functions over arrays (inputs, then the outputs they fill, then scalars); no Python objects
 and no allocation per point. The parallel kernels split the points into chunks and give each
-chunk its own small scratch arrays, so nothing is allocated inside the per-point loop; each has
-a ``*_serial`` twin (the same ``*_range`` body on one thread) that the classes use for small
-batches, where starting threads would cost more than the work.
+chunk its own small scratch arrays, so nothing is allocated inside the per-point loop; they are
+``inertia._jit.parallel_kernel`` objects, which run their serial twin (the same code on one
+thread) for small batches, where starting threads would cost more than the work.
 
 References
 ----------
@@ -35,6 +35,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from .._jit import parallel_kernel
+
 KIND_SIMPLEX = 0
 KIND_PERLIN = 1
 
@@ -43,6 +45,12 @@ _FAST = {"contract", "reassoc", "nsz", "arcp"}
 
 # Points per parallel chunk: large enough to amortise the chunk's scratch arrays.
 _CHUNK = 1024
+
+# Elements of the points array (M * S) below which the parallel kernels run their serial twin
+# (``inertia._jit``): a point costs ~0.1-1 us here, ~100 times a particle update, so threads
+# pay from a few thousand points on an idle machine; 16384 (5,461 points in 3-D) leaves a
+# margin for a loaded one.
+SERIAL_BELOW = 16384
 
 # Simplex kernel radius squared: 0.5 keeps every corner's kernel inside the simplices that share
 # that corner in 2-D, 3-D and 4-D, so the noise is C^2. (Gustavson's reference code uses 0.6 in
@@ -660,7 +668,7 @@ def fractal_noise_range(start, stop, points, offsets, perm, grads, value_out, gr
                     hess_out[i, k, j] = hh[k, j]
 
 
-@njit(cache=True, parallel=True)
+@parallel_kernel(serial_below=SERIAL_BELOW)
 def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
                   t, kind, order, frequency, lacunarity, gain, octaves, time_frequency, scale):
     """`fractal_noise_range` over all points, in parallel chunks."""
@@ -670,16 +678,6 @@ def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
         fractal_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
                             value_out, grad_out, hess_out, t, kind, order, frequency,
                             lacunarity, gain, octaves, time_frequency, scale)
-
-
-@njit(cache=True)
-def fractal_noise_serial(points, offsets, perm, grads, value_out, grad_out, hess_out,
-                         t, kind, order, frequency, lacunarity, gain, octaves, time_frequency,
-                         scale):
-    """`fractal_noise` on one thread (few points)."""
-    fractal_noise_range(0, points.shape[0], points, offsets, perm, grads, value_out, grad_out,
-                        hess_out, t, kind, order, frequency, lacunarity, gain, octaves,
-                        time_frequency, scale)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -702,9 +700,34 @@ def ramp(r):
             (-60.0 * r + 60.0 * r2 * r) / 8.0)
 
 
+@njit(cache=True, inline="always")
+def _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, base, m, skip, key, mode, S,
+                  grad_out):
+    """Product of the walls' ramps over a subset of the m walls at rows base.., and its gradient.
+
+    mode 0: every wall but `skip`; mode 1: the walls of collider `key`; mode 2: all others.
+    grad (prod_j a_j) = sum_j a_j' n_j prod_{l != j} a_l, accumulated by the product rule.
+    """
+    prod = 1.0
+    for x in range(S):
+        grad_out[x] = 0.0
+    for j in range(m):
+        if mode == 0:
+            take = j != skip
+        elif mode == 1:
+            take = bnd_collider[base + j] == key
+        else:
+            take = bnd_collider[base + j] != key
+        if take:
+            for x in range(S):
+                grad_out[x] = grad_out[x] * ramp_value[j] + prod * ramp_slope[j] * bnd_normal[base + j, x]
+            prod *= ramp_value[j]
+    return prod
+
+
 @njit(cache=True, fastmath=_FAST)
 def curl_noise_range(start, stop, points, offsets, perm, grads,
-               slot, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+               slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                out,
                t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
@@ -714,20 +737,26 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
     Potentials (unit-range noise times `scale`, decorrelated by offsets[c]):
       2-D: scalar psi;         v = (dpsi/dy, -dpsi/dx)
       3-D: psi = (psi0, psi1, psi2); v = curl psi
-    Boundaries (slot[i] >= 0 for points with a collider within `boundary_width` = d0; the
-    bnd_* arrays are indexed by slot): with d the signed distance, n = grad d, H = grad n,
-    alpha = ramp(d / d0), a1 = ramp'(d / d0) / d0,
-      2-D: psi' = alpha psi + (1 - alpha) psi_R,
-           grad psi' = a1 n (psi - psi_R) + alpha grad psi + (1 - alpha) grad psi_R
-      3-D: psi' = alpha psi + (1 - alpha) n (n . psi) + (1 - alpha) psi_R,
-           curl psi' = a1 n x psi + alpha curl psi + (1 - alpha) grad(n . psi) x n
-                       - a1 n x psi_R + (1 - alpha) u_R,
+    Boundaries: point i has bnd_count[i] walls within `boundary_width` = d0, at rows
+    slot[i] .. slot[i] + bnd_count[i] - 1 of the bnd_* arrays (slot[i] = -1: none). Wall k has
+    the signed distance d_k, normal n_k = grad d_k, H_k = grad n_k, ramp a_k = ramp(d_k / d0),
+    grad a_k = a_k' n_k / d0, and belongs to collider K(k). With alpha = prod_k a_k,
+    c_k = (1 - a_k) prod_{j != k} a_j and, per collider K, gamma_K = (1 - prod_{k in K} a_k)
+    prod_{k not in K} a_k:
+      2-D: psi' = alpha psi + sum_K gamma_K psi_R,K
+      3-D: psi' = alpha psi + sum_k c_k n_k (n_k . psi) + sum_K gamma_K psi_R,K
+           curl psi' = grad alpha x psi + alpha curl psi
+                       + sum_k [grad c_k x n_k (n_k . psi) + c_k grad(n_k . psi) x n_k]
+                       + sum_K [grad gamma_K x psi_R,K + gamma_K u_R,K],
            grad(n . psi) = H psi + (grad psi)^T n      (curl n = 0 because n = grad d)
+    On wall k (a_k = 0) only c_k survives, so psi' - psi_R is along n_k and the flow through
+    the wall is the wall's own; every weight is a product of C^2 ramps, so the velocity is
+    continuous where the closest wall changes (a box's edges, two colliders). One wall gives
+    Bridson's psi' = a psi + (1 - a) n (n . psi) + (1 - a) psi_R.
     A mean flow U (mean_velocity) is added to v away from boundaries and, near them, to psi
-    as psi_U = U x (x - c) / 2 (3-D), U_x (y - c_y) - U_y (x - c_x) (2-D) before the ramp, so
-    that it too goes around the collider (potentials about different centres differ by
-    constants, whose curl is zero, so v is continuous where a point leaves the ramp zone).
-    psi_R is the potential of the collider's rigid motion u_R = V + W x (x - c):
+    as psi_U = U x (x - c) / 2 (3-D), U_x (y - c_y) - U_y (x - c_x) (2-D) about the centre c
+    of the nearest wall's collider, before the ramp, so that it too goes around the collider.
+    psi_R is the potential of collider K's rigid motion u_R = V + W x (x - c):
       2-D: psi_R = V_x (y - c_y) - V_y (x - c_x) - W (|x - c|^2 - R^2) / 2
       3-D: psi_R = V x (x - c) / 2 + W (R^2 - |x - c|^2) / 2
     (rigid_radius2 holds R^2; rigid_center c; for static colliders V = W = 0).
@@ -737,6 +766,14 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
     bounded = slot.shape[0] > 0  # an empty slot array means: no boundaries
     psi = np.empty(3)
     J = np.empty((3, 3))  # J[c, j] = d psi_c / d x_j
+    g = np.empty(3)
+    gb = np.empty(3)
+    most = 1
+    if bounded:
+        for i in range(start, stop):
+            most = max(most, bnd_count[i])
+    ramp_value = np.empty(most)
+    ramp_slope = np.empty(most)
     for i in range(start, stop):
         p = points[i]
         p2 = p[2] if S == 3 else 0.0
@@ -745,111 +782,149 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
                 p[0], p[1], p2, S, t, offsets, c, perm, grads, kind, frequency, lacunarity,
                 gain, octaves, time_frequency, scale)
         sl = slot[i] if bounded else -1
-        if S == 2:
-            gx = J[0, 0]
-            gy = J[0, 1]
-            if sl < 0:
-                gx -= mean_velocity[1]
-                gy += mean_velocity[0]
+        if sl < 0:
+            # Free flow: v = curl psi + U.
+            if S == 2:
+                out[i, 0] = J[0, 1] + mean_velocity[0]
+                out[i, 1] = -J[0, 0] + mean_velocity[1]
             else:
-                r = bnd_distance[sl] / boundary_width
-                al, dal, _ = ramp(r)
-                a1 = dal / boundary_width
-                nx = bnd_normal[sl, 0]
-                ny = bnd_normal[sl, 1]
-                k = bnd_collider[sl]
-                cx = p[0] - rigid_center[k, 0]
-                cy = p[1] - rigid_center[k, 1]
-                # Mean flow U, as a potential about c: psi_U = U_x (y - c_y) - U_y (x - c_x).
-                psi[0] += mean_velocity[0] * cy - mean_velocity[1] * cx
-                gx -= mean_velocity[1]
-                gy += mean_velocity[0]
+                out[i, 0] = J[2, 1] - J[1, 2] + mean_velocity[0]
+                out[i, 1] = J[0, 2] - J[2, 0] + mean_velocity[1]
+                out[i, 2] = J[1, 0] - J[0, 1] + mean_velocity[2]
+            continue
+        m = bnd_count[i]
+        # Ramps of the walls within d0, and the nearest wall's collider (for the mean flow).
+        nearest = 0
+        for j in range(m):
+            al, dal, _ = ramp(bnd_distance[sl + j] / boundary_width)
+            ramp_value[j] = al
+            ramp_slope[j] = dal / boundary_width
+            if bnd_distance[sl + j] < bnd_distance[sl + nearest]:
+                nearest = j
+        kn = bnd_collider[sl + nearest]
+        cx = p[0] - rigid_center[kn, 0]
+        cy = p[1] - rigid_center[kn, 1]
+        alpha = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, 0, 0, S, g)
+        if S == 2:
+            # Mean flow U, as a potential about c: psi_U = U_x (y - c_y) - U_y (x - c_x).
+            psi[0] += mean_velocity[0] * cy - mean_velocity[1] * cx
+            J[0, 0] -= mean_velocity[1]
+            J[0, 1] += mean_velocity[0]
+            # grad psi' = grad alpha psi + alpha grad psi + sum_K (grad gamma psi_R + gamma grad psi_R)
+            gx = g[0] * psi[0] + alpha * J[0, 0]
+            gy = g[1] * psi[0] + alpha * J[0, 1]
+            for j in range(m):
+                k = bnd_collider[sl + j]
+                first = True
+                for l in range(j):
+                    if bnd_collider[sl + l] == k:
+                        first = False
+                if not first:
+                    continue
+                ak = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 1, S, g)
+                gax = g[0]
+                gay = g[1]
+                bk = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 2, S, g)
+                gamma = (1.0 - ak) * bk
+                ggx = -gax * bk + (1.0 - ak) * g[0]
+                ggy = -gay * bk + (1.0 - ak) * g[1]
+                kx = p[0] - rigid_center[k, 0]
+                ky = p[1] - rigid_center[k, 1]
                 vx = rigid_velocity[k, 0]
                 vy = rigid_velocity[k, 1]
                 om = rigid_spin[k, 0]
-                psir = vx * cy - vy * cx - 0.5 * om * (cx * cx + cy * cy - rigid_radius2[k])
-                gxr = -vy - om * cx
-                gyr = vx - om * cy
-                gx = a1 * nx * (psi[0] - psir) + al * gx + (1.0 - al) * gxr
-                gy = a1 * ny * (psi[0] - psir) + al * gy + (1.0 - al) * gyr
+                psir = vx * ky - vy * kx - 0.5 * om * (kx * kx + ky * ky - rigid_radius2[k])
+                gx += ggx * psir + gamma * (-vy - om * kx)
+                gy += ggy * psir + gamma * (vx - om * ky)
             out[i, 0] = gy
             out[i, 1] = -gx
-        else:
-            if sl >= 0:
-                # Mean flow U, as a potential about the collider's centre c:
-                # psi_U = U x (x - c) / 2, grad psi_U = [U]_x / 2.
-                k = bnd_collider[sl]
-                cx = p[0] - rigid_center[k, 0]
-                cy = p[1] - rigid_center[k, 1]
-                cz = p[2] - rigid_center[k, 2]
-                U0 = 0.5 * mean_velocity[0]
-                U1 = 0.5 * mean_velocity[1]
-                U2 = 0.5 * mean_velocity[2]
-                psi[0] += U1 * cz - U2 * cy
-                psi[1] += U2 * cx - U0 * cz
-                psi[2] += U0 * cy - U1 * cx
-                J[0, 1] -= U2
-                J[0, 2] += U1
-                J[1, 0] += U2
-                J[1, 2] -= U0
-                J[2, 0] -= U1
-                J[2, 1] += U0
-            v0 = J[2, 1] - J[1, 2]
-            v1 = J[0, 2] - J[2, 0]
-            v2 = J[1, 0] - J[0, 1]
-            if sl < 0:
-                v0 += mean_velocity[0]
-                v1 += mean_velocity[1]
-                v2 += mean_velocity[2]
-            else:
-                r = bnd_distance[sl] / boundary_width
-                al, dal, _ = ramp(r)
-                a1 = dal / boundary_width
-                n0 = bnd_normal[sl, 0]
-                n1 = bnd_normal[sl, 1]
-                n2 = bnd_normal[sl, 2]
-                # gs = grad(n . psi) = H psi + J^T n
-                gs0 = (bnd_hessian[sl, 0, 0] * psi[0] + bnd_hessian[sl, 0, 1] * psi[1]
-                       + bnd_hessian[sl, 0, 2] * psi[2]
-                       + n0 * J[0, 0] + n1 * J[1, 0] + n2 * J[2, 0])
-                gs1 = (bnd_hessian[sl, 1, 0] * psi[0] + bnd_hessian[sl, 1, 1] * psi[1]
-                       + bnd_hessian[sl, 1, 2] * psi[2]
-                       + n0 * J[0, 1] + n1 * J[1, 1] + n2 * J[2, 1])
-                gs2 = (bnd_hessian[sl, 2, 0] * psi[0] + bnd_hessian[sl, 2, 1] * psi[1]
-                       + bnd_hessian[sl, 2, 2] * psi[2]
-                       + n0 * J[0, 2] + n1 * J[1, 2] + n2 * J[2, 2])
-                # Rigid-motion potential psi_R and velocity u_R about the centre c.
-                V0 = rigid_velocity[k, 0]
-                V1 = rigid_velocity[k, 1]
-                V2 = rigid_velocity[k, 2]
-                W0 = rigid_spin[k, 0]
-                W1 = rigid_spin[k, 1]
-                W2 = rigid_spin[k, 2]
-                half = 0.5 * (rigid_radius2[k] - (cx * cx + cy * cy + cz * cz))
-                pr0 = 0.5 * (V1 * cz - V2 * cy) + half * W0
-                pr1 = 0.5 * (V2 * cx - V0 * cz) + half * W1
-                pr2 = 0.5 * (V0 * cy - V1 * cx) + half * W2
-                ur0 = V0 + W1 * cz - W2 * cy
-                ur1 = V1 + W2 * cx - W0 * cz
-                ur2 = V2 + W0 * cy - W1 * cx
-                # q = psi - psi_R enters as a1 n x q.
-                q0 = psi[0] - pr0
-                q1 = psi[1] - pr1
-                q2 = psi[2] - pr2
-                b = 1.0 - al
-                v0 = a1 * (n1 * q2 - n2 * q1) + al * v0 + b * (gs1 * n2 - gs2 * n1) + b * ur0
-                v1 = a1 * (n2 * q0 - n0 * q2) + al * v1 + b * (gs2 * n0 - gs0 * n2) + b * ur1
-                v2 = a1 * (n0 * q1 - n1 * q0) + al * v2 + b * (gs0 * n1 - gs1 * n0) + b * ur2
-            out[i, 0] = v0
-            out[i, 1] = v1
-            out[i, 2] = v2
+            continue
+        # 3-D. Mean flow U, as a potential about c: psi_U = U x (x - c) / 2, grad psi_U = [U]_x / 2.
+        cz = p[2] - rigid_center[kn, 2]
+        U0 = 0.5 * mean_velocity[0]
+        U1 = 0.5 * mean_velocity[1]
+        U2 = 0.5 * mean_velocity[2]
+        psi[0] += U1 * cz - U2 * cy
+        psi[1] += U2 * cx - U0 * cz
+        psi[2] += U0 * cy - U1 * cx
+        J[0, 1] -= U2
+        J[0, 2] += U1
+        J[1, 0] += U2
+        J[1, 2] -= U0
+        J[2, 0] -= U1
+        J[2, 1] += U0
+        # grad alpha x psi + alpha curl psi
+        v0 = g[1] * psi[2] - g[2] * psi[1] + alpha * (J[2, 1] - J[1, 2])
+        v1 = g[2] * psi[0] - g[0] * psi[2] + alpha * (J[0, 2] - J[2, 0])
+        v2 = g[0] * psi[1] - g[1] * psi[0] + alpha * (J[1, 0] - J[0, 1])
+        # Normal blends: c_k n_k (n_k . psi).
+        for j in range(m):
+            row = sl + j
+            n0 = bnd_normal[row, 0]
+            n1 = bnd_normal[row, 1]
+            n2 = bnd_normal[row, 2]
+            others = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, j, 0, 0, S, g)
+            b = 1.0 - ramp_value[j]
+            ck = b * others
+            # grad c_k = -a_k' n_k prod + (1 - a_k) grad prod; the first term is parallel to n_k.
+            s = n0 * psi[0] + n1 * psi[1] + n2 * psi[2]
+            gc0 = b * g[0] * s
+            gc1 = b * g[1] * s
+            gc2 = b * g[2] * s
+            # gs = grad(n . psi) = H psi + J^T n
+            gs0 = (bnd_hessian[row, 0, 0] * psi[0] + bnd_hessian[row, 0, 1] * psi[1]
+                   + bnd_hessian[row, 0, 2] * psi[2] + n0 * J[0, 0] + n1 * J[1, 0] + n2 * J[2, 0])
+            gs1 = (bnd_hessian[row, 1, 0] * psi[0] + bnd_hessian[row, 1, 1] * psi[1]
+                   + bnd_hessian[row, 1, 2] * psi[2] + n0 * J[0, 1] + n1 * J[1, 1] + n2 * J[2, 1])
+            gs2 = (bnd_hessian[row, 2, 0] * psi[0] + bnd_hessian[row, 2, 1] * psi[1]
+                   + bnd_hessian[row, 2, 2] * psi[2] + n0 * J[0, 2] + n1 * J[1, 2] + n2 * J[2, 2])
+            v0 += gc1 * n2 - gc2 * n1 + ck * (gs1 * n2 - gs2 * n1)
+            v1 += gc2 * n0 - gc0 * n2 + ck * (gs2 * n0 - gs0 * n2)
+            v2 += gc0 * n1 - gc1 * n0 + ck * (gs0 * n1 - gs1 * n0)
+        # Rigid motion of each collider with a wall here: gamma_K psi_R,K.
+        for j in range(m):
+            k = bnd_collider[sl + j]
+            first = True
+            for l in range(j):
+                if bnd_collider[sl + l] == k:
+                    first = False
+            if not first:
+                continue
+            V0 = rigid_velocity[k, 0]
+            V1 = rigid_velocity[k, 1]
+            V2 = rigid_velocity[k, 2]
+            W0 = rigid_spin[k, 0]
+            W1 = rigid_spin[k, 1]
+            W2 = rigid_spin[k, 2]
+            if V0 == 0.0 and V1 == 0.0 and V2 == 0.0 and W0 == 0.0 and W1 == 0.0 and W2 == 0.0:
+                continue  # static: psi_R = 0
+            ak = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 1, S, gb)
+            bk = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 2, S, g)
+            gamma = (1.0 - ak) * bk
+            gg0 = -gb[0] * bk + (1.0 - ak) * g[0]
+            gg1 = -gb[1] * bk + (1.0 - ak) * g[1]
+            gg2 = -gb[2] * bk + (1.0 - ak) * g[2]
+            kx = p[0] - rigid_center[k, 0]
+            ky = p[1] - rigid_center[k, 1]
+            kz = p[2] - rigid_center[k, 2]
+            half = 0.5 * (rigid_radius2[k] - (kx * kx + ky * ky + kz * kz))
+            pr0 = 0.5 * (V1 * kz - V2 * ky) + half * W0
+            pr1 = 0.5 * (V2 * kx - V0 * kz) + half * W1
+            pr2 = 0.5 * (V0 * ky - V1 * kx) + half * W2
+            ur0 = V0 + W1 * kz - W2 * ky
+            ur1 = V1 + W2 * kx - W0 * kz
+            ur2 = V2 + W0 * ky - W1 * kx
+            v0 += gg1 * pr2 - gg2 * pr1 + gamma * ur0
+            v1 += gg2 * pr0 - gg0 * pr2 + gamma * ur1
+            v2 += gg0 * pr1 - gg1 * pr0 + gamma * ur2
+        out[i, 0] = v0
+        out[i, 1] = v1
+        out[i, 2] = v2
 
 
-
-
-@njit(cache=True, parallel=True)
+@parallel_kernel(serial_below=SERIAL_BELOW)
 def curl_noise(points, offsets, perm, grads,
-               slot, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+               slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                out,
                t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
@@ -858,24 +933,11 @@ def curl_noise(points, offsets, perm, grads,
     M = points.shape[0]
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
-        curl_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads, slot, bnd_distance, bnd_normal, bnd_hessian,
-            bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-            out, t, kind,
-            frequency, lacunarity, gain, octaves, time_frequency, scale, boundary_width)
-
-
-@njit(cache=True)
-def curl_noise_serial(points, offsets, perm, grads,
-               slot, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
-               rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-               out,
-               t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
-               boundary_width):
-    """`curl_noise` on one thread: for few points, where starting threads costs more."""
-    curl_noise_range(0, points.shape[0], points, offsets, perm, grads, slot, bnd_distance, bnd_normal, bnd_hessian,
-            bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-            out, t, kind,
-            frequency, lacunarity, gain, octaves, time_frequency, scale, boundary_width)
+        curl_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
+                         slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+                         rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+                         out, t, kind, frequency, lacunarity, gain, octaves, time_frequency,
+                         scale, boundary_width)
 
 
 @njit(cache=True)

@@ -52,9 +52,6 @@ __all__ = ["Noise"]
 
 KINDS = ("simplex", "perlin")
 
-# Below this many points the kernels run on one thread (starting threads costs ~10-100 us).
-PARALLEL_MIN_POINTS = 2048
-
 # Largest unscaled single-octave value over all points and all gradient assignments
 # (max over x of sum_corners weight_c(x) * max_g |g . d_c(x)|), found by dense sampling and local
 # maximisation, rounded up. Dividing by it makes |n| <= 1.
@@ -230,8 +227,8 @@ class Noise:
     # -- evaluation -------------------------------------------------------------------------
     def _run(self, points, t, value_out, grad_out, hess_out, order):
         p = self.params
-        kernel = K.fractal_noise if points.shape[0] >= PARALLEL_MIN_POINTS else K.fractal_noise_serial
-        kernel(points, self._offsets, self._perm, self._grads, value_out, grad_out,
+        # One thread below K.SERIAL_BELOW elements (inertia._jit's size dispatch).
+        K.fractal_noise(points, self._offsets, self._perm, self._grads, value_out, grad_out,
                         hess_out, float(t), p.kind_code, order, p.frequency, p.lacunarity, p.gain,
                         p.octaves, p.time_frequency, self._scale)
 

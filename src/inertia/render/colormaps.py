@@ -20,7 +20,7 @@ import numpy as np
 
 __all__ = [
     "COLORMAPS", "GROUP_PALETTE", "colormap", "group_colors", "group_palette", "speed_colors", "parse_color",
-    "particle_colors", "resolve_color_mode", "robust_speed_max",
+    "particle_colors", "resolve_color_mode", "robust_speed_max", "run_speed_max", "DEFAULT_SPEED_MAP",
 ]
 
 _TABLES = {
@@ -103,6 +103,24 @@ _TABLES = {
     ),
 }
 
+
+def _resampled(name: str, lo: float, hi: float, count: int = 33) -> tuple:
+    """The map ``name`` between ``lo`` and ``hi`` (fractions of its range), as a new table."""
+    table = np.asarray(_TABLES[name], dtype=np.float64)
+    s = np.linspace(lo, hi, count) * (len(table) - 1)
+    i = np.minimum(s.astype(np.int64), len(table) - 2)
+    w = (s - i)[:, None]
+    return tuple(map(tuple, np.round((1.0 - w) * table[i] + w * table[i + 1], 4)))
+
+
+# "speed": turbo between 0.1 and 0.9 of its range, the default for speed colouring: bright from
+# end to end (resting particles light blue, fast ones orange-red), so particles at rest stay
+# readable on the dark theme's grey ground; viridis and the others start near black.
+_TABLES["speed"] = _resampled("turbo", 0.1, 0.9)
+
+#: The map `Renderer`, the viewer and `inertia run` use for speed colours unless told otherwise.
+DEFAULT_SPEED_MAP = "speed"
+
 #: Names accepted by `colormap`.
 COLORMAPS = tuple(sorted(_TABLES))
 
@@ -150,7 +168,7 @@ def group_colors(groups: np.ndarray) -> np.ndarray:
     return GROUP_PALETTE[np.mod(groups, len(GROUP_PALETTE))]
 
 
-def speed_colors(velocities: np.ndarray, *, vmax: float | None = None, cmap: str = "viridis") -> np.ndarray:
+def speed_colors(velocities: np.ndarray, *, vmax: float | None = None, cmap: str = DEFAULT_SPEED_MAP) -> np.ndarray:
     """Colour by speed |v|, from 0 to ``vmax`` (default: the 99th percentile of the speeds)."""
     speed = np.sqrt(np.einsum("ij,ij->i", velocities, velocities)) if len(velocities) else np.zeros(0)
     if vmax is None:
@@ -195,7 +213,7 @@ def particle_colors(
     velocities=None,
     groups=None,
     color_by: str = "auto",
-    cmap: str = "viridis",
+    cmap: str = DEFAULT_SPEED_MAP,
     speed_max: float | None = None,
     color=(0.35, 0.62, 0.95),
     group_colors=None,
@@ -248,3 +266,13 @@ def robust_speed_max(velocities) -> float:
     speed = speed[np.isfinite(speed)]
     vmax = float(np.percentile(speed, 99.0)) if speed.size else 1.0
     return vmax if vmax > 0 else 1.0
+
+
+def run_speed_max(velocities) -> float:
+    """One speed scale for a whole run: `robust_speed_max` over at most 50 frames of the
+    (F, N, D) velocities, evenly spaced. The video and the viewer both colour by it, so a
+    colour means the same speed in every frame and in both."""
+    v = np.asarray(velocities)
+    if v.ndim == 3:
+        v = v[:: max(1, v.shape[0] // 50)]
+    return robust_speed_max(v)

@@ -26,9 +26,10 @@ The renderer (`inertia.render.renderer`) runs them in this order each frame:
 
 Everything is deterministic: every pixel is written by one task in a fixed order, and no
 reduction depends on thread timing, so the same input gives identical bytes at any thread count.
-Kernels that run per particle or per band have a parallel build and a ``*_serial`` twin (same
-code, cached under its own name: `inertia._jit.serial_twin`): the renderer picks by problem
-size, since a parallel hand-off costs more than small work.
+Every kernel with a ``prange`` is an `inertia._jit.parallel_kernel`: a parallel build
+(``.parallel``) and a serial twin (``.serial``, the same code cached under its own name), each
+compiled on first use; the renderer picks by problem size (pixels, particles), since a
+parallel hand-off costs more than small work and the parallel build compiles ~2 times slower.
 
 Camera vector layout (`Camera.params`): CAM_EYE 0:3, CAM_RIGHT 3:6, CAM_UP 6:9, CAM_FWD 9:12,
 CAM_F 12 (focal length in px, or px per unit when orthographic), CAM_CX 13, CAM_CY 14,
@@ -68,7 +69,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .._jit import serial_twin
+from .._jit import parallel_kernel
 
 CAM_EYE, CAM_RIGHT, CAM_UP, CAM_FWD, CAM_F, CAM_CX, CAM_CY, CAM_ORTHO = 0, 3, 6, 9, 12, 13, 14, 15
 
@@ -325,7 +326,7 @@ def _hit_capsule(ox, oy, oz, dx, dy, dz, p):
 # ---------------------------------------------------------------------------------------------
 # 1. Backgrounds
 # ---------------------------------------------------------------------------------------------
-@njit(parallel=True, cache=True)
+@parallel_kernel
 def background_3d(cam, width, height, prims, prim_kind, prim_color, light, sky_top, sky_horizon, fog_distance,
                   grid_line, color_out, depth_out, ground_out):
     """Sky, grid planes and collider primitives for a 3-D view.
@@ -459,7 +460,7 @@ def _sd_2d(kind, p, x, y):
     return math.sqrt((ax - s * bx) ** 2 + (ay - s * by) ** 2) - p[6]
 
 
-@njit(parallel=True, cache=True)
+@parallel_kernel
 def background_2d(cam, width, height, prims, prim_kind, prim_color, paper, grid_color, grid_spacing,
                   extra_sd, extra_color, color_out, depth_out):
     """Paper colour, world grid with axes, and filled collider shapes for a 2-D view.
@@ -508,7 +509,7 @@ def background_2d(cam, width, height, prims, prim_kind, prim_color, paper, grid_
             depth_out[py, px] = depth
 
 
-@njit(parallel=True, cache=True)
+@parallel_kernel
 def composite_surface(hit_depth, hit_normal, color, cam, light, color_buf, depth_buf):
     """Merge a ray-traced surface (depth (H, W), NaN = miss; world normals (H, W, 3)) into the
     buffers with a z-test. Used for colliders without an analytic primitive."""
@@ -598,11 +599,10 @@ def _blur_shadow(values, scratch, taps):
             values[i, j] = acc
 
 
-blur_shadow = njit(parallel=True, cache=True)(_blur_shadow)
-blur_shadow_serial = serial_twin(blur_shadow)
+blur_shadow = parallel_kernel(_blur_shadow)
 
 
-@njit(parallel=True, cache=True)
+@parallel_kernel
 def ground_texels(ground, axis_a, axis_b, origin_a, origin_b, texel, out):
     """Shadow-map coordinates (H, W, 2) float32 of the ground hit points; NaN off the ground."""
     height, width = ground.shape[0], ground.shape[1]
@@ -655,8 +655,7 @@ def _project_spheres(positions, radius, active, cam, width, height, min_radius_p
         visible[i] = True
 
 
-project_spheres = njit(parallel=True, cache=True)(_project_spheres)
-project_spheres_serial = serial_twin(project_spheres)
+project_spheres = parallel_kernel(_project_spheres)
 
 
 @njit(cache=True)
@@ -714,8 +713,7 @@ def _gather_sorted(order, m, sx, sy, depth, radius_px, radius_world, colors, pac
         row_range[s, 1] = int(math.ceil(sy[i] + rr - 0.5))
 
 
-gather_sorted = njit(parallel=True, cache=True)(_gather_sorted)
-gather_sorted_serial = serial_twin(gather_sorted)
+gather_sorted = parallel_kernel(_gather_sorted)
 
 
 SHADE_LUT_SIZE = 128
@@ -905,8 +903,7 @@ def _render_bands(ground_tex, shadow, shadow_box, packed, packed_colors, row_ran
 
 # A parallel build for big frames and a serial one for small ones (a parallel region costs a
 # thread hand-off, which dominates when there is little to draw).
-render_bands = njit(parallel=True, cache=True)(_render_bands)
-render_bands_serial = serial_twin(render_bands)
+render_bands = parallel_kernel(_render_bands)
 
 
 def _srgb_to_linear(colors, lut, out):
@@ -922,8 +919,7 @@ def _srgb_to_linear(colors, lut, out):
             out[i, c] = lut[int(v * top + 0.5)]
 
 
-srgb_to_linear = njit(parallel=True, cache=True)(_srgb_to_linear)
-srgb_to_linear_serial = serial_twin(srgb_to_linear)
+srgb_to_linear = parallel_kernel(_srgb_to_linear)
 
 
 def _speed_colors_linear(velocities, vmax, table, out):
@@ -941,11 +937,10 @@ def _speed_colors_linear(velocities, vmax, table, out):
         out[i, 2] = table[k, 2]
 
 
-speed_colors_linear = njit(parallel=True, cache=True)(_speed_colors_linear)
-speed_colors_linear_serial = serial_twin(speed_colors_linear)
+speed_colors_linear = parallel_kernel(_speed_colors_linear)
 
 
-@njit(parallel=True, cache=True)
+@parallel_kernel
 def to_srgb8(color_buf, lut, out):
     """Linear float RGB (H, W, 3) -> sRGB uint8 through ``lut`` (L,) indexed by round(v (L - 1))."""
     height, width = color_buf.shape[0], color_buf.shape[1]

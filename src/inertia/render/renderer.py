@@ -40,7 +40,7 @@ import numpy as np
 from . import kernels as K
 from .camera import UP_AXES, Camera
 from .colliders import collider_bounds, collider_primitives, trace_signed_distance
-from .colormaps import COLORMAPS, colormap, parse_color, particle_colors, resolve_color_mode, robust_speed_max
+from .colormaps import COLORMAPS, DEFAULT_SPEED_MAP, colormap, parse_color, particle_colors, resolve_color_mode, robust_speed_max
 
 __all__ = ["Renderer", "scene_bounds", "nice_step", "THEMES"]
 
@@ -78,8 +78,11 @@ _LUT = _linear_to_srgb_lut()
 # Per-particle kernels (project, gather, colours) run serially below this many particles: they
 # take ~10 ns a particle, and a parallel hand-off costs more, much more on a busy machine.
 _PARALLEL_MIN = 200_000
-# The band kernel (per-pixel work) runs in parallel from this many pixels or particles.
-_PARALLEL_PIXELS = 250_000
+# The per-pixel kernels (backgrounds, bands) run in parallel from this many pixels (or, for the
+# band kernel, particles): 1280 x 720 and up. Below (the default 960 x 540 frame) they run on one
+# thread: a frame costs ~10-40 ms either way, the parallel builds take ~6 s longer to compile
+# on a cold cache, and on a busy 2-core machine a parallel hand-off can cost milliseconds.
+_PARALLEL_PIXELS = 600_000
 _PARALLEL_PARTICLES = 20_000
 _LIN_LUT = _srgb_to_linear(np.linspace(0.0, 1.0, 4096)).astype(np.float32)
 # Gaussian, sigma = 1.2 texels.
@@ -155,7 +158,7 @@ class Renderer:
         elevation: float = 25.0,
         fov_y: float = 40.0,
         color_by: str = "auto",
-        colormap: str = "viridis",
+        colormap: str = DEFAULT_SPEED_MAP,
         speed_max: float | None = None,
         color=None,
         group_colors=None,
@@ -216,9 +219,11 @@ class Renderer:
         self._shadow_scratch = np.zeros((1, 1), np.float32)
 
     @staticmethod
-    def _kernel(name: str, count: int):
-        """The parallel build of a kernel for big inputs, the serial one for small."""
-        return getattr(K, name if count >= _PARALLEL_MIN else name + "_serial")
+    def _kernel(name: str, count: int, threshold: int | None = None):
+        """The parallel build of a kernel for `count` >= `threshold` items (``_PARALLEL_MIN``
+        particles by default), else its serial twin (``inertia._jit.SizeDispatched``)."""
+        kernel = getattr(K, name)
+        return kernel.parallel if count >= (_PARALLEL_MIN if threshold is None else threshold) else kernel.serial
 
     # -- camera -------------------------------------------------------------------------------
     def fit(self, positions, *, radius=None, colliders: Sequence = (), t: float = 0.0, active=None, robust: float = 0.001) -> Camera:
@@ -245,6 +250,26 @@ class Renderer:
         lo, hi = lo - grow, hi + grow
         self.bounds = (lo, hi)
         aspect = self.width / self.height
+        if self.dim == 3:
+            # Frame the particles themselves (a sample of every frame, robust outliers dropped)
+            # and the finite colliders' boxes, not the corners of their joint bounding box.
+            cloud = positions.reshape(-1, 3)
+            if active is not None:
+                cloud = cloud[np.asarray(active, dtype=bool).reshape(-1)[: cloud.shape[0]]]
+            cloud = cloud[:: max(1, cloud.shape[0] // 50_000)]
+            inside = np.all((cloud >= lo - 1e-12) & (cloud <= hi + 1e-12), axis=1)
+            corners = [cloud[inside]]
+            if box is not None:
+                signs = np.array([[a, b, c] for a in (0, 1) for b in (0, 1) for c in (0, 1)], dtype=bool)
+                blo, bhi = box[0][:3], box[1][:3]
+                corners.append(np.where(signs, bhi, blo))
+            if box is not None or np.any(inside):
+                self.camera = Camera.fit_points(
+                    np.vstack(corners), aspect=aspect, up=self.up, azimuth=self.azimuth,
+                    elevation=self.elevation, fov_y=self.fov_y, pad=pad,
+                )
+                self._background_key = None
+                return self.camera
         self.camera = Camera.fit(
             lo, hi, aspect=aspect, dim=self.dim, up=self.up, azimuth=self.azimuth,
             elevation=self.elevation, fov_y=self.fov_y,
@@ -358,7 +383,7 @@ class Renderer:
                         levels.append(float(params[k, 0:3] @ up - axis_up @ params[k, 3:6]))
             ground = np.empty((h, w, 3), np.float32)
             fog = 2.0 * self._scene_size()
-            K.background_3d(
+            self._kernel("background_3d", w * h, _PARALLEL_PIXELS)(
                 cam, w, h, np.ascontiguousarray(params), kinds, colors, light,
                 _srgb_to_linear(self.theme["sky_top"]).astype(np.float64),
                 _srgb_to_linear(self.theme["sky_horizon"]).astype(np.float64), fog,
@@ -369,7 +394,7 @@ class Renderer:
             level = max(levels) if levels else None
             frame = self._shadow_frame()
             texels = np.empty((h, w, 2), np.float32)
-            K.ground_texels(ground, frame["axis_a"], frame["axis_b"], frame["a0"], frame["b0"], frame["texel"], texels)
+            self._kernel("ground_texels", w * h, _PARALLEL_PIXELS)(ground, frame["axis_a"], frame["axis_b"], frame["a0"], frame["b0"], frame["texel"], texels)
             self._background = (color, depth, texels, level, self._to_bytes(color))
         else:
             spacing = nice_step(camera.ortho_height / 8.0)
@@ -387,7 +412,7 @@ class Renderer:
             colors = np.tile(collider_lin, (len(prims.kinds), 1)).astype(np.float32)
             params2 = np.ascontiguousarray(prims.params.copy())
             params2[prims.kinds == K.PRIM_CONTAINER, 15] = 0.02 * camera.ortho_height
-            K.background_2d(
+            self._kernel("background_2d", w * h, _PARALLEL_PIXELS)(
                 cam, w, h, params2, prims.kinds, colors,
                 _srgb_to_linear(self.theme["paper"]).astype(np.float64),
                 _srgb_to_linear(self.theme["grid"]).astype(np.float64), spacing, extra_sd,
@@ -398,7 +423,7 @@ class Renderer:
     @staticmethod
     def _to_bytes(color: np.ndarray) -> np.ndarray:
         out = np.empty(color.shape, np.uint8)
-        K.to_srgb8(color, _LUT, out)
+        Renderer._kernel("to_srgb8", color.shape[0] * color.shape[1], _PARALLEL_PIXELS)(color, _LUT, out)
         return out
 
     def _trace_generic(self, collider, t, camera, cam, light, color_lin, color, depth) -> None:
@@ -422,7 +447,7 @@ class Renderer:
             tolerance=1e-4 * size,
         )
         along = distance * (directions.reshape(-1, 3) @ forward)
-        K.composite_surface(
+        self._kernel("composite_surface", w * h, _PARALLEL_PIXELS)(
             along.reshape(h, w).astype(np.float32), normals.reshape(h, w, 3), color_lin.astype(np.float64),
             cam, light, color, depth,
         )
@@ -522,7 +547,7 @@ class Renderer:
         np.copyto(self._depth, bg_depth)
         np.copyto(out, bg_bytes)
         parallel = w * h >= _PARALLEL_PIXELS or m >= _PARALLEL_PARTICLES
-        (K.render_bands if parallel else K.render_bands_serial)(ground, self._shadow, shadow_box, packed, packed_colors, row_range, band_start, items, table,
+        (K.render_bands.parallel if parallel else K.render_bands.serial)(ground, self._shadow, shadow_box, packed, packed_colors, row_range, band_start, items, table,
              self.band, self._stride, _LUT, self._color, self._depth, out)
         return out
 
@@ -556,7 +581,7 @@ class Renderer:
         size = self._scene_size()
         K.shadow_deposit(pos3, rad, act, frame["up"], frame["axis_a"], frame["axis_b"], ground_level,
                          frame["a0"], frame["b0"], frame["texel"], 0.6, 0.2 * size, self._shadow)
-        K.blur_shadow_serial(self._shadow, self._shadow_scratch, _BLUR_TAPS)
+        K.blur_shadow.serial(self._shadow, self._shadow_scratch, _BLUR_TAPS)
         # Screen box of the texels that hold any shadow: only those pixels are visited.
         rows = np.flatnonzero(self._shadow.max(axis=1) > 1e-4)
         cols = np.flatnonzero(self._shadow.max(axis=0) > 1e-4)

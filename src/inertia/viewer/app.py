@@ -190,7 +190,7 @@ class Viewer:
         fps: float | None = None,
         dim: int | None = None,
         color_by: str = "auto",
-        colormap: str = "viridis",
+        colormap: str = "speed",  # colormaps.DEFAULT_SPEED_MAP, as the video
         color=(0.35, 0.62, 0.95),
         radius: float | None = None,
         sphere_limit: int = 4000,
@@ -201,7 +201,7 @@ class Viewer:
     ):
         viser = _import_viser()
         from ..render.camera import Camera
-        from ..render.colormaps import particle_colors, robust_speed_max
+        from ..render.colormaps import particle_colors, robust_speed_max, run_speed_max
         from ..render.renderer import scene_bounds
 
         self._particle_colors = particle_colors
@@ -221,7 +221,8 @@ class Viewer:
         positions0, velocities0, t0, active0 = self.source.get(0)
         if states is not None:
             lo, hi = scene_bounds(states.positions, active=states.fields.get("active"))
-            self.speed_max = robust_speed_max(states.velocities[:: max(1, states.frame_count // 50)]) if states.velocities is not None else None
+            # The video's speed scale (`inertia run` colours by the same run-wide value).
+            self.speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
             self.groups = states.groups()
             self.group_colors = states.metadata.get("group_colors")
             radii = states.radius()

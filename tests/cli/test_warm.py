@@ -1,0 +1,37 @@
+"""`inertia warmup` helpers (src/inertia/cli/warm.py): the compile notice and the scene list."""
+
+import numpy as np
+from numba import njit
+
+from inertia.cli import warm
+
+
+def test_compile_notice_fires_once_per_compile_and_not_when_compiled():
+    events = []
+
+    def add_one(x):
+        return x + 1.0
+
+    def twice(x):
+        return 2.0 * inner(x)
+
+    inner = njit(add_one)
+    kernel = njit(twice)  # compiling it compiles `inner` inside: one notice, not two
+    with warm.compile_notice(lambda: events.append("start"), lambda: events.append("end")):
+        assert kernel(np.float64(1.0)) == 4.0
+        assert events == ["start", "end"]
+        kernel(np.float64(2.0))  # compiled: no event
+    assert events == ["start", "end"]
+    kernel(np.int64(3))  # a new signature outside the context: not reported
+    assert events == ["start", "end"]
+
+
+def test_warmup_covers_every_bundled_example_and_renders_it():
+    from inertia.cli.main import bundled_examples
+
+    names = [name for name, _ in warm._examples()]
+    assert names == [f"example {n}" for n in bundled_examples()]
+    for _, data in warm._examples():
+        sim = data["simulation"]
+        assert abs(sim["duration"] * sim["fps"] - 2.0) < 1e-9  # two frames each
+        assert sim["duration"] == 2.0  # long enough for falling particles to land
