@@ -155,9 +155,20 @@ def with_overrides(scene: Scene, *, duration=None, fps=None, seed=None) -> Scene
     return Scene(scene.model.model_copy(update={"simulation": simulation}), scene.text, scene.path, scene.format)
 
 
-def build(scene: Scene):
-    """Build the `World` of a validated `Scene`."""
+def build(scene: Scene, *, check_memory: bool = True):
+    """Build the `World` of a validated `Scene`.
+
+    ``check_memory``: first estimate what the scene allocates (`inertia.scene.resources`) and
+    raise `SceneError` naming the key, the estimate and the available memory if it does not fit.
+    """
     from .builder import build_world, scene_fingerprint
+
+    if check_memory:
+        from .resources import estimate_resources
+
+        problem = estimate_resources(scene.model).memory_problem()
+        if problem is not None:
+            raise SceneError(scene.path, [Issue(*problem)])
 
     world = build_world(scene.model, source=scene.path, base_dir=scene.base_dir)
     sim = scene.model.simulation
