@@ -256,3 +256,47 @@ def test_a_damaged_checkpoint_names_the_file(tmp_path):
     bad.write_bytes(b"PK\x03\x04 not really a zip")
     with pytest.raises(CheckpointError, match="checkpoint.npz"):
         load_checkpoint(bad)
+
+
+def test_ctrl_c_is_caught_from_the_first_write_to_the_last(write_scene, tmp_path):
+    """The SIGINT handler covers creating the state directory and the final checkpoint (issue 8):
+    a Ctrl-C at any moment after the first write stops cleanly instead of raising."""
+    import signal
+
+    path = write_scene(MIXED)
+    world = load_scene(path)
+    run = Run(world, tmp_path / "a", duration=world.duration, fps=world.fps, fingerprint=world.fingerprint)
+    seen = {}
+    original_static, original_save = run._static, world.save_state
+
+    def static():                      # called just before the state directory is created
+        seen["first write"] = signal.getsignal(signal.SIGINT)
+        return original_static()
+
+    def save_state():                  # called by the last checkpoint
+        seen["last write"] = signal.getsignal(signal.SIGINT)
+        return original_save()
+
+    run._static, world.save_state = static, save_state
+    before = signal.getsignal(signal.SIGINT)
+    result = run.execute()
+    assert result.status == "completed"
+    for moment, handler in seen.items():
+        assert handler is not before and handler is not signal.default_int_handler, moment
+    assert signal.getsignal(signal.SIGINT) is before
+    # a Ctrl-C that arrives while the state directory is being created stops the run at frame 0,
+    # with a checkpoint to resume from
+    world = load_scene(path)
+    run = Run(world, tmp_path / "b", duration=world.duration, fps=world.fps, fingerprint=world.fingerprint)
+    original_static = run._static
+
+    def interrupted_static():
+        signal.raise_signal(signal.SIGINT)
+        return original_static()
+
+    run._static = interrupted_static
+    result = run.execute()
+    assert result.status == "interrupted" and result.frame_count == 0 and result.checkpoint_path.exists()
+    _, resumed = _run(path, tmp_path / "b", resume=True)
+    _, full = _run(path, tmp_path / "full")
+    np.testing.assert_array_equal(load_states(resumed.states_path).positions, load_states(full.states_path).positions)

@@ -488,6 +488,9 @@ class StateWriter:
         writer._last_time = -math.inf
         if frame_count is not None:
             writer.truncate(frame_count)
+        if not writer._index["chunks"]:
+            # no frame kept: the next frame fixes the layout again (a run stopped before frame 0)
+            writer._index["fields"], writer._index["velocities"] = None, None
         if writer._index["chunks"]:
             last = writer._index["chunks"][-1]
             times = _read_npz(path / last["file"])["times"]
