@@ -403,7 +403,7 @@ def test_resume_uses_the_runs_own_duration_fps_and_seed(write_scene, tmp_path):
     assert invoke("run", scene, "-o", full, "-q", "--no-render", *overrides).exit_code == 0
     assert invoke("run", scene, "-o", part, "-q", "--no-render", "--stop-after", 2, *overrides).exit_code == 130
     # a different value is refused, naming what the run was started with
-    for option, value, expected in (("--duration", 1.0, "--duration 0.3"), ("--seed", 3, "--seed 11"),
+    for option, value, expected in (("--duration", 0.2, "--duration 0.3"), ("--seed", 3, "--seed 11"),
                                     ("--fps", 20, "--fps 10")):
         refused = invoke("run", scene, "-o", part, "-q", "--no-render", "--resume", option, value)
         assert refused.exit_code == 2 and expected in refused.output, refused.output
@@ -414,6 +414,11 @@ def test_resume_uses_the_runs_own_duration_fps_and_seed(write_scene, tmp_path):
     assert a.frame_count == b.frame_count == 4
     np.testing.assert_array_equal(a.positions, b.positions)
     assert read_manifest(part / "manifest.json")["extra"]["duration"] == 0.3
+    # a longer --duration, asked for explicitly, extends the finished run on the same trajectory
+    longer = invoke("run", scene, "-o", part, "-q", "--no-render", "--resume", "--duration", 0.5)
+    assert longer.exit_code == 0, longer.output
+    assert load_states(part / "states").frame_count == 6
+    np.testing.assert_array_equal(load_states(part / "states").positions[:4], a.positions)
 
 
 def test_the_readme_command_works_twice(tmp_path, monkeypatch, write_scene):

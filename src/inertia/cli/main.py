@@ -1,6 +1,6 @@
 """The `inertia` command (typer + rich).
 
-    inertia run SCENE [--out DIR] [--duration S] [--fps N] [--seed N] [--resume] [--overwrite]
+    inertia run SCENE [--out DIR] [--duration S] [--fps N] [--seed N] [--resume] [--overwrite] [--force]
     inertia validate SCENE
     inertia render STATES [--out DIR] [--video mp4,gif] [--frames]
     inertia view SCENE|STATES
@@ -9,7 +9,16 @@
     inertia bench [NAME ...]
     inertia schema [--out FILE]
 
-SCENE is a .toml/.json file or the name of a bundled example (``inertia run fountain``).
+SCENE is a .toml/.json file or the name of a bundled example (``inertia run fountain``); a name
+that looks like a path (``./fountain.toml``) and does not exist is an error, never an example.
+
+``run`` into a directory holding a finished run (completed or diverged) of the same scene file
+replaces it, so the same command works twice; a run that did not finish is kept for
+``--resume`` (which continues with the duration, fps and seed the run was started with; a
+longer ``--duration`` extends it, other values are refused), another scene's run is kept
+unless ``--overwrite``. Paths from a scene file stay inside the working directory; ``--out``
+is the user's choice. A scene that would not fit in memory, or a run that would take more than
+a day even at full speed, is refused before anything is written (``--force`` proceeds).
 
 Exit codes: 0 done; 1 an internal error (a bug: the message says to rerun with --debug for the
 traceback); 2 bad input (invalid scene, missing file, unwritable output directory, a checkpoint
@@ -375,13 +384,18 @@ def _resume_settings(out: Path, duration, fps, seed) -> tuple[float, float, int]
     if unknown:
         raise InputError(f"cannot resume from {out}: its checkpoint does not say the {', '.join(unknown)} it was "
                          "started with; run without --resume to start over")
-    wrong = [k for k in given if given[k] is not None and float(given[k]) != float(started[k])]
+    # fps and seed are the run's; a longer --duration extends it (asked for explicitly), a shorter one
+    # would call a run "completed" that is not the one started
+    wrong = [k for k in given if given[k] is not None and float(given[k]) != float(started[k])
+             and not (k == "duration" and float(given[k]) > float(started[k]))]
     if wrong:
         expected = " ".join(f"--{k} {started[k]:g}" for k in started)
         got = ", ".join(f"--{k} {given[k]:g}" for k in wrong)
         raise InputError(f"cannot resume from {out} with {got}: the run was started with {expected}; leave these "
-                         "options out to continue it as it was started, or start over with --overwrite")
-    return float(started["duration"]), float(started["fps"]), int(started["seed"])
+                         "options out to continue it as it was started (a longer --duration extends it), or "
+                         "start over with --overwrite")
+    return (float(duration if duration is not None else started["duration"]), float(started["fps"]),
+            int(started["seed"]))
 
 
 def _check_resources(loaded, *, force: bool, warn_only: bool = False) -> None:
