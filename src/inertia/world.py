@@ -24,8 +24,15 @@ spent per group is added to ``world.profile``.
                      ``checkpoint.npz`` is written atomically. Resuming from it gives a
                      trajectory identical, bit for bit, to an uninterrupted run.
 
+``checkpoint.npz`` holds numeric arrays (read with ``allow_pickle=False``) and one JSON tree;
+nothing is pickled, and a file holding a pickled object is refused (`CheckpointError`). On
+resume the run facts (fingerprint, fps, dt, substeps, particle count) are checked before any
+array is read.
+
 Ctrl-C (SIGINT) sets a flag checked after every step: the run stops at the current step,
-writes what it has and returns ``status = "interrupted"``. A second Ctrl-C raises
+writes what it has and returns ``status = "interrupted"``. The handler is installed before the
+first write to ``out_dir`` and removed after the last (`Run.catching_sigint`; a caller such as
+the CLI can hold it longer, until its own last write). A second Ctrl-C raises
 ``KeyboardInterrupt`` at once (files stay consistent: every write is atomic).
 
 Arrays (N = total particles over the groups in order, D = dim): ``World.positions()`` and
@@ -38,13 +45,14 @@ self-collisions and forces act within a group); the particle count is fixed for 
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
-import pickle
 import signal
 import threading
 import time as _time
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -55,7 +63,8 @@ from .errors import SimulationDiverged
 from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
-           "CHECKPOINT_NAME", "STATES_NAME", "frame_steps"]
+           "CHECKPOINT_NAME", "STATES_NAME", "frame_steps", "CheckpointError",
+           "read_checkpoint_info"]
 
 CHECKPOINT_NAME = "checkpoint.npz"
 STATES_NAME = "states"
@@ -246,62 +255,95 @@ class World:
 
 
 # ----------------------------------------------------------------------------------------------
-# checkpoint files: a JSON tree with the arrays beside it in one .npz, written atomically
+# checkpoint files: a JSON tree with the arrays beside it in one .npz, written atomically.
+# Nothing is pickled: a checkpoint is data only (arrays loaded with allow_pickle=False, JSON),
+# so a checkpoint someone sends you cannot run code when it is resumed.
 # ----------------------------------------------------------------------------------------------
-def _encode(value, arrays: dict):
+class CheckpointError(ValueError):
+    """A checkpoint file cannot be used: damaged, from another scene, or not data only."""
+
+
+_TAGS = ("__array__", "__scalar__", "__tuple__", "__items__")
+_MAX_DEPTH = 64          # nesting of a checkpoint's JSON tree (ours is < 10 deep)
+
+
+def _encode(value, arrays: dict, where: str = "state"):
     def store(array) -> str:
         key = f"a{len(arrays)}"
         arrays[key] = array
         return key
 
-    if value is None or isinstance(value, (bool, int, str)):
-        return value
-    if isinstance(value, float):
+    if value is None or isinstance(value, (bool, int, str, float)):
         return value
     if isinstance(value, np.ndarray):
-        if value.dtype == object:
-            return {"__pickle__": store(np.frombuffer(pickle.dumps(value), dtype=np.uint8))}
+        if value.dtype.hasobject:
+            raise TypeError(f"checkpoint: {where} is an array of Python objects; checkpoints hold numeric "
+                            "arrays and JSON only")
         return {"__array__": store(value)}
     if isinstance(value, np.generic):
         return {"__scalar__": store(np.asarray(value))}
     if isinstance(value, dict):
         if all(isinstance(k, str) and not k.startswith("__") for k in value):
-            return {k: _encode(v, arrays) for k, v in value.items()}
-        return {"__items__": [[_encode(k, arrays), _encode(v, arrays)] for k, v in value.items()]}
+            return {k: _encode(v, arrays, f"{where}.{k}") for k, v in value.items()}
+        return {"__items__": [[_encode(k, arrays, f"{where} key"), _encode(v, arrays, f"{where}[{k!r}]")]
+                              for k, v in value.items()]}
     if isinstance(value, list):
-        return [_encode(v, arrays) for v in value]
+        return [_encode(v, arrays, f"{where}[{i}]") for i, v in enumerate(value)]
     if isinstance(value, tuple):
-        return {"__tuple__": [_encode(v, arrays) for v in value]}
-    # anything else (a stage's private object): pickled, so the checkpoint stays complete
-    return {"__pickle__": store(np.frombuffer(pickle.dumps(value), dtype=np.uint8))}
+        return {"__tuple__": [_encode(v, arrays, f"{where}[{i}]") for i, v in enumerate(value)]}
+    raise TypeError(f"checkpoint: {where} is a {type(value).__name__}; checkpoints hold arrays, numbers, "
+                    "strings, lists and dicts only (a stage's get_state must return those)")
 
 
-def _decode(value, arrays):
+def _decode(value, arrays, path, depth: int = 0):
+    if depth > _MAX_DEPTH:
+        raise CheckpointError(f"{path}: the checkpoint's tree is nested deeper than {_MAX_DEPTH} levels; "
+                              "it was not written by inertia")
     if isinstance(value, list):
-        return [_decode(v, arrays) for v in value]
+        return [_decode(v, arrays, path, depth + 1) for v in value]
     if not isinstance(value, dict):
         return value
-    if "__array__" in value:
-        return np.array(arrays[value["__array__"]])
-    if "__scalar__" in value:
-        return arrays[value["__scalar__"]][()]
+
+    def array(key):
+        if not isinstance(key, str) or key not in arrays:
+            raise CheckpointError(f"{path}: the checkpoint names an array {key!r} it does not hold; "
+                                  "the file is damaged")
+        return arrays[key]
+
     if "__pickle__" in value:
-        return pickle.loads(arrays[value["__pickle__"]].tobytes())
+        raise CheckpointError(f"{path}: the checkpoint holds a pickled object, which is refused (loading it "
+                              "could run code). Checkpoints written by this inertia hold arrays and JSON only; "
+                              "run without --resume to start over.")
+    tags = [k for k in value if isinstance(k, str) and k.startswith("__")]
+    if tags and (len(value) != 1 or tags[0] not in _TAGS):
+        raise CheckpointError(f"{path}: unknown entry {tags[0]!r} in the checkpoint; the file is damaged "
+                              "or from a newer inertia")
+    if "__array__" in value:
+        return np.array(array(value["__array__"]))
+    if "__scalar__" in value:
+        return array(value["__scalar__"])[()]
     if "__tuple__" in value:
-        return tuple(_decode(v, arrays) for v in value["__tuple__"])
+        return tuple(_decode(v, arrays, path, depth + 1) for v in value["__tuple__"])
     if "__items__" in value:
-        return {_decode(k, arrays): _decode(v, arrays) for k, v in value["__items__"]}
-    return {k: _decode(v, arrays) for k, v in value.items()}
+        return {_decode(k, arrays, path, depth + 1): _decode(v, arrays, path, depth + 1)
+                for k, v in value["__items__"]}
+    return {k: _decode(v, arrays, path, depth + 1) for k, v in value.items()}
 
 
 def save_checkpoint(path, state: WorldState, info: dict) -> Path:
-    """Write `state` and `info` (JSON-able run facts) to `path` atomically (an .npz file)."""
+    """Write `state` and `info` (JSON-able run facts) to `path` atomically (an .npz file).
+
+    Raises TypeError naming the entry if the state holds anything but arrays, numbers, strings,
+    lists, tuples and dicts (nothing is ever pickled).
+    """
     from .io import atomic_write
 
     arrays: dict[str, np.ndarray] = {}
-    groups = [{"time": s.time, "step_count": s.step_count, "system": _encode(s.system, arrays),
-               "integrator": _encode(s.integrator, arrays), "extra": _encode(s.extra, arrays)}
-              for s in state.groups]
+    groups = [{"time": s.time, "step_count": s.step_count,
+               "system": _encode(s.system, arrays, f"groups[{i}].system"),
+               "integrator": _encode(s.integrator, arrays, f"groups[{i}].integrator"),
+               "extra": _encode(s.extra, arrays, f"groups[{i}].extra")}
+              for i, s in enumerate(state.groups)]
     tree = {"checkpoint_version": CHECKPOINT_VERSION, "info": info, "step_count": state.step_count,
             "groups": groups}
     arrays["tree"] = np.array(json.dumps(tree))
@@ -310,18 +352,74 @@ def save_checkpoint(path, state: WorldState, info: dict) -> Path:
     return Path(path)
 
 
-def load_checkpoint(path) -> tuple[WorldState, dict]:
-    """Read a checkpoint written by `save_checkpoint`: (state, info)."""
-    with np.load(path, allow_pickle=False) as data:
-        arrays = {k: data[k] for k in data.files}
-    tree = json.loads(str(arrays.pop("tree")[()]))
+def _read_tree(path, data) -> dict:
+    """The JSON tree of an open checkpoint, version-checked (nothing else is read)."""
+    if "tree" not in data.files:
+        raise CheckpointError(f"{path}: not an inertia checkpoint (no tree inside)")
+    try:
+        text = str(data["tree"][()])
+        tree = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise CheckpointError(f"{path}: the checkpoint's tree is not valid JSON ({type(exc).__name__})") from None
+    if not isinstance(tree, dict) or not isinstance(tree.get("info"), dict) or not isinstance(tree.get("groups"), list):
+        raise CheckpointError(f"{path}: not an inertia checkpoint (its tree lacks info or groups)")
     if tree.get("checkpoint_version") != CHECKPOINT_VERSION:
-        raise ValueError(f"{path}: checkpoint version {tree.get('checkpoint_version')!r} is not "
-                         f"{CHECKPOINT_VERSION}")
-    groups = [SimulationState(g["time"], g["step_count"], _decode(g["system"], arrays),
-                              _decode(g["integrator"], arrays), _decode(g["extra"], arrays))
-              for g in tree["groups"]]
-    return WorldState(tree["step_count"], groups), tree["info"]
+        raise CheckpointError(f"{path}: checkpoint version {tree.get('checkpoint_version')!r} is not "
+                              f"{CHECKPOINT_VERSION}")
+    return tree
+
+
+def _open_checkpoint(path):
+    try:
+        return np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise CheckpointError(f"{path}: checkpoint not found") from None
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise CheckpointError(f"{path}: not a readable checkpoint ({exc})") from None
+
+
+def read_checkpoint_info(path) -> dict:
+    """The run facts of a checkpoint (fingerprint, fps, dt, duration, seed, ...), decoding nothing else."""
+    with _open_checkpoint(path) as data:
+        if not hasattr(data, "files"):
+            raise CheckpointError(f"{path}: not an inertia checkpoint (a single array, not an archive)")
+        return _read_tree(path, data)["info"]
+
+
+def load_checkpoint(path, *, fingerprint: str | None = None) -> tuple[WorldState, dict]:
+    """Read a checkpoint written by `save_checkpoint`: (state, info).
+
+    ``fingerprint``: when given, the checkpoint must have been written by a scene with this
+    fingerprint; it is checked before any array is read or any entry decoded. Raises
+    `CheckpointError` (a ValueError naming the file) for a damaged or foreign checkpoint, and for
+    one that holds a pickled object (refused: loading it could run code).
+    """
+    with _open_checkpoint(path) as data:
+        if not hasattr(data, "files"):
+            raise CheckpointError(f"{path}: not an inertia checkpoint (a single array, not an archive)")
+        tree = _read_tree(path, data)
+        info = tree["info"]
+        if fingerprint is not None and info.get("fingerprint") != fingerprint:
+            raise CheckpointError(f"{path}: the checkpoint was written by another scene (fingerprint "
+                                  f"{info.get('fingerprint')!r}, this scene {fingerprint!r})")
+        arrays = {}
+        for key in data.files:
+            if key == "tree":
+                continue
+            try:
+                arrays[key] = data[key]
+            except ValueError as exc:     # an object array: numpy refuses it without pickle
+                raise CheckpointError(f"{path}: array {key!r} holds Python objects, which is refused "
+                                      f"(loading it could run code): {exc}") from None
+            except (OSError, zipfile.BadZipFile, EOFError) as exc:
+                raise CheckpointError(f"{path}: array {key!r} is damaged ({exc})") from None
+    try:
+        groups = [SimulationState(g["time"], g["step_count"], _decode(g["system"], arrays, path),
+                                  _decode(g["integrator"], arrays, path), _decode(g["extra"], arrays, path))
+                  for g in tree["groups"]]
+        return WorldState(tree["step_count"], groups), info
+    except (KeyError, TypeError) as exc:
+        raise CheckpointError(f"{path}: the checkpoint is damaged (missing or malformed entry {exc})") from None
 
 
 # ----------------------------------------------------------------------------------------------
@@ -398,6 +496,7 @@ class Run:
         self.states_path = self.out_dir / STATES_NAME
         self.checkpoint_path = self.out_dir / CHECKPOINT_NAME
         self._stop_requested = False
+        self._sigint_depth = 0
         self.frame_count = int(math.floor(self.duration * self.fps + 1e-6)) + 1
         w = world
         self._x = np.empty((w.particle_count, w.dim))
@@ -413,7 +512,7 @@ class Run:
         w = self.world
         return {"fingerprint": self.fingerprint, "fps": self.fps, "dt": w.dt, "substeps": w.substeps,
                 "frame_count": frames, "time": w.t, "particle_count": w.particle_count,
-                "groups": [g.name for g in w.groups]}
+                "groups": [g.name for g in w.groups], "duration": self.duration, "seed": w.seed}
 
     def _static(self) -> dict[str, np.ndarray]:
         w = self.world
@@ -460,34 +559,43 @@ class Run:
 
     # ---- the loop ----------------------------------------------------------------------------
     def execute(self) -> RunResult:
+        """Set up (fresh or resumed), step and record to the end, checkpoint; see the module doc.
+
+        Ctrl-C is caught from before the first write to ``out_dir`` until after the last
+        (`catching_sigint`), so an interrupt at any moment leaves a resumable run.
+        """
+        with self.catching_sigint():
+            return self._execute()
+
+    def _execute(self) -> RunResult:
         from .io import StateWriter
 
         w = self.world
         clock = _time.perf_counter
         started = clock()
         timings = {"simulate": 0.0, "record": 0.0, "checkpoint": 0.0}
-        self.out_dir.mkdir(parents=True, exist_ok=True)
 
-        # setup: fresh, or from the checkpoint
+        # setup: fresh, or from the checkpoint (its run facts and fingerprint checked before
+        # anything else of it is decoded)
         if self.resume:
-            state, info = load_checkpoint(self.checkpoint_path)
-            self._check_compatible(info)
+            self._check_compatible(read_checkpoint_info(self.checkpoint_path))
+            state, info = load_checkpoint(self.checkpoint_path, fingerprint=self.fingerprint)
             w.restore_state(state)
             frame = int(info["frame_count"])
             writer = StateWriter.reopen(self.states_path, frame_count=frame)
         else:
+            self.out_dir.mkdir(parents=True, exist_ok=True)
             writer = StateWriter(self.states_path, dim=w.dim, particle_count=w.particle_count, fps=self.fps,
                                  static=self._static(), metadata=self._header(), overwrite=True)
             frame = 0
         status, error = "completed", None
         first_frame = None
-        previous_handler = self._install_sigint()
         try:
             last_checkpoint = clock()
             last_report = 0.0
             report_steps, report_clock = w.step_count, clock()
             rate = 0.0
-            while frame < self.frame_count:
+            while frame < self.frame_count and not self._stop_requested:
                 # advance to the step of this frame
                 target = frame_steps(frame, self.fps, w.dt)
                 t0 = clock()
@@ -524,10 +632,9 @@ class Run:
                     self._checkpoint(writer, frame)
                     timings["checkpoint"] += clock() - t0
                     last_checkpoint = clock()
-            if self._stop_requested and status == "completed":
+            if self._stop_requested and status == "completed" and frame < self.frame_count:
                 status = "interrupted"
         finally:
-            self._restore_sigint(previous_handler)
             # what was simulated is kept: flush frames; checkpoint unless the state is broken
             t0 = clock()
             if status == "diverged":
@@ -543,32 +650,54 @@ class Run:
     def _check_compatible(self, info: dict) -> None:
         w = self.world
         problems = []
-        if info.get("fingerprint") != self.fingerprint:
-            problems.append("the scene's physics changed since the checkpoint was written")
-        if float(info.get("fps")) != self.fps:
-            problems.append(f"fps is {self.fps:g} but the checkpoint was recorded at {info.get('fps'):g}")
-        if float(info.get("dt")) != w.dt or int(info.get("substeps")) != w.substeps:
-            problems.append("dt or substeps changed")
-        if int(info.get("particle_count")) != w.particle_count:
-            problems.append("the particle count changed")
+        try:
+            if info.get("fingerprint") != self.fingerprint:
+                problems.append("the scene's physics changed since the checkpoint was written")
+            if float(info["fps"]) != self.fps:
+                problems.append(f"fps is {self.fps:g} but the checkpoint was recorded at {float(info['fps']):g}")
+            if float(info["dt"]) != w.dt or int(info["substeps"]) != w.substeps:
+                problems.append("dt or substeps changed")
+            if int(info["particle_count"]) != w.particle_count:
+                problems.append("the particle count changed")
+            int(info["frame_count"])
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointError(f"{self.checkpoint_path}: the checkpoint's run facts are damaged ({exc!r})") from None
         if problems:
-            raise ValueError(f"cannot resume from {self.checkpoint_path}: {'; '.join(problems)}. "
-                             "Run without --resume to start over.")
+            raise CheckpointError(f"cannot resume from {self.checkpoint_path}: {'; '.join(problems)}. "
+                                  "Run without --resume to start over.")
 
-    def _install_sigint(self):
-        if not self.handle_sigint or threading.current_thread() is not threading.main_thread():
-            return None
+    @contextlib.contextmanager
+    def catching_sigint(self):
+        """Inside this block Ctrl-C (SIGINT) asks the run to stop at the next step boundary; a
+        second Ctrl-C raises KeyboardInterrupt. Nested uses install nothing more; only the main
+        thread can catch signals (elsewhere, and with ``handle_sigint=False``, this does nothing).
+        """
+        if (self._sigint_depth or not self.handle_sigint
+                or threading.current_thread() is not threading.main_thread()):
+            self._sigint_depth += 1
+            try:
+                yield self
+            finally:
+                self._sigint_depth -= 1
+            return
 
         def handler(signum, frame):
             if self._stop_requested:
                 raise KeyboardInterrupt
             self._stop_requested = True
 
-        return signal.signal(signal.SIGINT, handler)
-
-    def _restore_sigint(self, previous) -> None:
-        if previous is not None:
+        previous = signal.signal(signal.SIGINT, handler)
+        self._sigint_depth += 1
+        try:
+            yield self
+        finally:
+            self._sigint_depth -= 1
             signal.signal(signal.SIGINT, previous)
+
+    @property
+    def stop_requested(self) -> bool:
+        """True once Ctrl-C (or `request_stop`) asked the run to stop."""
+        return self._stop_requested
 
 
 def fingerprint(text: str) -> str:

@@ -249,27 +249,64 @@ def test_view_hands_the_run_to_the_viewer(write_scene, tmp_path, monkeypatch):
     assert calls[-1][0].frame_count == FRAMES and len(calls[-1][1]["colliders"]) == 1
 
 
-def test_ctrl_c_stops_cleanly_and_resumes(write_scene, tmp_path):
-    """A real SIGINT to `python -m inertia.cli run`: exit 130, files consistent, resume completes."""
-    scene = write_scene(TINY.replace("duration = 0.2", "duration = 30.0").replace("fps = 20", "fps = 10"))
-    out = tmp_path / "o"
+def _wait_for(condition, proc, timeout=120.0):
+    """Poll `condition()` until true; fail at once if the process ends first."""
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert proc.poll() is None, f"the run ended before the point waited for: {proc.communicate()}"
+        assert time.monotonic() < deadline, "timed out waiting for the run"
+        time.sleep(0.01)
+
+
+def _read_line(proc, prefix, timeout=120.0):
+    """The first stdout line starting with `prefix` (a known point of the run, reported on stdout)."""
+    import selectors
+
+    selector = selectors.DefaultSelector()
+    selector.register(proc.stdout, selectors.EVENT_READ)
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if selector.select(timeout=max(0.0, deadline - time.monotonic())):
+            line = proc.stdout.readline()
+            assert line, f"the run ended before printing {prefix!r}: {proc.communicate()}"
+            if line.startswith(prefix):
+                return line
+    raise AssertionError(f"no {prefix!r} line within {timeout} s")
+
+
+def _start_long_run(scene, out):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-m", "inertia.cli", "run", str(scene), "-o", str(out), "-q", "--no-render"],
+    return subprocess.Popen([sys.executable, "-m", "inertia.cli", "run", str(scene), "-o", str(out), "-q",
+                             "--no-render", "--report-frames"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-    deadline = time.time() + 120
-    while time.time() < deadline and not (out / "states" / "index.json").exists():
-        time.sleep(0.2)
-    time.sleep(1.0)
+
+
+def test_ctrl_c_stops_cleanly_and_resumes(write_scene, tmp_path):
+    """A real SIGINT to `python -m inertia.cli run` at known points: exit 130, the resume hint,
+    files consistent, and resume completes the run with its own duration."""
+    scene = write_scene(TINY.replace("duration = 0.2", "duration = 30.0").replace("fps = 20", "fps = 10"))
+    # 1. after a frame was recorded (the run reports it on stdout)
+    out = tmp_path / "o"
+    proc = _start_long_run(scene, out)
+    assert _read_line(proc, "frame ").startswith("frame 1/301")
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "stopped" in err and "--resume" in err
     states = load_states(out / "states")
     manifest = read_manifest(out / "manifest.json")
-    assert manifest["extra"]["status"] == "interrupted" and manifest["frame_count"] == states.frame_count
-    resumed = invoke("run", scene, "-o", out, "-q", "--no-render", "--resume", "--duration", 1.0)
+    assert manifest["extra"]["status"] == "interrupted" and manifest["frame_count"] == states.frame_count >= 1
+    resumed = invoke("run", scene, "-o", out, "-q", "--no-render", "--resume")
     assert resumed.exit_code == 0, resumed.output
-    assert load_states(out / "states").frame_count == max(11, states.frame_count)
+    assert load_states(out / "states").frame_count == 301
+    # 2. the moment the state directory appears, before any frame: still a clean, resumable stop
+    early = tmp_path / "early"
+    proc = _start_long_run(scene, early)
+    _wait_for(lambda: (early / "states").exists(), proc)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130 and "stopped" in err and "--resume" in err, err
+    assert load_states(early / "states").frame_count == read_manifest(early / "manifest.json")["frame_count"]
 
 
 def test_a_killed_run_leaves_readable_files(write_scene, tmp_path):
@@ -291,3 +328,147 @@ def test_a_killed_run_leaves_readable_files(write_scene, tmp_path):
     result = invoke("run", scene, "-o", out, "-q")
     assert result.exit_code == 2 and "already holds a run" in result.output
     assert not [p for p in (out / "states").iterdir() if ".partial" in p.name]
+
+
+# ---- issue 8: bad input is exit 2, paths stay the user's, runs are the run's own --------------
+def test_a_path_that_does_not_exist_never_runs_an_example(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in ("./fountain.toml", "fountain.toml", "scenes/fountain.toml", "./fountain"):
+        result = invoke("validate", name)
+        assert result.exit_code == 2, (name, result.output)
+        assert "file not found" in result.output and "inertia run fountain" in result.output
+    assert invoke("validate", "fountain", "--no-build").exit_code == 0
+
+
+def test_bad_input_is_exit_2_with_a_clear_message(write_scene, tmp_path):
+    cases = [
+        (TINY.replace("duration = 0.2", "duration = inf"), "scene.toml", "simulation.duration: must be a finite number"),
+        (TINY.replace("dt = 0.005", "dt = inf"), "scene.toml", "simulation.dt: must be a finite number"),
+        ('{"format_version": 1, "particles": ' + "[" * 100_000 + "]" * 100_000 + "}", "deep.json", "nested deeper"),
+        (TINY.replace("mass = 0.01", "mass = true"), "scene.toml", "particles[0].mass: must be a number"),
+        (TINY.replace("mass = 0.01", 'mass = "0.01"'), "scene.toml", "particles[0].mass: must be a number"),
+        (TINY.replace('name = "tiny"', 'name = "/tmp/elsewhere"'), "scene.toml", "name: must be a plain name"),
+        (TINY + '\n[output.x]\n', "scene.toml", "output.x"),
+        (TINY.replace("[output]", '[output]\ndirectory = "../../elsewhere"'), "scene.toml",
+         "output.directory: must be a relative path inside the working directory"),
+    ]
+    for text, name, expected in cases:
+        scene = write_scene(text, name)
+        for command in (("validate", scene), ("run", scene, "-o", tmp_path / "o", "-q")):
+            result = invoke(*command)
+            assert result.exit_code == 2, (expected, result.output)
+            assert expected in result.output and "internal error" not in result.output, result.output
+    assert not (tmp_path / "o").exists() and not (tmp_path.parent / "elsewhere").exists()
+    scene = write_scene(TINY)
+    inf = invoke("run", scene, "-o", tmp_path / "o", "--duration", "inf")
+    assert inf.exit_code == 2 and "simulation.duration: must be a finite number" in inf.output
+
+
+def test_damaged_state_files_are_exit_2_naming_the_file(write_scene, tmp_path):
+    scene = write_scene(TINY.replace('video = ["mp4", "gif"]', "video = []"))
+    out = tmp_path / "run"
+    assert invoke("run", scene, "-o", out, "-q", "--no-render").exit_code == 0
+    chunk = next((out / "states").glob("chunk-*.npz"))
+    chunk.write_bytes(chunk.read_bytes()[:100])
+    result = invoke("render", out / "states", "-o", tmp_path / "r", "--video", "none", "--no-plot", "-q")
+    assert result.exit_code == 2 and chunk.name in result.output and "damaged" in result.output, result.output
+    (out / "states" / "index.json").write_text('{"chunks": [')
+    for command in (("render", out / "states", "-q"), ("view", out / "states")):
+        result = invoke(*command)
+        assert result.exit_code == 2 and "index.json" in result.output, result.output
+    resumed = invoke("run", scene, "-o", out, "-q", "--resume")
+    assert resumed.exit_code == 2 and "internal error" not in resumed.output, resumed.output
+
+
+def test_huge_and_endless_scenes_are_refused_before_running(write_scene, tmp_path):
+    huge = write_scene(TINY.replace("count = 4,", "count = 1_000_000_000,"), "huge.toml")
+    started = time.perf_counter()
+    result = invoke("validate", huge)
+    elapsed = time.perf_counter() - started
+    assert result.exit_code == 2, result.output
+    assert "particles[1].chain.count" in result.output and "of memory" in result.output and "available" in result.output
+    print(f"validate refused count = 1e9 in {elapsed:.3f} s")
+    endless = write_scene(TINY.replace("duration = 0.2", "duration = 1e12"), "endless.toml")
+    result = invoke("run", endless, "-o", tmp_path / "o", "-q")
+    assert result.exit_code == 2 and "simulation.duration" in result.output and "--force" in result.output
+    assert not (tmp_path / "o").exists()
+    warned = invoke("validate", endless)
+    assert warned.exit_code == 0 and "warning" in warned.output and "years" in warned.output
+
+
+def test_resume_uses_the_runs_own_duration_fps_and_seed(write_scene, tmp_path):
+    scene = write_scene(TINY.replace("duration = 0.2", "duration = 0.4"))
+    full, part = tmp_path / "full", tmp_path / "part"
+    overrides = ("--duration", 0.3, "--seed", 11, "--fps", 10)
+    assert invoke("run", scene, "-o", full, "-q", "--no-render", *overrides).exit_code == 0
+    assert invoke("run", scene, "-o", part, "-q", "--no-render", "--stop-after", 2, *overrides).exit_code == 130
+    # a different value is refused, naming what the run was started with
+    for option, value, expected in (("--duration", 0.2, "--duration 0.3"), ("--seed", 3, "--seed 11"),
+                                    ("--fps", 20, "--fps 10")):
+        refused = invoke("run", scene, "-o", part, "-q", "--no-render", "--resume", option, value)
+        assert refused.exit_code == 2 and expected in refused.output, refused.output
+    # without the options, the run's own values are used: the same run as the uninterrupted one
+    resumed = invoke("run", scene, "-o", part, "-q", "--no-render", "--resume")
+    assert resumed.exit_code == 0, resumed.output
+    a, b = load_states(full / "states"), load_states(part / "states")
+    assert a.frame_count == b.frame_count == 4
+    np.testing.assert_array_equal(a.positions, b.positions)
+    assert read_manifest(part / "manifest.json")["extra"]["duration"] == 0.3
+    # a longer --duration, asked for explicitly, extends the finished run on the same trajectory
+    longer = invoke("run", scene, "-o", part, "-q", "--no-render", "--resume", "--duration", 0.5)
+    assert longer.exit_code == 0, longer.output
+    assert load_states(part / "states").frame_count == 6
+    np.testing.assert_array_equal(load_states(part / "states").positions[:4], a.positions)
+
+
+def test_the_readme_command_works_twice(tmp_path, monkeypatch, write_scene):
+    """`inertia run fountain --out out/fountain` run twice: a finished run of the same scene is
+    replaced; an unfinished run or another scene's run is not."""
+    monkeypatch.chdir(tmp_path)
+    command = ("run", "fountain", "--out", "out/fountain", "--duration", 0.1, "-q", "--no-render")
+    first = invoke(*command)
+    assert first.exit_code == 0, first.output
+    created = read_manifest(tmp_path / "out/fountain/manifest.json")["created"]
+    second = invoke(*command)
+    assert second.exit_code == 0, second.output
+    assert read_manifest(tmp_path / "out/fountain/manifest.json")["created"] != created
+    # another scene's finished run in that directory is kept
+    other = invoke("run", write_scene(TINY), "--out", "out/fountain", "-q", "--no-render")
+    assert other.exit_code == 2 and "already holds a run of another scene" in other.output
+    # an unfinished run is kept for --resume
+    stopped = invoke(*command, "--stop-after", 1, "--overwrite")
+    assert stopped.exit_code == 130
+    again = invoke(*command)
+    assert again.exit_code == 2 and "--resume" in again.output
+
+
+def test_ctrl_c_before_anything_is_written_says_so(write_scene, tmp_path, monkeypatch):
+    import inertia.scene as scene_module
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(scene_module, "build", interrupted)
+    result = invoke("run", write_scene(TINY), "-o", tmp_path / "o", "-q")
+    assert result.exit_code == 130 and "nothing was written" in result.output
+    assert not (tmp_path / "o" / "states").exists()
+
+
+def test_view_cleans_up_its_temporary_directory(write_scene, tmp_path, monkeypatch):
+    import tempfile
+
+    import inertia.viewer as viewer
+
+    system_tmp = tmp_path / "systmp"
+    system_tmp.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
+    monkeypatch.setattr(viewer, "view", lambda states, **kw: None, raising=False)
+    assert invoke("view", write_scene(TINY), "--port", 0).exit_code == 0
+    assert list(system_tmp.iterdir()) == []
+
+    def stopped(states, **kw):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(viewer, "view", stopped, raising=False)
+    assert invoke("view", write_scene(TINY), "--port", 0).exit_code == 130
+    assert list(system_tmp.iterdir()) == []

@@ -175,3 +175,42 @@ def test_states_validates_shapes():
         States(times=np.zeros(2), positions=np.zeros((2, 3)))
     with pytest.raises(ValueError, match="field 'e' must have 2 frames"):
         States(times=np.zeros(2), positions=np.zeros((2, 3, 3)), fields={"e": np.zeros(3)})
+
+
+# ---- damaged files give a ValueError naming the file (issue 8) -------------------------------
+def _damaged_copy(tmp_path, name):
+    x, v = _frames(10)
+    return _write(tmp_path / name, x, v, chunk_frames=4)
+
+
+def test_a_truncated_chunk_names_the_chunk(tmp_path):
+    path = _damaged_copy(tmp_path, "run.states")
+    chunk = path / "chunk-00000004.npz"
+    chunk.write_bytes(chunk.read_bytes()[: chunk.stat().st_size // 2])
+    with pytest.raises(ValueError, match="chunk-00000004.npz.*damaged"):
+        load_states(path)
+    # frames in the intact chunks still load
+    assert load_states(path, frames=slice(0, 4)).frame_count == 4
+    single = tmp_path / "one.npz"
+    load_states(_damaged_copy(tmp_path, "again.states")).save(single)
+    single.write_bytes(single.read_bytes()[:-200])
+    with pytest.raises(ValueError, match="one.npz"):
+        load_states(single)
+
+
+@pytest.mark.parametrize("text", ["{not json", '{"chunks": 5}', '{"chunks": [{"file": "../../../etc/passwd", "start": 0, "count": 1}]}',
+                                  '{"chunks": [{"file": "chunk-00000000.npz"}]}', "[" * 100_000])
+def test_a_corrupt_index_names_the_file(tmp_path, text):
+    path = _damaged_copy(tmp_path, "run.states")
+    (path / "index.json").write_text(text)
+    with pytest.raises(ValueError, match="index.json"):
+        load_states(path)
+
+
+def test_a_corrupt_header_names_the_file(tmp_path):
+    path = _damaged_copy(tmp_path, "run.states")
+    (path / "header.json").write_text("{")
+    with pytest.raises(ValueError, match="header.json"):
+        load_states(path)
+    with pytest.raises(ValueError, match="header.json"):
+        StateWriter.reopen(path)

@@ -149,3 +149,60 @@ def test_all_problems_are_listed_at_once(write_scene):
     text = GOOD.replace("dt = 0.01", "dt = -1").replace("stiffness = 10.0", "stiffness = -1\nfoo = 2")
     err, message = problems(write_scene, text)
     assert len(err.issues) == 3 and message.splitlines()[0].endswith("3 problems")
+
+
+# ---- issue 8: strict types, finite numbers, paths that stay inside the output directory --------
+@pytest.mark.parametrize("value, expected", [
+    ("true", "particles[0].mass: must be a number or a list (got True)"),
+    ('"0.01"', "particles[0].mass: must be a number or a list (got '0.01')"),
+])
+def test_numbers_are_numbers(write_scene, value, expected):
+    _, message = problems(write_scene, GOOD.replace('name = "p"', f'name = "p"\nmass = {value}'))
+    assert expected in message
+
+
+def test_strict_types_elsewhere(write_scene):
+    # booleans are booleans, integers are integers, strings are strings
+    for old, new, message in [
+        ("stiffness = 10.0", "stiffness = false", "particles[0].forces[0].stiffness: must be"),
+        ('[simulation]', '[simulation]\nsubsteps = 2.5', "simulation.substeps: must be an integer (got 2.5)"),
+        ('[simulation]', '[simulation]\nseed = true', "simulation.seed: must be an integer (got True)"),
+        ('name = "p"', 'name = "p"\ncollide = 1', "particles[0].collide: must be true or false (got 1)"),
+        ('name = "p"', 'name = 5', "particles[0].name: must be a string (got 5)"),
+    ]:
+        _, got = problems(write_scene, GOOD.replace(old, new))
+        assert message in got, got
+
+
+@pytest.mark.parametrize("key, value", [("duration", "inf"), ("dt", "inf"), ("fps", "nan"), ("duration", "1e400")])
+def test_infinite_and_nan_numbers_are_refused(write_scene, key, value):
+    text = GOOD.replace("[simulation]", f"[simulation]\n{key} = {value}").replace("dt = 0.01\nduration = 0.1", "")
+    _, message = problems(write_scene, text)
+    assert f"simulation.{key}: must be a finite number" in message
+    assert "lower fps" not in message
+
+
+def test_deeply_nested_json_is_a_clear_error(write_scene):
+    text = '{"format_version": 1, "x": ' + "[" * 100_000 + "]" * 100_000 + "}"
+    _, message = problems(write_scene, text, "deep.json")
+    assert "nested" in message and "deep.json" in message
+
+
+@pytest.mark.parametrize("key, value", [
+    ("name", '"/tmp/elsewhere"'), ("name", '"../../elsewhere"'), ("name", '"a/b"'), ("name", '".."'),
+])
+def test_a_scene_name_is_a_name_not_a_path(write_scene, key, value):
+    _, message = problems(write_scene, GOOD.replace("format_version = 1", f"format_version = 1\n{key} = {value}"))
+    assert "name: must be a plain name" in message
+
+
+@pytest.mark.parametrize("value", ['"/tmp/elsewhere"', '"../../elsewhere"', '"out/../../x"', '"~/x"', '"C:/x"', '"\\\\\\\\server\\\\x"'])
+def test_output_directory_stays_inside(write_scene, value):
+    _, message = problems(write_scene, GOOD + f"\n[output]\ndirectory = {value}\n")
+    assert "output.directory: must be a relative path inside the working directory" in message
+
+
+def test_relative_output_directory_and_plain_names_are_fine(write_scene):
+    world = load_scene(write_scene(GOOD.replace("format_version = 1", 'format_version = 1\nname = "my scene-2.v1"')
+                                   + '\n[output]\ndirectory = "runs/mine"\n'))
+    assert world.name == "my scene-2.v1"

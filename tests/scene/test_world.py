@@ -172,3 +172,130 @@ def test_divergence_keeps_the_frames(write_scene, tmp_path):
     result = Run(world, tmp_path, duration=5.0, fps=10, handle_sigint=False).execute()
     assert result.status == "diverged" and "diverged" in str(result.error)
     assert load_states(result.states_path).frame_count == result.frame_count >= 1
+
+
+# ---- checkpoints hold arrays and JSON only (issue 8, security item 1) ---------------------------
+def _rewrite_checkpoint(path, edit):
+    """Rewrite a checkpoint's JSON tree and arrays with `edit(tree, arrays)` (a tampered file)."""
+    import json
+
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    tree = json.loads(str(arrays.pop("tree")[()]))
+    edit(tree, arrays)
+    arrays["tree"] = np.array(json.dumps(tree))
+    with open(path, "wb") as handle:
+        np.savez(handle, **arrays)
+
+
+class _Boom:
+    """Unpickling this runs code: what a crafted checkpoint would do."""
+
+    def __reduce__(self):
+        return (exec, ("import pathlib; pathlib.Path(__import__('os').environ['INERTIA_PWNED']).write_text('pwned')",))
+
+
+def test_a_checkpoint_holding_a_pickle_is_refused(write_scene, tmp_path, monkeypatch):
+    import pickle
+
+    from inertia.world import CheckpointError
+
+    path = write_scene(MIXED)
+    run, part = _run(path, tmp_path / "a", stop_after_frames=2)
+    marker = tmp_path / "pwned"
+    monkeypatch.setenv("INERTIA_PWNED", str(marker))
+    payload = np.frombuffer(pickle.dumps(_Boom()), dtype=np.uint8)
+
+    def inject(tree, arrays):
+        arrays["evil"] = payload
+        tree["groups"][0]["extra"] = {"__pickle__": "evil"}
+
+    _rewrite_checkpoint(part.checkpoint_path, inject)
+    with pytest.raises(CheckpointError, match="pickled object.*refused"):
+        load_checkpoint(part.checkpoint_path)
+    with pytest.raises(CheckpointError, match="pickled object.*refused"):
+        _run(path, tmp_path / "a", resume=True)
+    assert not marker.exists()
+    # an object array (numpy's own pickle) is refused the same way
+    _rewrite_checkpoint(part.checkpoint_path, lambda tree, arrays: arrays.update(a0=np.array([_Boom()], dtype=object)))
+    with pytest.raises(CheckpointError, match="refused"):
+        load_checkpoint(part.checkpoint_path)
+    assert not marker.exists()
+
+
+def test_the_fingerprint_is_checked_before_anything_is_decoded(write_scene, tmp_path):
+    from inertia.world import CheckpointError
+
+    path = write_scene(MIXED)
+    _, part = _run(path, tmp_path / "a", stop_after_frames=2)
+    # the tree points at an array that is not there: decoding would fail, the fingerprint first
+    def break_arrays(tree, arrays):
+        tree["info"]["fingerprint"] = "0123456789abcdef"
+        tree["groups"][0]["system"] = {"__array__": "missing"}
+
+    _rewrite_checkpoint(part.checkpoint_path, break_arrays)
+    with pytest.raises(CheckpointError, match="another scene"):
+        load_checkpoint(part.checkpoint_path, fingerprint=load_scene(path).fingerprint)
+    with pytest.raises(ValueError, match="the scene's physics changed"):
+        _run(path, tmp_path / "a", resume=True)
+
+
+def test_a_state_that_is_not_arrays_and_json_is_not_saved(tmp_path):
+    from inertia.simulation import SimulationState
+    from inertia.world import WorldState, save_checkpoint
+
+    state = WorldState(0, [SimulationState(0.0, 0, {"x": np.zeros(3)}, {}, {"thing": object()})])
+    with pytest.raises(TypeError, match="groups\\[0\\].extra.thing"):
+        save_checkpoint(tmp_path / "c.npz", state, {})
+
+
+def test_a_damaged_checkpoint_names_the_file(tmp_path):
+    from inertia.world import CheckpointError
+
+    bad = tmp_path / "checkpoint.npz"
+    bad.write_bytes(b"PK\x03\x04 not really a zip")
+    with pytest.raises(CheckpointError, match="checkpoint.npz"):
+        load_checkpoint(bad)
+
+
+def test_ctrl_c_is_caught_from_the_first_write_to_the_last(write_scene, tmp_path):
+    """The SIGINT handler covers creating the state directory and the final checkpoint (issue 8):
+    a Ctrl-C at any moment after the first write stops cleanly instead of raising."""
+    import signal
+
+    path = write_scene(MIXED)
+    world = load_scene(path)
+    run = Run(world, tmp_path / "a", duration=world.duration, fps=world.fps, fingerprint=world.fingerprint)
+    seen = {}
+    original_static, original_save = run._static, world.save_state
+
+    def static():                      # called just before the state directory is created
+        seen["first write"] = signal.getsignal(signal.SIGINT)
+        return original_static()
+
+    def save_state():                  # called by the last checkpoint
+        seen["last write"] = signal.getsignal(signal.SIGINT)
+        return original_save()
+
+    run._static, world.save_state = static, save_state
+    before = signal.getsignal(signal.SIGINT)
+    result = run.execute()
+    assert result.status == "completed"
+    for moment, handler in seen.items():
+        assert handler is not before and handler is not signal.default_int_handler, moment
+    assert signal.getsignal(signal.SIGINT) is before
+    # a Ctrl-C that arrives while the state directory is being created stops the run at frame 0,
+    # with a checkpoint to resume from
+    world = load_scene(path)
+    run = Run(world, tmp_path / "b", duration=world.duration, fps=world.fps, fingerprint=world.fingerprint)
+    original_static = run._static
+
+    def interrupted_static():
+        signal.raise_signal(signal.SIGINT)
+        return original_static()
+
+    run._static = interrupted_static
+    result = run.execute()
+    assert result.status == "interrupted" and result.frame_count == 0 and result.checkpoint_path.exists()
+    _, resumed = _run(path, tmp_path / "b", resume=True)
+    assert resumed.status == "completed" and resumed.frame_count == run.frame_count

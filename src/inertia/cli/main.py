@@ -1,6 +1,6 @@
 """The `inertia` command (typer + rich).
 
-    inertia run SCENE [--out DIR] [--duration S] [--fps N] [--seed N] [--resume] [--overwrite]
+    inertia run SCENE [--out DIR] [--duration S] [--fps N] [--seed N] [--resume] [--overwrite] [--force]
     inertia validate SCENE
     inertia render STATES [--out DIR] [--video mp4,gif] [--frames]
     inertia view SCENE|STATES
@@ -9,7 +9,16 @@
     inertia bench [NAME ...]
     inertia schema [--out FILE]
 
-SCENE is a .toml/.json file or the name of a bundled example (``inertia run fountain``).
+SCENE is a .toml/.json file or the name of a bundled example (``inertia run fountain``); a name
+that looks like a path (``./fountain.toml``) and does not exist is an error, never an example.
+
+``run`` into a directory holding a finished run (completed or diverged) of the same scene file
+replaces it, so the same command works twice; a run that did not finish is kept for
+``--resume`` (which continues with the duration, fps and seed the run was started with; a
+longer ``--duration`` extends it, other values are refused), another scene's run is kept
+unless ``--overwrite``. Paths from a scene file stay inside the working directory; ``--out``
+is the user's choice. A scene that would not fit in memory, or a run that would take more than
+a day even at full speed, is refused before anything is written (``--force`` proceeds).
 
 Exit codes: 0 done; 1 an internal error (a bug: the message says to rerun with --debug for the
 traceback); 2 bad input (invalid scene, missing file, unwritable output directory, a checkpoint
@@ -71,6 +80,7 @@ def handle_errors(command):
         from inertia.scene.errors import SceneError
 
         debug = _debug_enabled(kwargs)
+        _interrupt_note[0] = ""
         try:
             return command(*args, **kwargs)
         except typer.Exit:
@@ -88,7 +98,7 @@ def handle_errors(command):
         except KeyboardInterrupt:
             if debug:
                 raise
-            _error("interrupted")
+            _error("interrupted" + (f": {_interrupt_note[0]}" if _interrupt_note[0] else ""))
             raise typer.Exit(EXIT_INTERRUPTED) from None
         except Exception as exc:  # noqa: BLE001 - the last resort: say what and how to see more
             if debug:
@@ -98,6 +108,10 @@ def handle_errors(command):
             raise typer.Exit(1) from None
 
     return wrapper
+
+
+# What a KeyboardInterrupt that reaches `handle_errors` means for the files (set by the command).
+_interrupt_note = [""]
 
 
 def _error(message: str) -> None:
@@ -120,25 +134,54 @@ def bundled_examples() -> dict[str, Path]:
     return {p.stem: p for p in sorted(examples_dir().glob("*.toml"))}
 
 
+def _looks_like_path(name: str) -> bool:
+    """A name with a directory part, a scene suffix, or a leading '.'/'~' is a path, never an example name."""
+    return ("/" in name or "\\" in name or name.startswith((".", "~"))
+            or Path(name).suffix.lower() in (".toml", ".json"))
+
+
 def resolve_scene(name: str) -> Path:
-    """A scene file path, or the bundled example of that name."""
+    """A scene file path, or the bundled example of that name.
+
+    Only a bare name (``fountain``) can mean a bundled example; a name that looks like a path
+    (``./fountain.toml``, ``scenes/x.toml``, ``fountain.toml``) and does not exist is an error.
+    """
     from inertia.scene.errors import Issue, SceneError, did_you_mean
 
     path = Path(name).expanduser()
     if path.exists():
         return path
     examples = bundled_examples()
-    stem = path.stem if path.suffix in (".toml", ".json") else path.name
-    if path.parent == Path(".") and stem in examples:
-        return examples[stem]
-    hint = did_you_mean(stem, list(examples), show_allowed=False) if path.parent == Path(".") else ""
-    raise SceneError(path, [Issue("", "file not found" + (hint.replace("did you mean", "did you mean the example")
-                                                          if hint else "") +
-                                  (f" (bundled examples: {', '.join(examples)})" if path.parent == Path(".") else ""))])
+    if not _looks_like_path(name):
+        if name in examples:
+            return examples[name]
+        hint = did_you_mean(name, list(examples), show_allowed=False)
+        raise SceneError(path, [Issue("", "file not found" + hint.replace("did you mean", "did you mean the example")
+                                      + f" (bundled examples: {', '.join(examples)})")])
+    stem = path.name.split(".")[0]
+    extra = f"; to run the bundled example of that name: inertia run {stem}" if stem in examples else ""
+    raise SceneError(path, [Issue("", "file not found" + extra)])
 
 
-def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool) -> None:
-    """Create the output directory or say clearly why it cannot be used."""
+def _finished_run(out: Path) -> tuple[str, str] | None:
+    """(status, scene path) of the finished run recorded in out/manifest.json, or None."""
+    from inertia.io import read_manifest
+
+    try:
+        manifest = read_manifest(out / "manifest.json")
+        status = manifest["extra"]["status"]
+    except Exception:  # noqa: BLE001 - no readable manifest: not a finished run
+        return None
+    return (status, str(manifest.get("scene_path"))) if status in ("completed", "diverged") else None
+
+
+def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool, scene_path: Path | None = None) -> None:
+    """Create the output directory or say clearly why it cannot be used.
+
+    A finished run (completed or diverged) of the same scene file is replaced, so the same
+    command can be run again; a run that did not finish is kept for ``--resume``, and another
+    scene's run is kept, unless ``--overwrite``.
+    """
     from inertia.world import CHECKPOINT_NAME, STATES_NAME
 
     if out.exists() and not out.is_dir():
@@ -166,7 +209,13 @@ def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool) -> None:
         if not (out / CHECKPOINT_NAME).exists():
             raise InputError(f"nothing to resume: {out} has no {CHECKPOINT_NAME} (run without --resume)")
     elif has_run and not overwrite:
-        raise InputError(f"{out} already holds a run; pass --resume to continue it or --overwrite to replace it")
+        finished = _finished_run(out)
+        if finished is None:
+            raise InputError(f"{out} already holds a run that did not finish; pass --resume to continue it or "
+                             "--overwrite to replace it")
+        if scene_path is None or finished[1] != str(scene_path.resolve()):
+            raise InputError(f"{out} already holds a run of another scene ({finished[1]}); pass --overwrite to "
+                             "replace it or choose another --out")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -207,21 +256,28 @@ def run(
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="No progress bar.")] = False,
     debug: DebugOption = False,
     stop_after: Annotated[Optional[int], typer.Option(hidden=True, help="Stop as if interrupted after N frames (tests).")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Run even if the run-time or memory estimate says it will not finish or fit.")] = False,
+    report_frames: Annotated[bool, typer.Option("--report-frames", hidden=True, help="Print 'frame K' on stdout as frames are recorded (tests, scripts).")] = False,
 ):
     """Run a scene: simulate, record the state file, then write video, plot and exports."""
     from inertia.io import write_manifest
     from inertia.scene import build, read_scene, with_overrides
-    from inertia.world import Run
+    from inertia.world import CheckpointError, Run
 
     from .warm import compile_notice_on
 
     t_start = time.perf_counter()
+    _interrupt_note[0] = "nothing was written (stopped before the run started)"
     path = resolve_scene(scene)
-    loaded = with_overrides(read_scene(path), duration=duration, fps=fps, seed=seed)
+    loaded = read_scene(path)
+    out = Path(out) if out is not None else Path(loaded.model.output.directory or Path("out") / loaded.name)
+    if resume:
+        duration, fps, seed = _resume_settings(out, duration, fps, seed)
+    loaded = with_overrides(loaded, duration=duration, fps=fps, seed=seed)
     model = loaded.model
-    out = Path(out) if out is not None else Path(model.output.directory or Path("out") / loaded.name)
-    _prepare_out_dir(out, resume=resume, overwrite=overwrite)
-    world = build(loaded)
+    _check_resources(loaded, force=force)
+    _prepare_out_dir(out, resume=resume, overwrite=overwrite, scene_path=path)
+    world = build(loaded, check_memory=not force)
     sim = model.simulation
     t_loaded = time.perf_counter()
     metadata = {
@@ -235,63 +291,133 @@ def run(
         groups = ", ".join(f"{g.name} ({g.particle_count} {g.kind}, {g.integrator})" for g in world.groups)
         console.print(f"[bold]{loaded.name}[/]: {groups}; dt = {sim.dt:g} s x {sim.substeps} substeps, "
                       f"{sim.duration:g} s at {sim.fps:g} fps -> {out}")
-    with _progress(quiet) as bar:
-        task = bar.add_task("simulating", total=sim.duration, frame=0, frames=runner.frame_count, rate=0.0)
-
-        def report(p):
-            bar.update(task, completed=min(p.time, sim.duration), frame=p.frame, frames=p.frame_count,
-                       rate=p.steps_per_second)
-
-        runner.progress = report
-        try:
-            with compile_notice_on(bar, task, "simulating"):  # a cold Numba cache says so
-                result = runner.execute()
-        except ValueError as exc:       # a checkpoint that does not fit this scene
-            if "cannot resume" in str(exc):
-                raise InputError(str(exc)) from None
-            raise
-        bar.update(task, completed=min(world.t, sim.duration), frame=result.frame_count)
-    timings = {"load": t_loaded - t_start, **result.timings}
-    if result.first_frame_seconds is not None:
-        timings["first_frame"] = (t_loaded - _STARTED) + result.first_frame_seconds
-    outputs = {"states": result.states_path}
-    if result.checkpoint_path is not None:
-        outputs["checkpoint"] = result.checkpoint_path
-    dropped = {g.name: sum(e.dropped for e in g.system.emitters) for g in world.groups if getattr(g.system, "emitters", None)}
-    extra = {"status": result.status, "fingerprint": world.fingerprint, "dt": sim.dt, "substeps": sim.substeps,
-             "fps": sim.fps, "duration": sim.duration, "groups": [g.name for g in world.groups],
-             "integrators": [g.integrator for g in world.groups], "profile": dict(world.profile),
-             "emitter_dropped": dropped, "resumed": resume}
+    dropped: dict = {}
+    outputs: dict = {}
+    timings: dict = {}
+    extra: dict = {}
 
     def manifest():
         write_manifest(out / "manifest.json", scene=loaded.text, scene_path=path.resolve(), seed=sim.seed,
                        step_count=result.step_count, frame_count=result.frame_count,
                        simulated_time=result.time, timings=timings, outputs=outputs, extra=extra)
 
-    if result.status == "diverged":
+    # Ctrl-C stops the run cleanly from before its first write until the manifest is written
+    with _progress(quiet) as bar, runner.catching_sigint():
+        task = bar.add_task("simulating", total=sim.duration, frame=0, frames=runner.frame_count, rate=0.0)
+        last_frame = [-1]
+
+        def report(p):
+            bar.update(task, completed=min(p.time, sim.duration), frame=p.frame, frames=p.frame_count,
+                       rate=p.steps_per_second)
+            if report_frames and p.frame != last_frame[0]:
+                last_frame[0] = p.frame
+                print(f"frame {p.frame}/{p.frame_count} t = {p.time:.6g} s", flush=True)
+
+        runner.progress = report
+        try:
+            with compile_notice_on(bar, task, "simulating"):  # a cold Numba cache says so
+                result = runner.execute()
+        except CheckpointError as exc:       # a checkpoint that does not fit this scene, or damaged
+            raise InputError(str(exc)) from None
+        except ValueError as exc:            # a damaged state directory met on --resume
+            if resume and str(out) in str(exc):
+                raise InputError(f"cannot resume from {out}: {exc}") from None
+            raise
+        bar.update(task, completed=min(world.t, sim.duration), frame=result.frame_count)
+        timings.update({"load": t_loaded - t_start, **result.timings})
+        if result.first_frame_seconds is not None:
+            timings["first_frame"] = (t_loaded - _STARTED) + result.first_frame_seconds
+        outputs["states"] = result.states_path
+        if result.checkpoint_path is not None:
+            outputs["checkpoint"] = result.checkpoint_path
+        dropped.update({g.name: sum(e.dropped for e in g.system.emitters) for g in world.groups
+                        if getattr(g.system, "emitters", None)})
+        extra.update({"status": result.status, "fingerprint": world.fingerprint, "dt": sim.dt,
+                      "substeps": sim.substeps, "fps": sim.fps, "duration": sim.duration,
+                      "groups": [g.name for g in world.groups], "integrators": [g.integrator for g in world.groups],
+                      "profile": dict(world.profile), "emitter_dropped": dropped, "resumed": resume})
         manifest()
+
+    if result.status == "diverged":
         raise InputError(f"{path}: {result.error}\n  The {result.frame_count} frames before it are in "
                          f"{result.states_path}.")
     if result.status == "interrupted":
-        manifest()
         console.print(f"[yellow]stopped[/] at t = {result.time:.4g} s after {result.frame_count} frames; "
                       f"saved in {out}.\n  Continue with: inertia run {scene} --out {out} --resume"
-                      + (" (add the same --duration/--fps/--seed)" if any(v is not None for v in (duration, fps, seed)) else "")
-                      + f"\n  Render what is there with: inertia render {result.states_path}")
+                      f"\n  Render what is there with: inertia render {result.states_path}")
         raise typer.Exit(EXIT_INTERRUPTED)
     for name, count in dropped.items():
         if count:
             console.print(f"[yellow]warning[/]: the emitters of group {name!r} dropped {count} particles "
                           "(pool full): raise its `capacity`")
     if render:
+        _interrupt_note[0] = (f"the run itself is complete in {out}; write its outputs with: "
+                              f"inertia render {result.states_path}")
         t0 = time.perf_counter()
         outputs.update(_write_outputs(result.states_path, out, model.output.model_dump(), model.render.model_dump(mode="json"),
                                       world.colliders, quiet))
         timings["outputs"] = time.perf_counter() - t0
-    manifest()
+        manifest()
     outputs["manifest"] = out / "manifest.json"
     if not quiet:
         _summary(outputs, result, timings)
+
+
+def _resume_settings(out: Path, duration, fps, seed) -> tuple[float, float, int]:
+    """The duration, fps and seed the run in `out` was started with; refuse other values."""
+    from inertia.world import CHECKPOINT_NAME, STATES_NAME, CheckpointError, read_checkpoint_info
+
+    checkpoint = out / CHECKPOINT_NAME
+    if not checkpoint.exists():
+        raise InputError(f"nothing to resume: {out} has no {CHECKPOINT_NAME} (run without --resume)")
+    try:
+        info = read_checkpoint_info(checkpoint)
+    except CheckpointError as exc:
+        raise InputError(str(exc)) from None
+    header = {}
+    if "duration" not in info or "seed" not in info:      # checkpoints written before these were stored
+        try:
+            header = json.loads((out / STATES_NAME / "header.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            header = {}
+    started = {"duration": info.get("duration", header.get("duration")), "fps": info.get("fps"),
+               "seed": info.get("seed", header.get("seed"))}
+    given = {"duration": duration, "fps": fps, "seed": seed}
+    unknown = [k for k, v in started.items() if not isinstance(v, (int, float)) or isinstance(v, bool)]
+    if unknown:
+        raise InputError(f"cannot resume from {out}: its checkpoint does not say the {', '.join(unknown)} it was "
+                         "started with; run without --resume to start over")
+    # fps and seed are the run's; a longer --duration extends it (asked for explicitly), a shorter one
+    # would call a run "completed" that is not the one started
+    wrong = [k for k in given if given[k] is not None and float(given[k]) != float(started[k])
+             and not (k == "duration" and float(given[k]) > float(started[k]))]
+    if wrong:
+        expected = " ".join(f"--{k} {started[k]:g}" for k in started)
+        got = ", ".join(f"--{k} {given[k]:g}" for k in wrong)
+        raise InputError(f"cannot resume from {out} with {got}: the run was started with {expected}; leave these "
+                         "options out to continue it as it was started (a longer --duration extends it), or "
+                         "start over with --overwrite")
+    return (float(duration if duration is not None else started["duration"]), float(started["fps"]),
+            int(started["seed"]))
+
+
+def _check_resources(loaded, *, force: bool, warn_only: bool = False) -> None:
+    """Refuse (or with `force`/`warn_only`, warn about) a scene too big for memory or too long to run."""
+    from inertia.scene.errors import Issue, SceneError
+    from inertia.scene.resources import estimate_resources
+
+    estimate = estimate_resources(loaded.model)
+    memory = estimate.memory_problem()
+    if memory is not None:
+        if not force:
+            raise SceneError(loaded.path, [Issue(*memory)])
+        console.print(f"[yellow]warning[/]: {memory[0]}: {memory[1]} (--force: building anyway)")
+    slow = estimate.run_time_problem()
+    if slow is not None:
+        if force or warn_only:
+            console.print(f"[yellow]warning[/]: {slow}" + (" (--force: running anyway)" if force else ""))
+        else:
+            raise InputError(f"{loaded.path}: {slow}")
 
 
 def _write_outputs(states_path, out, output, render, colliders, quiet) -> dict:
@@ -350,6 +476,7 @@ def validate(
     path = resolve_scene(scene)
     loaded = read_scene(path)
     sim = loaded.model.simulation
+    _check_resources(loaded, force=False, warn_only=True)
     if not build_scene:
         out_console.print(f"[green]ok[/]: {path} is a valid scene (format_version {loaded.model.format_version})")
         return
@@ -463,7 +590,10 @@ def view(
         raise InputError("this installation of inertia has no viewer (inertia.viewer.view)")
     path = Path(target)
     if path.is_dir() or path.suffix == ".npz":
-        states = load_states(path)
+        try:
+            states = load_states(path)
+        except (ValueError, FileNotFoundError) as exc:
+            raise InputError(str(exc)) from None
         colliders = _scene_colliders(states)
     else:
         from inertia.scene import build, read_scene, with_overrides
@@ -471,20 +601,25 @@ def view(
 
         scene_path = resolve_scene(target)
         loaded = with_overrides(read_scene(scene_path), duration=duration)
+        _check_resources(loaded, force=False)
         world = build(loaded)
         sim = loaded.model.simulation
+        # the run goes to a temporary directory, removed as soon as its frames are in memory
         tmp = Path(tempfile.mkdtemp(prefix="inertia-view-"))
-        runner = Run(world, tmp, duration=sim.duration, fps=sim.fps, fingerprint=world.fingerprint,
-                     metadata={"scene": loaded.text, "scene_format": loaded.format,
-                               "scene_path": str(scene_path.resolve()), "scene_name": loaded.name})
-        with _progress(False) as bar:
-            task = bar.add_task("simulating", total=sim.duration, frame=0, frames=runner.frame_count, rate=0.0)
-            runner.progress = lambda p: bar.update(task, completed=min(p.time, sim.duration), frame=p.frame,
-                                                   frames=p.frame_count, rate=p.steps_per_second)
-            result = runner.execute()
-        if result.status == "diverged":
-            raise InputError(f"{scene_path}: {result.error}")
-        states = load_states(result.states_path)
+        try:
+            runner = Run(world, tmp, duration=sim.duration, fps=sim.fps, fingerprint=world.fingerprint,
+                         metadata={"scene": loaded.text, "scene_format": loaded.format,
+                                   "scene_path": str(scene_path.resolve()), "scene_name": loaded.name})
+            with _progress(False) as bar:
+                task = bar.add_task("simulating", total=sim.duration, frame=0, frames=runner.frame_count, rate=0.0)
+                runner.progress = lambda p: bar.update(task, completed=min(p.time, sim.duration), frame=p.frame,
+                                                       frames=p.frame_count, rate=p.steps_per_second)
+                result = runner.execute()
+            if result.status == "diverged":
+                raise InputError(f"{scene_path}: {result.error}")
+            states = load_states(result.states_path)
+        finally:
+            shutil.rmtree(tmp, ignore_errors=True)
         colliders = world.colliders
     render = states.metadata.get("render") or {}
     show(states, colliders=colliders, port=port, host=host, open_browser=open_browser,

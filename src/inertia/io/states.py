@@ -51,6 +51,7 @@ import math
 import os
 import shutil
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -88,8 +89,16 @@ def _write_npz(path: Path, arrays: Mapping[str, np.ndarray], *, compress: bool, 
 
 
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
-    with np.load(path, allow_pickle=False) as data:
-        return {name: data[name] for name in data.files}
+    """Every array of an .npz (never pickled objects); a damaged file is a ValueError naming it."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if not hasattr(data, "files"):
+                raise ValueError("a single array, not an archive")
+            return {name: data[name] for name in data.files}
+    except FileNotFoundError:
+        raise ValueError(f"{path}: file is missing (the state directory is incomplete)") from None
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise ValueError(f"{path}: file is damaged or truncated ({type(exc).__name__}: {exc})") from None
 
 
 def _json_default(value):
@@ -241,10 +250,15 @@ def _check_header(header: Mapping[str, Any], where: Path) -> None:
 
 
 def _load_single_file(path: Path, frames) -> States:
-    with zipfile.ZipFile(path) as archive:
-        if _HEADER not in archive.namelist():
-            raise ValueError(f"{path}: not an Inertia state file (no {_HEADER} inside the archive)")
-        header = json.loads(archive.read(_HEADER))
+    try:
+        with zipfile.ZipFile(path) as archive:
+            if _HEADER not in archive.namelist():
+                raise ValueError(f"{path}: not an Inertia state file (no {_HEADER} inside the archive)")
+            header = json.loads(archive.read(_HEADER))
+    except (OSError, EOFError, zipfile.BadZipFile, zlib.error, RecursionError, json.JSONDecodeError) as exc:
+        raise ValueError(f"{path}: file is damaged or truncated ({type(exc).__name__}: {exc})") from None
+    if not isinstance(header, dict):
+        raise ValueError(f"{path}: damaged {_HEADER} (not a JSON object)")
     _check_header(header, path)
     arrays = _read_npz(path)
     sel = slice(None) if frames is None else frames
@@ -259,8 +273,41 @@ def _load_single_file(path: Path, frames) -> States:
 
 
 def _read_json(path: Path):
-    with open(path, encoding="utf-8") as handle:
-        return json.load(handle)
+    """A JSON object from `path`; anything else (damaged, too deep, not an object) is a ValueError naming it."""
+    try:
+        with open(path, encoding="utf-8") as handle:
+            value = json.load(handle)
+    except FileNotFoundError:
+        raise ValueError(f"{path}: file is missing (the state directory is incomplete)") from None
+    except (OSError, ValueError, RecursionError) as exc:     # JSONDecodeError and UnicodeDecodeError are ValueErrors
+        raise ValueError(f"{path}: not valid JSON, the file is damaged ({type(exc).__name__})") from None
+    if not isinstance(value, dict):
+        raise ValueError(f"{path}: damaged (expected a JSON object, got {type(value).__name__})")
+    return value
+
+
+def _check_index(index: dict, where: Path) -> dict:
+    """The chunk list must name plain chunk files with integer frame ranges in order."""
+    chunks = index.get("chunks")
+    fields = index.get("fields", {})
+    if not isinstance(chunks, list) or not isinstance(fields, (dict, type(None))):
+        raise ValueError(f"{where}: damaged ('chunks' must be a list and 'fields' a table)")
+    expected = 0
+    for i, chunk in enumerate(chunks):
+        try:
+            name, start, count = chunk["file"], chunk["start"], chunk["count"]
+        except (KeyError, TypeError):
+            raise ValueError(f"{where}: damaged (chunk {i} lacks file, start or count)") from None
+        if (not isinstance(name, str) or not name.startswith("chunk-") or not name.endswith(".npz")
+                or "/" in name or "\\" in name or ".." in name):
+            raise ValueError(f"{where}: damaged (chunk {i} names {name!r}, not a chunk file of this directory)")
+        if not isinstance(start, int) or not isinstance(count, int) or start != expected or count < 0:
+            raise ValueError(f"{where}: damaged (chunk {i} covers frames {start!r}+{count!r}; expected start {expected})")
+        expected += count
+    for name, spec in (fields or {}).items():
+        if not isinstance(spec, dict) or not isinstance(spec.get("shape"), list) or "dtype" not in spec:
+            raise ValueError(f"{where}: damaged (field {name!r} lacks dtype or shape)")
+    return index
 
 
 def _load_directory(path: Path, frames) -> States:
@@ -269,10 +316,13 @@ def _load_directory(path: Path, frames) -> States:
         raise ValueError(f"{path}: not an Inertia state directory (no {_HEADER})")
     header = _read_json(header_path)
     _check_header(header, path)
-    index = _read_json(path / _INDEX) if (path / _INDEX).exists() else {"chunks": [], "fields": {}}
+    index = _check_index(_read_json(path / _INDEX), path / _INDEX) if (path / _INDEX).exists() else {"chunks": [], "fields": {}}
     static = _read_npz(path / _STATIC) if (path / _STATIC).exists() else {}
-    n, d = int(header["particle_count"]), int(header["dim"])
-    dtype = np.dtype(header.get("position_dtype", "float64"))
+    try:
+        n, d = int(header["particle_count"]), int(header["dim"])
+        dtype = np.dtype(header.get("position_dtype") or "float64")
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f"{header_path}: damaged ({type(exc).__name__}: {exc})") from None
     total = sum(int(c["count"]) for c in index["chunks"])
 
     # Which frames to read; load only the chunks that hold them.
@@ -433,11 +483,14 @@ class StateWriter:
         writer = cls(path, dim=header["dim"], particle_count=header["particle_count"], _reopen=True, **options)
         writer._header = header
         writer._static = _read_npz(path / _STATIC) if (path / _STATIC).exists() else {}
-        writer._index = _read_json(path / _INDEX)
+        writer._index = _check_index(_read_json(path / _INDEX), path / _INDEX)
         writer._index.setdefault("frame_count", sum(int(c["count"]) for c in writer._index["chunks"]))
         writer._last_time = -math.inf
         if frame_count is not None:
             writer.truncate(frame_count)
+        if not writer._index["chunks"]:
+            # no frame kept: the next frame fixes the layout again (a run stopped before frame 0)
+            writer._index["fields"], writer._index["velocities"] = None, None
         if writer._index["chunks"]:
             last = writer._index["chunks"][-1]
             times = _read_npz(path / last["file"])["times"]

@@ -51,19 +51,44 @@ class Scene:
         return self.path.parent if self.path else Path.cwd()
 
 
+#: Deepest nesting of tables and lists a scene file may have (real scenes nest about 5 deep).
+MAX_NESTING = 32
+
+
+def _nesting_depth(data, limit: int) -> int:
+    """Depth of nested dicts/lists (iterative, stops counting past `limit`)."""
+    deepest, stack = 0, [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if isinstance(value, (dict, list)):
+            deepest = max(deepest, depth)
+            if deepest > limit:
+                return deepest
+            stack.extend((v, depth + 1) for v in (value.values() if isinstance(value, dict) else value))
+    return deepest
+
+
 def _parse_text(text: str, fmt: str, source) -> dict:
+    too_deep = Issue("", f"nested deeper than {MAX_NESTING} levels of tables and lists; a scene nests about 5 "
+                         "(is this a scene file?)")
     if fmt == "json":
         try:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise SceneError(source, [Issue("", f"invalid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})")]) from None
+        except RecursionError:
+            raise SceneError(source, [too_deep]) from None
     else:
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise SceneError(source, [Issue("", f"invalid TOML: {exc}")]) from None
+        except RecursionError:
+            raise SceneError(source, [too_deep]) from None
     if not isinstance(data, dict):
         raise SceneError(source, [Issue("", f"a scene must be a table at the top level (got {type(data).__name__})")])
+    if _nesting_depth(data, MAX_NESTING) > MAX_NESTING:
+        raise SceneError(source, [too_deep])
     return data
 
 
@@ -130,9 +155,20 @@ def with_overrides(scene: Scene, *, duration=None, fps=None, seed=None) -> Scene
     return Scene(scene.model.model_copy(update={"simulation": simulation}), scene.text, scene.path, scene.format)
 
 
-def build(scene: Scene):
-    """Build the `World` of a validated `Scene`."""
+def build(scene: Scene, *, check_memory: bool = True):
+    """Build the `World` of a validated `Scene`.
+
+    ``check_memory``: first estimate what the scene allocates (`inertia.scene.resources`) and
+    raise `SceneError` naming the key, the estimate and the available memory if it does not fit.
+    """
     from .builder import build_world, scene_fingerprint
+
+    if check_memory:
+        from .resources import estimate_resources
+
+        problem = estimate_resources(scene.model).memory_problem()
+        if problem is not None:
+            raise SceneError(scene.path, [Issue(*problem)])
 
     world = build_world(scene.model, source=scene.path, base_dir=scene.base_dir)
     sim = scene.model.simulation

@@ -210,6 +210,8 @@ def _message(error: dict, parent_model) -> str:
         if base == "model" or kind in ("model_type", "dict_type", "model_attributes_type"):
             return f"must be a table (got {_show(got)})"
         return f"must be {_KIND.get(base, base)} (got {_show(got)})"
+    if kind == "finite_number":
+        return f"must be a finite number (got {_show(got)}): inf and nan are not allowed"
     if kind == "value_error":
         return str(ctx.get("error", error["msg"])).removeprefix("Value error, ")
     if kind == "assertion_error":

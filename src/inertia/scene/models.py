@@ -28,9 +28,10 @@ step, not here (the error still names the key path).
 
 from __future__ import annotations
 
+from pathlib import PurePosixPath, PureWindowsPath
 from typing import Annotated, Any, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
 
@@ -55,10 +56,32 @@ Fraction = Annotated[float, Field(ge=0, le=1)]
 Seed = Annotated[int, Field(ge=0, description="random seed; default: derived from simulation.seed")]
 
 
-class _Model(BaseModel):
-    """Base of every section: unknown keys are errors, models are immutable after loading."""
+def _is_plain_name(text: str) -> bool:
+    """A name usable as one path component: no separators, drive, parent reference or controls."""
+    return (bool(text.strip()) and text not in (".", "..") and not any(c in text for c in "/\\:")
+            and all(ord(c) >= 32 for c in text) and not text.startswith("~"))
 
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+
+def _is_inside_path(text: str) -> bool:
+    """A relative path that stays below the directory it is joined to (POSIX and Windows forms)."""
+    if not text.strip() or any(ord(c) < 32 for c in text) or text.startswith("~"):
+        return False
+    posix, windows = PurePosixPath(text), PureWindowsPath(text)
+    if posix.is_absolute() or windows.anchor or windows.drive:
+        return False
+    return ".." not in posix.parts and ".." not in windows.parts
+
+
+class _Model(BaseModel):
+    """Base of every section: unknown keys are errors, models are immutable after loading.
+
+    Types are strict: a number is a number (``mass = "0.01"`` and ``mass = true`` are errors; an
+    integer is accepted where a float is expected), an integer is an integer (``substeps = 2.5``
+    is an error), a boolean is ``true`` or ``false``; ``inf`` and ``nan`` are refused everywhere.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, strict=True,
+                              allow_inf_nan=False)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -583,13 +606,22 @@ class TracerGroup(_Model):
 class Output(_Model):
     """Which files `inertia run` writes (the state file, checkpoint and manifest always)."""
 
-    directory: str | None = Field(None, description="default output directory (the --out option wins)")
+    directory: str | None = Field(None, description="default output directory, relative to the working directory "
+                                                    "and inside it (no absolute path, '~' or '..'); --out wins")
     video: list[Literal["mp4", "gif"]] = Field(default_factory=lambda: ["mp4"], description="video formats")
     frames: bool = Field(False, description="PNG image of every frame")
     plot: bool = Field(True, description="energy and momentum over time (PNG)")
     ply: bool = Field(False, description="PLY point file of every frame")
     usd: bool = Field(False, description="animated USD points (.usdc)")
     checkpoint_interval: PositiveFloat = Field(10.0, description="wall-clock seconds between checkpoints")
+
+    @field_validator("directory")
+    @classmethod
+    def _inside(cls, value):
+        if value is not None and not _is_inside_path(value):
+            raise ValueError("must be a relative path inside the working directory (no absolute path, drive, '~' "
+                             f"or '..'); a scene file cannot choose where files go: pass --out for that (got {value!r})")
+        return value
 
 
 class Camera(_Model):
@@ -617,11 +649,12 @@ class Render(_Model):
 class SceneModel(_Model):
     """A whole scene file."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True, title="Inertia scene",
+    model_config = ConfigDict(extra="forbid", frozen=True, title="Inertia scene", strict=True, allow_inf_nan=False,
                               json_schema_extra={"$id": "https://inertia.dev/schema/scene-1.json"})
 
     format_version: Literal[1] = Field(description="scene format version (1)")
-    name: str | None = Field(None, description="default: the file name")
+    name: str | None = Field(None, description="default: the file name; a plain name (the default output "
+                                               "directory is out/NAME), never a path")
     description: str = ""
     simulation: Simulation = Field(default_factory=Simulation)
     particles: list[ParticleGroup] = Field(default_factory=list)
@@ -642,6 +675,14 @@ class SceneModel(_Model):
                 raise ValueError(f"format_version {v} is newer than this inertia reads ({FORMAT_VERSION}); "
                                  "upgrade inertia")
         return data
+
+    @field_validator("name")
+    @classmethod
+    def _plain_name(cls, value):
+        if value is not None and not _is_plain_name(value):
+            raise ValueError(f"must be a plain name (no '/', '\\', ':', '..' or control characters), not a path: "
+                             f"runs go to out/NAME unless --out says otherwise (got {value!r})")
+        return value
 
     @model_validator(mode="after")
     def _names(self):

@@ -1,0 +1,82 @@
+"""Resource estimates (issue 8): a scene too big for the machine or too long to finish is refused
+before anything is allocated, naming the key, the estimate and what the machine has."""
+
+import tracemalloc
+
+import pytest
+
+from inertia.scene import SceneError, build, parse_scene
+from inertia.scene.resources import estimate_resources
+
+HUGE_CHAIN = """
+format_version = 1
+[[particles]]
+chain = { start = [0, 0, 1], end = [1, 0, 1], count = 1_000_000_000 }
+"""
+
+
+def test_a_billion_particles_are_refused_before_allocating():
+    scene = parse_scene(HUGE_CHAIN, source="huge.toml")
+    tracemalloc.start()
+    try:
+        with pytest.raises(SceneError) as info:
+            build(scene)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    message = str(info.value)
+    assert "particles[0].chain.count" in message and "1,000,000,000 particles" in message
+    assert "TB of memory" in message and "available" in message
+    assert peak < 20e6, f"the refusal itself allocated {peak / 1e6:.0f} MB"
+
+
+@pytest.mark.parametrize("layout, key, particles, springs", [
+    ("lattice = { origin = [0, 0, 0], counts = [10, 20, 30], spacing = 0.1 }", "particles[0].lattice.counts", 6000, 0),
+    ("random = { count = 500, center = [0, 0, 0], radius = 1.0, shape = 'ball' }", "particles[0].random.count", 500, 0),
+    ("chain = { start = [0, 0, 0], end = [1, 0, 0], count = 50 }", "particles[0].chain.count", 50, 49),
+    ("cloth = { corner = [0, 0, 0], edge_u = [1, 0, 0], edge_v = [0, 1, 0], counts = [4, 3] }",
+     "particles[0].cloth.counts", 12, 17 + 12 + 10),
+])
+def test_counts_match_what_the_builder_makes(layout, key, particles, springs):
+    text = f"format_version = 1\n[[particles]]\n{layout}\n"
+    estimate = estimate_resources(parse_scene(text).model)
+    assert estimate.particles == particles and estimate.springs == springs
+    assert estimate.largest_key == key
+    world = build(parse_scene(text))
+    assert world.particle_count == particles
+    built_springs = sum(len(f.pairs) for g in world.groups for f in g.system.forces if hasattr(f, "pairs"))
+    assert built_springs == springs
+
+
+def test_emitter_pools_are_counted():
+    text = """
+format_version = 1
+[simulation]
+duration = 2.0
+[[particles]]
+[[particles.emitters]]
+rate = 1e12
+position = [0, 0, 0]
+velocity = [0, 0, 1]
+lifetime = 1.0
+"""
+    with pytest.raises(SceneError, match=r"particles\[0\].emitters\[0\].rate"):
+        build(parse_scene(text))
+
+
+def test_run_time_estimate_names_duration_and_substeps():
+    text = """
+format_version = 1
+[simulation]
+duration = 1e12
+substeps = 1000
+[[particles]]
+positions = [[0, 0, 1]]
+"""
+    estimate = estimate_resources(parse_scene(text).model)
+    assert estimate.steps == pytest.approx(1e12 * 600 * 1000, rel=1e-6)
+    assert estimate.seconds > 3.15e7 * 100         # centuries, at any speed this machine has
+    problem = estimate.run_time_problem()
+    assert "simulation.duration" in problem and "substeps" in problem and "years" in problem and "--force" in problem
+    short = estimate_resources(parse_scene(text.replace("1e12", "1.0").replace("1000", "1")).model)
+    assert short.run_time_problem() is None
