@@ -247,7 +247,8 @@ class State:
     - ``body_qd (B, 6)``: angular velocity (rad/s) then linear velocity (m/s), world frame; written by
       integrate_velocities and solve/relax/restitution. Kinematic bodies keep the velocity you set.
     - ``body_sleep_time (B,)`` s: how long the body has been below the sleep velocity thresholds;
-      ``body_awake (B,) bool``; written by finalize (sleep).
+      ``body_awake (B,) bool``; ``body_sleep_island (B,) int64`` (the island a sleeping body went to
+      sleep with; woken together); written by finalize (sleep) and the islands stage (wake).
     - ``time``, ``step`` (floats/ints, 1-element arrays so a copy captures them).
     """
 
@@ -257,10 +258,12 @@ class State:
         n = len(self.body_q)
         self.body_sleep_time = np.zeros(n)
         self.body_awake = np.ones(n, dtype=np.bool_)
+        self.body_sleep_island = np.full(n, -1, dtype=np.int64)
         self.clock = np.zeros(1)
         self.step_index = np.zeros(1, dtype=np.int64)
 
-    _FIELDS = ("body_q", "body_qd", "body_sleep_time", "body_awake", "clock", "step_index")
+    _FIELDS = ("body_q", "body_qd", "body_sleep_time", "body_awake", "body_sleep_island", "clock",
+               "step_index")
 
     @property
     def time(self) -> float:
