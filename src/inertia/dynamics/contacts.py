@@ -20,7 +20,11 @@ Arrays (M = capacity >= number of candidate pairs; only the first ``count`` rows
 - ``contact_normal_impulse (M, 4)`` N s, ``contact_tangent_impulse (M, 4, 2)`` N s (along the two
   tangents of ``contact_tangent (M, 2, 3)``), ``contact_rolling_impulse (M, 3)`` N m s: accumulated
   impulses, warm-started from the previous step and written back by store_impulses.
-- ``contact_max_normal_impulse (M, 4)`` N s: largest normal impulse in the step (events, restitution).
+- ``contact_max_normal_impulse (M, 4)`` N s: largest accumulated normal impulse of a substep
+  (restitution applies only where it is > 0).
+- ``contact_total_normal_impulse (M, 4)`` N s: normal impulse applied over the whole step (the sum of
+  the substeps' impulses plus restitution) -- what events and coupling read.
+- The accumulated impulses above are per substep (the soft step re-applies them each substep).
 - ``contact_relative_velocity (M, 4)`` m/s: normal relative velocity before the step (restitution).
 - ``contact_key (M,) int64``: ``shape_a * S + shape_b``, sorted ascending (warm-start merge).
 - ``active (M,) int32``, ``active_count``: indices of manifolds with points (scan).
@@ -56,6 +60,7 @@ class ContactArrays(NamedTuple):
     contact_tangent: np.ndarray
     contact_rolling_impulse: np.ndarray
     contact_max_normal_impulse: np.ndarray
+    contact_total_normal_impulse: np.ndarray
     contact_relative_velocity: np.ndarray
     contact_key: np.ndarray
     active: np.ndarray
@@ -70,6 +75,7 @@ _SPEC = {
     "contact_is_sensor": ((), np.bool_), "contact_normal_impulse": ((4,), np.float64),
     "contact_tangent_impulse": ((4, 2), np.float64), "contact_tangent": ((2, 3), np.float64),
     "contact_rolling_impulse": ((3,), np.float64), "contact_max_normal_impulse": ((4,), np.float64),
+    "contact_total_normal_impulse": ((4,), np.float64),
     "contact_relative_velocity": ((4,), np.float64), "contact_key": ((), np.int64),
     "active": ((), np.int32),
 }

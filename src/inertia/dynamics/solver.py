@@ -17,13 +17,14 @@ Soft constraint (Catto 2024): a contact is a spring-damper of frequency ``f`` (H
 impulse of one iteration is ``-m_eff * mass_scale * (v_n + bias) - impulse_scale * lambda`` with the
 bias ``max(bias_rate * s, -push_max_velocity)`` for a penetration ``s < 0``. A positive gap ``s`` is a
 speculative contact: bias ``s / h`` lets the bodies close it in this substep and no further, which is
-the continuous collision of the soft step. The current gap is the detected one plus the bodies' relative
-motion since detection (anchors rotate with the bodies), so contacts stay valid over the substeps.
+the continuous collision of the soft step. The current gap is the detected one plus the anchors' relative
+motion since detection (linearised: dp + dtheta x r), so contacts stay valid over the substeps.
 
 Friction is Coulomb at each point with a circular cone |lambda_t| <= mu lambda_n; rolling resistance
 limits the relative angular impulse to ``rolling_friction * sum(lambda_n)`` (a lever arm in metres).
-Restitution uses the relative normal velocity from before the step, only where it exceeds the
-threshold and the point carried an impulse.
+Restitution uses the most negative relative normal velocity seen before the step or before a
+substep's solve while the gap was closed (so the speed gained under gravity within the step counts),
+only where it exceeds the threshold and the point carried an impulse.
 
 Parallel solve: constraints are greedily coloured in their (sorted) order so no two constraints of a
 colour share a dynamic body (static, kinematic and sleeping bodies are read-only and do not count);
@@ -80,6 +81,7 @@ class SolverContext(NamedTuple):
     body_q: np.ndarray            # (B, 7) state, written by integrate_positions
     body_qd: np.ndarray           # (B, 6) state (angular, linear), written by every velocity stage
     body_dp: np.ndarray           # (B, 3) m, displacement since prepare_contacts
+    body_dtheta: np.ndarray       # (B, 3) rad, rotation vector sum(h w) since prepare_contacts
     body_inv_mass: np.ndarray     # (B,) 1/kg used by the solver (0: static, kinematic, asleep)
     body_inv_inertia_world: np.ndarray  # (B, 9) 1/(kg m^2), world frame, row-major, from prepare
     # contacts (M rows, indexed by manifold) -- the shared buffer, impulses accumulated in place
@@ -94,12 +96,12 @@ class SolverContext(NamedTuple):
     contact_tangent_impulse: np.ndarray
     contact_rolling_impulse: np.ndarray
     contact_max_normal_impulse: np.ndarray
+    contact_total_normal_impulse: np.ndarray
     contact_relative_velocity: np.ndarray
     # constraints (N rows, one per solved manifold; written by prepare_contacts)
     cons_manifold: np.ndarray     # (N,) int32 manifold row
     cons_anchor: np.ndarray       # (N, 4, 2, 3) m, world offsets from each body's centre at prepare
-    cons_local_anchor: np.ndarray  # (N, 4, 2, 3) m, the same in each body's frame
-    cons_base_separation: np.ndarray  # (N, 4) m, separation minus n.(rB - rA) at prepare
+    cons_base_separation: np.ndarray  # (N, 4) m, separation at detection
     cons_normal_mass: np.ndarray  # (N, 4) kg
     cons_tangent_mass: np.ndarray  # (N, 4, 2) kg
     cons_rolling_mass: np.ndarray  # (N, 9) kg m^2 (inverse of the summed world inverse inertias)
@@ -133,7 +135,7 @@ def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, bod
 
 
 @njit(cache=True, parallel=True)
-def integrate_positions(body_type, body_awake, body_q, body_qd, body_dp, h):
+def integrate_positions(body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
     """x += h v; q <- exp(h w / 2) q (exact for constant w), renormalised. Kinematic bodies too."""
     for b in prange(body_q.shape[0]):
         if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
@@ -142,6 +144,7 @@ def integrate_positions(body_type, body_awake, body_q, body_qd, body_dp, h):
         for k in range(3):
             body_q[b, k] += h * qd[3 + k]
             body_dp[b, k] += h * qd[3 + k]
+            body_dtheta[b, k] += h * qd[k]
         wx, wy, wz = qd[0], qd[1], qd[2]
         speed = math.sqrt(wx * wx + wy * wy + wz * wz)
         half = 0.5 * speed * h
@@ -260,14 +263,10 @@ def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, 
             p = (contact_point[i, k, 0], contact_point[i, k, 1], contact_point[i, k, 2])
             ra = sub(p, xa)
             rb = sub(p, xb)
-            la = qrot_inv(qa, ra)
-            lb = qrot_inv(qb, rb)
             for m in range(3):
                 ctx.cons_anchor[c, k, 0, m] = ra[m]
                 ctx.cons_anchor[c, k, 1, m] = rb[m]
-                ctx.cons_local_anchor[c, k, 0, m] = la[m]
-                ctx.cons_local_anchor[c, k, 1, m] = lb[m]
-            ctx.cons_base_separation[c, k] = contact_separation[i, k] - dot(n, sub(rb, ra))
+            ctx.cons_base_separation[c, k] = contact_separation[i, k]
             # effective mass along a direction d: 1 / (ma + mb + (ra x d).Ia^-1 (ra x d) + ...)
             for ax in range(3):
                 d = n if ax == 0 else (t1 if ax == 1 else t2)
@@ -282,6 +281,7 @@ def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, 
             dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
             ctx.contact_relative_velocity[i, k] = dot(dv, n)
             ctx.contact_max_normal_impulse[i, k] = 0.0
+            ctx.contact_total_normal_impulse[i, k] = 0.0
         # rolling: inverse of (Ia^-1 + Ib^-1)
         m = (iia[0] + iib[0], iia[1] + iib[1], iia[2] + iib[2], iia[3] + iib[3], iia[4] + iib[4],
              iia[5] + iib[5], iia[6] + iib[6], iia[7] + iib[7], iia[8] + iib[8])
@@ -325,13 +325,16 @@ def _warm_one(ctx, c):
 
 
 @njit(inline="always")
-def _current_offset(ctx, b, la, r0):
-    """Anchor offset from body b's original centre now: dp + R(q) local_anchor (r0 for the world)."""
+def _anchor_motion(ctx, b, r):
+    """Displacement of the anchor at offset r since prepare, linearised in the rotation:
+    dp + dtheta x r. It is exact for a rolling sphere (its surface point under the centre does not
+    move along n) and first-order for corners; rotating the anchor instead would lift a rolling ball
+    off the ground by r (1 - cos(w dt))."""
     if b < 0:
-        return r0
-    q = (ctx.body_q[b, 3], ctx.body_q[b, 4], ctx.body_q[b, 5], ctx.body_q[b, 6])
+        return (0.0, 0.0, 0.0)
     dp = (ctx.body_dp[b, 0], ctx.body_dp[b, 1], ctx.body_dp[b, 2])
-    return add(dp, qrot(q, la))
+    dt = (ctx.body_dtheta[b, 0], ctx.body_dtheta[b, 1], ctx.body_dtheta[b, 2])
+    return add(dp, cross(dt, r))
 
 
 @njit(inline="always")
@@ -345,6 +348,42 @@ def _solve_one(ctx, c, use_bias, inv_h, push_max):
     t2 = (ctx.contact_tangent[i, 1, 0], ctx.contact_tangent[i, 1, 1], ctx.contact_tangent[i, 1, 2])
     bias_rate, soft_mass, soft_imp = ctx.cons_soft[c, 0], ctx.cons_soft[c, 1], ctx.cons_soft[c, 2]
     npts = ctx.contact_point_count[i]
+    total_normal = 0.0
+    # -- non-penetration
+    for k in range(npts):
+        ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
+        rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
+        # current gap: detected gap plus the relative motion of the anchors since detection
+        s = dot(n, sub(_anchor_motion(ctx, bb, rb), _anchor_motion(ctx, ba, ra))) + ctx.cons_base_separation[c, k]
+        bias, mscale, iscale = 0.0, 1.0, 0.0
+        if s > 0.0:
+            bias = s * inv_h                 # speculative: close the gap, no further
+        elif use_bias:
+            bias = max(bias_rate * s, -push_max)
+            mscale, iscale = soft_mass, soft_imp
+        va, wa = _body_vel(ctx, ba)
+        vb, wb = _body_vel(ctx, bb)
+        vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n)
+        if vn + max(s, 0.0) * inv_h < 0.0 and vn < ctx.contact_relative_velocity[i, k]:
+            # approach speed at impact (for restitution): the fastest approach of any pass in which
+            # the contact acts, so the speed gained within the step, the speed a speculative contact
+            # is about to remove, and a speed handed on along a chain of touching bodies (Newton's
+            # cradle) all count
+            ctx.contact_relative_velocity[i, k] = vn
+        old = ctx.contact_normal_impulse[i, k]
+        lam = -ctx.cons_normal_mass[c, k] * mscale * (vn + bias) - iscale * old
+        new = max(old + lam, 0.0)
+        lam = new - old
+        ctx.contact_normal_impulse[i, k] = new
+        if new > ctx.contact_max_normal_impulse[i, k]:
+            ctx.contact_max_normal_impulse[i, k] = new
+        if not use_bias:
+            # relax is the substep's last pass: its accumulated impulse is what the substep applied
+            ctx.contact_total_normal_impulse[i, k] += new
+        total_normal += new
+        p = scale(n, lam)
+        _apply(ctx, ba, -1.0, p, ra, ima, iia)
+        _apply(ctx, bb, 1.0, p, rb, imb, iib)
     # -- Coulomb friction, circular cone at each point
     mu = ctx.contact_friction[i]
     for k in range(npts):
@@ -366,36 +405,6 @@ def _solve_one(ctx, c, use_bias, inv_h, push_max):
         ctx.contact_tangent_impulse[i, k, 0] = n1
         ctx.contact_tangent_impulse[i, k, 1] = n2
         p = add(scale(t1, n1 - o1), scale(t2, n2 - o2))
-        _apply(ctx, ba, -1.0, p, ra, ima, iia)
-        _apply(ctx, bb, 1.0, p, rb, imb, iib)
-    total_normal = 0.0
-    # -- non-penetration
-    for k in range(npts):
-        ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
-        rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
-        la = (ctx.cons_local_anchor[c, k, 0, 0], ctx.cons_local_anchor[c, k, 0, 1], ctx.cons_local_anchor[c, k, 0, 2])
-        lb = (ctx.cons_local_anchor[c, k, 1, 0], ctx.cons_local_anchor[c, k, 1, 1], ctx.cons_local_anchor[c, k, 1, 2])
-        # current gap: detected gap plus the relative motion of the anchors since detection
-        s = dot(n, sub(_current_offset(ctx, bb, lb, rb), _current_offset(ctx, ba, la, ra))) \
-            + ctx.cons_base_separation[c, k]
-        bias, mscale, iscale = 0.0, 1.0, 0.0
-        if s > 0.0:
-            bias = s * inv_h                 # speculative: close the gap, no further
-        elif use_bias:
-            bias = max(bias_rate * s, -push_max)
-            mscale, iscale = soft_mass, soft_imp
-        va, wa = _body_vel(ctx, ba)
-        vb, wb = _body_vel(ctx, bb)
-        vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n)
-        old = ctx.contact_normal_impulse[i, k]
-        lam = -ctx.cons_normal_mass[c, k] * mscale * (vn + bias) - iscale * old
-        new = max(old + lam, 0.0)
-        lam = new - old
-        ctx.contact_normal_impulse[i, k] = new
-        if new > ctx.contact_max_normal_impulse[i, k]:
-            ctx.contact_max_normal_impulse[i, k] = new
-        total_normal += new
-        p = scale(n, lam)
         _apply(ctx, ba, -1.0, p, ra, ima, iia)
         _apply(ctx, bb, 1.0, p, rb, imb, iib)
     # -- rolling resistance: |angular impulse| <= rolling_friction * total normal impulse
@@ -446,6 +455,7 @@ def _restitution_one(ctx, c, threshold):
         new = max(old + lam, 0.0)
         lam = new - old
         ctx.contact_normal_impulse[i, k] = new
+        ctx.contact_total_normal_impulse[i, k] += lam
         if new > ctx.contact_max_normal_impulse[i, k]:
             ctx.contact_max_normal_impulse[i, k] = new
         p = scale(n, lam)

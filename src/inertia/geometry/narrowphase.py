@@ -637,6 +637,7 @@ def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, 
             ca.contact_tangent_impulse[i, k, 0] = 0.0
             ca.contact_tangent_impulse[i, k, 1] = 0.0
             ca.contact_max_normal_impulse[i, k] = 0.0
+            ca.contact_total_normal_impulse[i, k] = 0.0
 
 
 @njit(cache=True)

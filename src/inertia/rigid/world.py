@@ -133,6 +133,7 @@ class RigidWorld:
         self._order = np.zeros(ns, np.int64)
         self._grow_pairs(max(64, 4 * ns))
         self._body_dp = np.zeros((nb, 3))
+        self._body_dtheta = np.zeros((nb, 3))
         self._solver_inv_mass = np.zeros(nb)
         self._inv_inertia_world = np.zeros((nb, 9))
         self._body_mask = np.zeros(nb, np.uint64)
@@ -149,7 +150,6 @@ class RigidWorld:
         self._cons_cap = cap
         self._cons_manifold = np.zeros(cap, np.int32)
         self._cons_anchor = np.zeros((cap, 4, 2, 3))
-        self._cons_local_anchor = np.zeros((cap, 4, 2, 3))
         self._cons_base_sep = np.zeros((cap, 4))
         self._cons_normal_mass = np.zeros((cap, 4))
         self._cons_tangent_mass = np.zeros((cap, 4, 2))
@@ -250,12 +250,13 @@ class RigidWorld:
         soft = sv.soft_coefficients(hertz, self.contact_damping_ratio, h)
         static_soft = sv.soft_coefficients(2.0 * hertz, self.contact_damping_ratio, h)
         self._body_dp[:] = 0.0
+        self._body_dtheta[:] = 0.0
         ctx = sv.SolverContext(
-            st.body_q, st.body_qd, self._body_dp, self._solver_inv_mass, self._inv_inertia_world,
+            st.body_q, st.body_qd, self._body_dp, self._body_dtheta, self._solver_inv_mass, self._inv_inertia_world,
             c.contact_body, c.contact_point_count, c.contact_normal, c.contact_tangent, c.contact_friction,
             c.contact_restitution, c.contact_rolling_friction, c.contact_normal_impulse,
             c.contact_tangent_impulse, c.contact_rolling_impulse, c.contact_max_normal_impulse,
-            c.contact_relative_velocity, self._cons_manifold, self._cons_anchor, self._cons_local_anchor,
+            c.contact_total_normal_impulse, c.contact_relative_velocity, self._cons_manifold, self._cons_anchor,
             self._cons_base_sep, self._cons_normal_mass, self._cons_tangent_mass, self._cons_rolling_mass,
             self._cons_soft)
         k.prepare_contacts(ctx, st.body_q, n_cons, c.contact_point, c.contact_separation, h, soft, static_soft)
@@ -267,7 +268,8 @@ class RigidWorld:
                                    ctl.body_force, ctl.body_torque, m.gravity, st.body_q, st.body_qd, h)
             k.warm_start(ctx, cs, ci)
             k.solve_contacts(ctx, cs, ci, True, 1.0 / h, self.push_max_velocity)
-            k.integrate_positions(m.body_type, st.body_awake, st.body_q, st.body_qd, self._body_dp, h)
+            k.integrate_positions(m.body_type, st.body_awake, st.body_q, st.body_qd, self._body_dp,
+                                  self._body_dtheta, h)
             k.solve_contacts(ctx, cs, ci, False, 1.0 / h, self.push_max_velocity)
         k.restitution(ctx, cs, ci, self.restitution_threshold)
 
@@ -333,7 +335,7 @@ class RigidWorld:
 
         still = asleep(bodies[:, 0]) | asleep(bodies[:, 1])
         end_mask &= ~still
-        imp = cur.contact_normal_impulse[ci].sum(axis=1)
+        imp = cur.contact_total_normal_impulse[ci].sum(axis=1)
         return {"begin": cur.contact_shape[ci[begin_mask]].copy(),
                 "persist": cur.contact_shape[ci[~begin_mask]].copy(),
                 "end": prev.contact_shape[pi[end_mask]].copy(),
