@@ -108,64 +108,92 @@ class SolverContext(NamedTuple):
     cons_soft: np.ndarray         # (N, 3) bias_rate, mass_scale, impulse_scale
 
 
+@njit(cache=True)
+def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h):
+    if body_type[b] != S.DYNAMIC or not body_awake[b]:
+        return
+    qd = body_qd[b]
+    im = body_inv_mass[b]
+    for k in range(3):
+        qd[3 + k] += h * (gravity[k] + im * force[b, k])
+    q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+    wb = qrot_inv(q, (qd[0], qd[1], qd[2]))
+    tb = qrot_inv(q, (torque[b, 0], torque[b, 1], torque[b, 2]))
+    iw = (body_inertia[b, 0] * wb[0], body_inertia[b, 1] * wb[1], body_inertia[b, 2] * wb[2])
+    gyro = cross(wb, iw)
+    dw = (h * body_inv_inertia[b, 0] * (tb[0] - gyro[0]), h * body_inv_inertia[b, 1] * (tb[1] - gyro[1]),
+          h * body_inv_inertia[b, 2] * (tb[2] - gyro[2]))
+    dww = qrot(q, dw)
+    ld = 1.0 / (1.0 + h * lin_damp[b])
+    ad = 1.0 / (1.0 + h * ang_damp[b])
+    for k in range(3):
+        qd[k] = (qd[k] + dww[k]) * ad
+        qd[3 + k] *= ld
+
+
 @njit(cache=True, parallel=True)
 def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia,
                          lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h):
     """v += h (g + F/m); w += h I^-1 (tau - w x I w) (body frame); then v /= 1 + h c (damping)."""
     for b in prange(body_q.shape[0]):
-        if body_type[b] != S.DYNAMIC or not body_awake[b]:
-            continue
-        qd = body_qd[b]
-        im = body_inv_mass[b]
-        for k in range(3):
-            qd[3 + k] += h * (gravity[k] + im * force[b, k])
-        q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
-        wb = qrot_inv(q, (qd[0], qd[1], qd[2]))
-        tb = qrot_inv(q, (torque[b, 0], torque[b, 1], torque[b, 2]))
-        iw = (body_inertia[b, 0] * wb[0], body_inertia[b, 1] * wb[1], body_inertia[b, 2] * wb[2])
-        gyro = cross(wb, iw)
-        dw = (h * body_inv_inertia[b, 0] * (tb[0] - gyro[0]), h * body_inv_inertia[b, 1] * (tb[1] - gyro[1]),
-              h * body_inv_inertia[b, 2] * (tb[2] - gyro[2]))
-        dww = qrot(q, dw)
-        ld = 1.0 / (1.0 + h * lin_damp[b])
-        ad = 1.0 / (1.0 + h * ang_damp[b])
-        for k in range(3):
-            qd[k] = (qd[k] + dww[k]) * ad
-            qd[3 + k] *= ld
+        _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h)
+
+
+@njit(cache=True)
+def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
+    if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
+        return
+    qd = body_qd[b]
+    for k in range(3):
+        body_q[b, k] += h * qd[3 + k]
+        body_dp[b, k] += h * qd[3 + k]
+        body_dtheta[b, k] += h * qd[k]
+    wx, wy, wz = qd[0], qd[1], qd[2]
+    speed = math.sqrt(wx * wx + wy * wy + wz * wz)
+    half = 0.5 * speed * h
+    if half < 1e-4:
+        h2 = half * half
+        s = 0.5 * h * (1.0 - h2 / 6.0)
+        c = 1.0 - 0.5 * h2
+    else:
+        s = math.sin(half) / speed
+        c = math.cos(half)
+    dq = (c, wx * s, wy * s, wz * s)
+    q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+    rw = dq[0] * q[0] - dq[1] * q[1] - dq[2] * q[2] - dq[3] * q[3]
+    rx = dq[0] * q[1] + dq[1] * q[0] + dq[2] * q[3] - dq[3] * q[2]
+    ry = dq[0] * q[2] - dq[1] * q[3] + dq[2] * q[0] + dq[3] * q[1]
+    rz = dq[0] * q[3] + dq[1] * q[2] - dq[2] * q[1] + dq[3] * q[0]
+    inv = 1.0 / math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+    body_q[b, 3] = rw * inv
+    body_q[b, 4] = rx * inv
+    body_q[b, 5] = ry * inv
+    body_q[b, 6] = rz * inv
 
 
 @njit(cache=True, parallel=True)
 def integrate_positions(body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
     """x += h v; q <- exp(h w / 2) q (exact for constant w), renormalised. Kinematic bodies too."""
     for b in prange(body_q.shape[0]):
-        if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
-            continue
-        qd = body_qd[b]
-        for k in range(3):
-            body_q[b, k] += h * qd[3 + k]
-            body_dp[b, k] += h * qd[3 + k]
-            body_dtheta[b, k] += h * qd[k]
-        wx, wy, wz = qd[0], qd[1], qd[2]
-        speed = math.sqrt(wx * wx + wy * wy + wz * wz)
-        half = 0.5 * speed * h
-        if half < 1e-4:
-            h2 = half * half
-            s = 0.5 * h * (1.0 - h2 / 6.0)
-            c = 1.0 - 0.5 * h2
-        else:
-            s = math.sin(half) / speed
-            c = math.cos(half)
-        dq = (c, wx * s, wy * s, wz * s)
-        q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
-        rw = dq[0] * q[0] - dq[1] * q[1] - dq[2] * q[2] - dq[3] * q[3]
-        rx = dq[0] * q[1] + dq[1] * q[0] + dq[2] * q[3] - dq[3] * q[2]
-        ry = dq[0] * q[2] - dq[1] * q[3] + dq[2] * q[0] + dq[3] * q[1]
-        rz = dq[0] * q[3] + dq[1] * q[2] - dq[2] * q[1] + dq[3] * q[0]
-        inv = 1.0 / math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
-        body_q[b, 3] = rw * inv
-        body_q[b, 4] = rx * inv
-        body_q[b, 5] = ry * inv
-        body_q[b, 6] = rz * inv
+        _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h)
+
+
+@njit(cache=True)
+def _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out, inv_inertia_out):
+    if body_type[b] != S.DYNAMIC or not body_awake[b]:
+        inv_mass_out[b] = 0.0
+        for k in range(9):
+            inv_inertia_out[b, k] = 0.0
+        return
+    inv_mass_out[b] = body_inv_mass[b]
+    q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+    cols = (qrot(q, (1.0, 0.0, 0.0)), qrot(q, (0.0, 1.0, 0.0)), qrot(q, (0.0, 0.0, 1.0)))
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += cols[k][r] * body_inv_inertia[b, k] * cols[k][c]
+            inv_inertia_out[b, 3 * r + c] = acc
 
 
 @njit(cache=True, parallel=True)
@@ -173,20 +201,7 @@ def world_inverse_inertia(body_type, body_awake, body_inv_mass, body_inv_inertia
                           inv_mass_out, inv_inertia_out):
     """Solver masses: R diag(I^-1) R^T for awake dynamic bodies, zero for every other body."""
     for b in prange(body_q.shape[0]):
-        if body_type[b] != S.DYNAMIC or not body_awake[b]:
-            inv_mass_out[b] = 0.0
-            for k in range(9):
-                inv_inertia_out[b, k] = 0.0
-            continue
-        inv_mass_out[b] = body_inv_mass[b]
-        q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
-        cols = (qrot(q, (1.0, 0.0, 0.0)), qrot(q, (0.0, 1.0, 0.0)), qrot(q, (0.0, 0.0, 1.0)))
-        for r in range(3):
-            for c in range(3):
-                acc = 0.0
-                for k in range(3):
-                    acc += cols[k][r] * body_inv_inertia[b, k] * cols[k][c]
-                inv_inertia_out[b, 3 * r + c] = acc
+        _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out, inv_inertia_out)
 
 
 @njit(inline="always")
@@ -232,78 +247,83 @@ def _apply_angular(ctx, b, sign, l, ii):
         qd[k] += sign * dw[k]
 
 
+@njit(cache=True)
+def _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static_soft):
+    i = ctx.cons_manifold[c]
+    ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
+    n = (ctx.contact_normal[i, 0], ctx.contact_normal[i, 1], ctx.contact_normal[i, 2])
+    t1 = (ctx.contact_tangent[i, 0, 0], ctx.contact_tangent[i, 0, 1], ctx.contact_tangent[i, 0, 2])
+    t2 = (ctx.contact_tangent[i, 1, 0], ctx.contact_tangent[i, 1, 1], ctx.contact_tangent[i, 1, 2])
+    ima, imb = _inv_m(ctx, ba), _inv_m(ctx, bb)
+    iia, iib = _inv_i(ctx, ba), _inv_i(ctx, bb)
+    va, wa = _body_vel(ctx, ba)
+    vb, wb = _body_vel(ctx, bb)
+    sr = static_soft if (ima == 0.0 or imb == 0.0) else soft
+    ctx.cons_soft[c, 0] = sr[0]
+    ctx.cons_soft[c, 1] = sr[1]
+    ctx.cons_soft[c, 2] = sr[2]
+    xa = (0.0, 0.0, 0.0)
+    qa = (1.0, 0.0, 0.0, 0.0)
+    if ba >= 0:
+        xa = (body_q[ba, 0], body_q[ba, 1], body_q[ba, 2])
+        qa = (body_q[ba, 3], body_q[ba, 4], body_q[ba, 5], body_q[ba, 6])
+    xb = (0.0, 0.0, 0.0)
+    qb = (1.0, 0.0, 0.0, 0.0)
+    if bb >= 0:
+        xb = (body_q[bb, 0], body_q[bb, 1], body_q[bb, 2])
+        qb = (body_q[bb, 3], body_q[bb, 4], body_q[bb, 5], body_q[bb, 6])
+    for k in range(ctx.contact_point_count[i]):
+        p = (contact_point[i, k, 0], contact_point[i, k, 1], contact_point[i, k, 2])
+        ra = sub(p, xa)
+        rb = sub(p, xb)
+        for m in range(3):
+            ctx.cons_anchor[c, k, 0, m] = ra[m]
+            ctx.cons_anchor[c, k, 1, m] = rb[m]
+        ctx.cons_base_separation[c, k] = contact_separation[i, k]
+        # effective mass along a direction d: 1 / (ma + mb + (ra x d).Ia^-1 (ra x d) + ...)
+        for ax in range(3):
+            d = n if ax == 0 else (t1 if ax == 1 else t2)
+            rda = cross(ra, d)
+            rdb = cross(rb, d)
+            kk = ima + imb + dot(rda, mat_vec(iia, rda)) + dot(rdb, mat_vec(iib, rdb))
+            mass = 1.0 / kk if kk > 0.0 else 0.0
+            if ax == 0:
+                ctx.cons_normal_mass[c, k] = mass
+            else:
+                ctx.cons_tangent_mass[c, k, ax - 1] = mass
+        dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
+        ctx.contact_relative_velocity[i, k] = dot(dv, n)
+        ctx.contact_max_normal_impulse[i, k] = 0.0
+        ctx.contact_total_normal_impulse[i, k] = 0.0
+    # rolling: inverse of (Ia^-1 + Ib^-1)
+    m = (iia[0] + iib[0], iia[1] + iib[1], iia[2] + iib[2], iia[3] + iib[3], iia[4] + iib[4],
+         iia[5] + iib[5], iia[6] + iib[6], iia[7] + iib[7], iia[8] + iib[8])
+    det = (m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
+           + m[2] * (m[3] * m[7] - m[4] * m[6]))
+    if abs(det) > 1e-300 and ctx.contact_rolling_friction[i] > 0.0:
+        inv = 1.0 / det
+        ctx.cons_rolling_mass[c, 0] = (m[4] * m[8] - m[5] * m[7]) * inv
+        ctx.cons_rolling_mass[c, 1] = (m[2] * m[7] - m[1] * m[8]) * inv
+        ctx.cons_rolling_mass[c, 2] = (m[1] * m[5] - m[2] * m[4]) * inv
+        ctx.cons_rolling_mass[c, 3] = (m[5] * m[6] - m[3] * m[8]) * inv
+        ctx.cons_rolling_mass[c, 4] = (m[0] * m[8] - m[2] * m[6]) * inv
+        ctx.cons_rolling_mass[c, 5] = (m[2] * m[3] - m[0] * m[5]) * inv
+        ctx.cons_rolling_mass[c, 6] = (m[3] * m[7] - m[4] * m[6]) * inv
+        ctx.cons_rolling_mass[c, 7] = (m[1] * m[6] - m[0] * m[7]) * inv
+        ctx.cons_rolling_mass[c, 8] = (m[0] * m[4] - m[1] * m[3]) * inv
+    else:
+        for k in range(9):
+            ctx.cons_rolling_mass[c, k] = 0.0
+
+
 @njit(cache=True, parallel=True)
 def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, soft, static_soft):
     """Anchors, effective masses, softness and pre-step normal velocities of each constraint."""
     for c in prange(n_cons):
-        i = ctx.cons_manifold[c]
-        ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
-        n = (ctx.contact_normal[i, 0], ctx.contact_normal[i, 1], ctx.contact_normal[i, 2])
-        t1 = (ctx.contact_tangent[i, 0, 0], ctx.contact_tangent[i, 0, 1], ctx.contact_tangent[i, 0, 2])
-        t2 = (ctx.contact_tangent[i, 1, 0], ctx.contact_tangent[i, 1, 1], ctx.contact_tangent[i, 1, 2])
-        ima, imb = _inv_m(ctx, ba), _inv_m(ctx, bb)
-        iia, iib = _inv_i(ctx, ba), _inv_i(ctx, bb)
-        va, wa = _body_vel(ctx, ba)
-        vb, wb = _body_vel(ctx, bb)
-        sr = static_soft if (ima == 0.0 or imb == 0.0) else soft
-        ctx.cons_soft[c, 0] = sr[0]
-        ctx.cons_soft[c, 1] = sr[1]
-        ctx.cons_soft[c, 2] = sr[2]
-        xa = (0.0, 0.0, 0.0)
-        qa = (1.0, 0.0, 0.0, 0.0)
-        if ba >= 0:
-            xa = (body_q[ba, 0], body_q[ba, 1], body_q[ba, 2])
-            qa = (body_q[ba, 3], body_q[ba, 4], body_q[ba, 5], body_q[ba, 6])
-        xb = (0.0, 0.0, 0.0)
-        qb = (1.0, 0.0, 0.0, 0.0)
-        if bb >= 0:
-            xb = (body_q[bb, 0], body_q[bb, 1], body_q[bb, 2])
-            qb = (body_q[bb, 3], body_q[bb, 4], body_q[bb, 5], body_q[bb, 6])
-        for k in range(ctx.contact_point_count[i]):
-            p = (contact_point[i, k, 0], contact_point[i, k, 1], contact_point[i, k, 2])
-            ra = sub(p, xa)
-            rb = sub(p, xb)
-            for m in range(3):
-                ctx.cons_anchor[c, k, 0, m] = ra[m]
-                ctx.cons_anchor[c, k, 1, m] = rb[m]
-            ctx.cons_base_separation[c, k] = contact_separation[i, k]
-            # effective mass along a direction d: 1 / (ma + mb + (ra x d).Ia^-1 (ra x d) + ...)
-            for ax in range(3):
-                d = n if ax == 0 else (t1 if ax == 1 else t2)
-                rda = cross(ra, d)
-                rdb = cross(rb, d)
-                kk = ima + imb + dot(rda, mat_vec(iia, rda)) + dot(rdb, mat_vec(iib, rdb))
-                mass = 1.0 / kk if kk > 0.0 else 0.0
-                if ax == 0:
-                    ctx.cons_normal_mass[c, k] = mass
-                else:
-                    ctx.cons_tangent_mass[c, k, ax - 1] = mass
-            dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
-            ctx.contact_relative_velocity[i, k] = dot(dv, n)
-            ctx.contact_max_normal_impulse[i, k] = 0.0
-            ctx.contact_total_normal_impulse[i, k] = 0.0
-        # rolling: inverse of (Ia^-1 + Ib^-1)
-        m = (iia[0] + iib[0], iia[1] + iib[1], iia[2] + iib[2], iia[3] + iib[3], iia[4] + iib[4],
-             iia[5] + iib[5], iia[6] + iib[6], iia[7] + iib[7], iia[8] + iib[8])
-        det = (m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
-               + m[2] * (m[3] * m[7] - m[4] * m[6]))
-        if abs(det) > 1e-300 and ctx.contact_rolling_friction[i] > 0.0:
-            inv = 1.0 / det
-            ctx.cons_rolling_mass[c, 0] = (m[4] * m[8] - m[5] * m[7]) * inv
-            ctx.cons_rolling_mass[c, 1] = (m[2] * m[7] - m[1] * m[8]) * inv
-            ctx.cons_rolling_mass[c, 2] = (m[1] * m[5] - m[2] * m[4]) * inv
-            ctx.cons_rolling_mass[c, 3] = (m[5] * m[6] - m[3] * m[8]) * inv
-            ctx.cons_rolling_mass[c, 4] = (m[0] * m[8] - m[2] * m[6]) * inv
-            ctx.cons_rolling_mass[c, 5] = (m[2] * m[3] - m[0] * m[5]) * inv
-            ctx.cons_rolling_mass[c, 6] = (m[3] * m[7] - m[4] * m[6]) * inv
-            ctx.cons_rolling_mass[c, 7] = (m[1] * m[6] - m[0] * m[7]) * inv
-            ctx.cons_rolling_mass[c, 8] = (m[0] * m[4] - m[1] * m[3]) * inv
-        else:
-            for k in range(9):
-                ctx.cons_rolling_mass[c, k] = 0.0
+        _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static_soft)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _warm_one(ctx, c):
     i = ctx.cons_manifold[c]
     ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
@@ -337,7 +357,7 @@ def _anchor_motion(ctx, b, r):
     return add(dp, cross(dt, r))
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _solve_one(ctx, c, use_bias, inv_h, push_max):
     i = ctx.cons_manifold[c]
     ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
@@ -430,7 +450,7 @@ def _solve_one(ctx, c, use_bias, inv_h, push_max):
         _apply_angular(ctx, bb, 1.0, l, iib)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _restitution_one(ctx, c, threshold):
     i = ctx.cons_manifold[c]
     e = ctx.contact_restitution[i]

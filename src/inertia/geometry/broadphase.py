@@ -31,88 +31,93 @@ __all__ = ["shape_world_bounds", "sort_and_sweep"]
 _BIG = 1e30
 
 
+@njit(cache=True)
+def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
+    b = shapes.shape_body[s]
+    lp = shapes.shape_local_pose[s]
+    lq = (lp[3], lp[4], lp[5], lp[6])
+    if b >= 0:
+        bq = body_q[b]
+        q = (bq[3], bq[4], bq[5], bq[6])
+        rp = qrot(q, (lp[0], lp[1], lp[2]))
+        c = (bq[0] + rp[0], bq[1] + rp[1], bq[2] + rp[2])
+        wq = qmul(q, lq)
+    else:
+        c = (lp[0], lp[1], lp[2])
+        wq = lq
+    pose_out[s, 0] = c[0]
+    pose_out[s, 1] = c[1]
+    pose_out[s, 2] = c[2]
+    pose_out[s, 3] = wq[0]
+    pose_out[s, 4] = wq[1]
+    pose_out[s, 5] = wq[2]
+    pose_out[s, 6] = wq[3]
+    t = shapes.shape_type[s]
+    p = shapes.shape_params[s]
+    ex = (0.0, 0.0, 0.0)
+    if t == S.SPHERE:
+        ex = (p[0], p[0], p[0])
+    elif t == S.BOX:
+        ax = qrot(wq, (1.0, 0.0, 0.0))
+        ay = qrot(wq, (0.0, 1.0, 0.0))
+        az = qrot(wq, (0.0, 0.0, 1.0))
+        ex = (abs(ax[0]) * p[0] + abs(ay[0]) * p[1] + abs(az[0]) * p[2],
+              abs(ax[1]) * p[0] + abs(ay[1]) * p[1] + abs(az[1]) * p[2],
+              abs(ax[2]) * p[0] + abs(ay[2]) * p[1] + abs(az[2]) * p[2])
+    elif t == S.CAPSULE:
+        az = qrot(wq, (0.0, 0.0, 1.0))
+        ex = (abs(az[0]) * p[1] + p[0], abs(az[1]) * p[1] + p[0], abs(az[2]) * p[1] + p[0])
+    elif t == S.CYLINDER:
+        az = qrot(wq, (0.0, 0.0, 1.0))
+        ex = (p[0] * math.sqrt(max(0.0, 1.0 - az[0] * az[0])) + abs(az[0]) * p[1],
+              p[0] * math.sqrt(max(0.0, 1.0 - az[1] * az[1])) + abs(az[1]) * p[1],
+              p[0] * math.sqrt(max(0.0, 1.0 - az[2] * az[2])) + abs(az[2]) * p[1])
+    lo = [0.0, 0.0, 0.0]
+    hi = [0.0, 0.0, 0.0]
+    if t == S.CONVEX_HULL:
+        v0 = shapes.shape_vert_start[s]
+        for k in range(3):
+            lo[k] = _BIG
+            hi[k] = -_BIG
+        for i in range(v0, v0 + shapes.shape_vert_count[s]):
+            v = shapes.geom_vertices[i]
+            w = qrot(wq, (v[0], v[1], v[2]))
+            for k in range(3):
+                lo[k] = min(lo[k], c[k] + w[k])
+                hi[k] = max(hi[k], c[k] + w[k])
+    elif t == S.PLANE:
+        # half-space z_local <= 0: bounded only along an axis the normal is aligned with
+        n = qrot(wq, (0.0, 0.0, 1.0))
+        for k in range(3):
+            lo[k] = -_BIG
+            hi[k] = _BIG
+            if abs(n[k]) > 1.0 - 1e-12:
+                if n[k] > 0:
+                    hi[k] = c[k]
+                else:
+                    lo[k] = c[k]
+    else:
+        for k in range(3):
+            lo[k] = c[k] - ex[k]
+            hi[k] = c[k] + ex[k]
+    m = shapes.shape_margin[s]
+    ang = 0.0
+    lin = (0.0, 0.0, 0.0)
+    if b >= 0 and body_type[b] != S.STATIC:
+        qd = body_qd[b]
+        ang = dt * math.sqrt(qd[0] * qd[0] + qd[1] * qd[1] + qd[2] * qd[2]) * body_bound_radius[b]
+        ang = min(ang, 2.0 * body_bound_radius[b])
+        lin = (qd[3] * dt, qd[4] * dt, qd[5] * dt)
+    for k in range(3):
+        aabb_out[s, k] = lo[k] - m - ang + min(0.0, lin[k])
+        aabb_out[s, 3 + k] = hi[k] + m + ang + max(0.0, lin[k])
+
+
 @njit(cache=True, parallel=True)
 def shape_world_bounds(shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
     """World pose and swept, margin-fattened AABB of every shape (one row per iteration)."""
     for s in prange(shapes.shape_type.shape[0]):
-        b = shapes.shape_body[s]
-        lp = shapes.shape_local_pose[s]
-        lq = (lp[3], lp[4], lp[5], lp[6])
-        if b >= 0:
-            bq = body_q[b]
-            q = (bq[3], bq[4], bq[5], bq[6])
-            rp = qrot(q, (lp[0], lp[1], lp[2]))
-            c = (bq[0] + rp[0], bq[1] + rp[1], bq[2] + rp[2])
-            wq = qmul(q, lq)
-        else:
-            c = (lp[0], lp[1], lp[2])
-            wq = lq
-        pose_out[s, 0] = c[0]
-        pose_out[s, 1] = c[1]
-        pose_out[s, 2] = c[2]
-        pose_out[s, 3] = wq[0]
-        pose_out[s, 4] = wq[1]
-        pose_out[s, 5] = wq[2]
-        pose_out[s, 6] = wq[3]
-        t = shapes.shape_type[s]
-        p = shapes.shape_params[s]
-        ex = (0.0, 0.0, 0.0)
-        if t == S.SPHERE:
-            ex = (p[0], p[0], p[0])
-        elif t == S.BOX:
-            ax = qrot(wq, (1.0, 0.0, 0.0))
-            ay = qrot(wq, (0.0, 1.0, 0.0))
-            az = qrot(wq, (0.0, 0.0, 1.0))
-            ex = (abs(ax[0]) * p[0] + abs(ay[0]) * p[1] + abs(az[0]) * p[2],
-                  abs(ax[1]) * p[0] + abs(ay[1]) * p[1] + abs(az[1]) * p[2],
-                  abs(ax[2]) * p[0] + abs(ay[2]) * p[1] + abs(az[2]) * p[2])
-        elif t == S.CAPSULE:
-            az = qrot(wq, (0.0, 0.0, 1.0))
-            ex = (abs(az[0]) * p[1] + p[0], abs(az[1]) * p[1] + p[0], abs(az[2]) * p[1] + p[0])
-        elif t == S.CYLINDER:
-            az = qrot(wq, (0.0, 0.0, 1.0))
-            ex = (p[0] * math.sqrt(max(0.0, 1.0 - az[0] * az[0])) + abs(az[0]) * p[1],
-                  p[0] * math.sqrt(max(0.0, 1.0 - az[1] * az[1])) + abs(az[1]) * p[1],
-                  p[0] * math.sqrt(max(0.0, 1.0 - az[2] * az[2])) + abs(az[2]) * p[1])
-        lo = [0.0, 0.0, 0.0]
-        hi = [0.0, 0.0, 0.0]
-        if t == S.CONVEX_HULL:
-            v0 = shapes.shape_vert_start[s]
-            for k in range(3):
-                lo[k] = _BIG
-                hi[k] = -_BIG
-            for i in range(v0, v0 + shapes.shape_vert_count[s]):
-                v = shapes.geom_vertices[i]
-                w = qrot(wq, (v[0], v[1], v[2]))
-                for k in range(3):
-                    lo[k] = min(lo[k], c[k] + w[k])
-                    hi[k] = max(hi[k], c[k] + w[k])
-        elif t == S.PLANE:
-            # half-space z_local <= 0: bounded only along an axis the normal is aligned with
-            n = qrot(wq, (0.0, 0.0, 1.0))
-            for k in range(3):
-                lo[k] = -_BIG
-                hi[k] = _BIG
-                if abs(n[k]) > 1.0 - 1e-12:
-                    if n[k] > 0:
-                        hi[k] = c[k]
-                    else:
-                        lo[k] = c[k]
-        else:
-            for k in range(3):
-                lo[k] = c[k] - ex[k]
-                hi[k] = c[k] + ex[k]
-        m = shapes.shape_margin[s]
-        ang = 0.0
-        lin = (0.0, 0.0, 0.0)
-        if b >= 0 and body_type[b] != S.STATIC:
-            qd = body_qd[b]
-            ang = dt * math.sqrt(qd[0] * qd[0] + qd[1] * qd[1] + qd[2] * qd[2]) * body_bound_radius[b]
-            ang = min(ang, 2.0 * body_bound_radius[b])
-            lin = (qd[3] * dt, qd[4] * dt, qd[5] * dt)
-        for k in range(3):
-            aabb_out[s, k] = lo[k] - m - ang + min(0.0, lin[k])
-            aabb_out[s, 3 + k] = hi[k] + m + ang + max(0.0, lin[k])
+        _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out)
 
 
 @njit(inline="always")

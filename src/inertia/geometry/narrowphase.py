@@ -604,40 +604,45 @@ def _body_speed(b, body_qd, radius):
     return (qd[3], qd[4], qd[5]), w * radius[b]
 
 
+@njit(cache=True)
+def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    sa, sb = pairs[i, 0], pairs[i, 1]
+    ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
+    ca.contact_shape[i, 0] = sa
+    ca.contact_shape[i, 1] = sb
+    ca.contact_body[i, 0] = ba
+    ca.contact_body[i, 1] = bb
+    ca.contact_key[i] = keys[i]
+    ca.contact_friction[i] = math.sqrt(shapes.shape_friction[sa] * shapes.shape_friction[sb])
+    ca.contact_restitution[i] = max(shapes.shape_restitution[sa], shapes.shape_restitution[sb])
+    ca.contact_rolling_friction[i] = max(shapes.shape_rolling_friction[sa],
+                                         shapes.shape_rolling_friction[sb])
+    ca.contact_is_sensor[i] = shapes.shape_is_sensor[sa] or shapes.shape_is_sensor[sb]
+    # speculative distance: what the pair can close within the step
+    va, wa = _body_speed(ba, body_qd, body_bound_radius)
+    vb, wb = _body_speed(bb, body_qd, body_bound_radius)
+    spec = max(shapes.shape_margin[sa], shapes.shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
+    cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec)
+    ca.contact_point_count[i] = cnt
+    n = (ca.contact_normal[i, 0], ca.contact_normal[i, 1], ca.contact_normal[i, 2])
+    t1, t2 = orthonormal_basis(n)
+    for m in range(3):
+        ca.contact_tangent[i, 0, m] = t1[m]
+        ca.contact_tangent[i, 1, m] = t2[m]
+        ca.contact_rolling_impulse[i, m] = 0.0
+    for k in range(4):
+        ca.contact_normal_impulse[i, k] = 0.0
+        ca.contact_tangent_impulse[i, k, 0] = 0.0
+        ca.contact_tangent_impulse[i, k, 1] = 0.0
+        ca.contact_max_normal_impulse[i, k] = 0.0
+        ca.contact_total_normal_impulse[i, k] = 0.0
+
+
 @njit(cache=True, parallel=True)
 def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
     """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring)."""
     for i in prange(npairs):
-        sa, sb = pairs[i, 0], pairs[i, 1]
-        ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
-        ca.contact_shape[i, 0] = sa
-        ca.contact_shape[i, 1] = sb
-        ca.contact_body[i, 0] = ba
-        ca.contact_body[i, 1] = bb
-        ca.contact_key[i] = keys[i]
-        ca.contact_friction[i] = math.sqrt(shapes.shape_friction[sa] * shapes.shape_friction[sb])
-        ca.contact_restitution[i] = max(shapes.shape_restitution[sa], shapes.shape_restitution[sb])
-        ca.contact_rolling_friction[i] = max(shapes.shape_rolling_friction[sa],
-                                             shapes.shape_rolling_friction[sb])
-        ca.contact_is_sensor[i] = shapes.shape_is_sensor[sa] or shapes.shape_is_sensor[sb]
-        # speculative distance: what the pair can close within the step
-        va, wa = _body_speed(ba, body_qd, body_bound_radius)
-        vb, wb = _body_speed(bb, body_qd, body_bound_radius)
-        spec = max(shapes.shape_margin[sa], shapes.shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
-        cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec)
-        ca.contact_point_count[i] = cnt
-        n = (ca.contact_normal[i, 0], ca.contact_normal[i, 1], ca.contact_normal[i, 2])
-        t1, t2 = orthonormal_basis(n)
-        for m in range(3):
-            ca.contact_tangent[i, 0, m] = t1[m]
-            ca.contact_tangent[i, 1, m] = t2[m]
-            ca.contact_rolling_impulse[i, m] = 0.0
-        for k in range(4):
-            ca.contact_normal_impulse[i, k] = 0.0
-            ca.contact_tangent_impulse[i, k, 0] = 0.0
-            ca.contact_tangent_impulse[i, k, 1] = 0.0
-            ca.contact_max_normal_impulse[i, k] = 0.0
-            ca.contact_total_normal_impulse[i, k] = 0.0
+        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca)
 
 
 @njit(cache=True)
