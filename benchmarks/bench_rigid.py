@@ -52,7 +52,7 @@ def grid_positions(n, seed=0):
     return np.array(pos), q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def inertia_pile(n, shape, *, substeps, seconds=3.0):
+def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0):
     from inertia.model import ModelBuilder
     from inertia.rigid.world import RigidWorld
     pos, quat = grid_positions(n)
@@ -63,7 +63,7 @@ def inertia_pile(n, shape, *, substeps, seconds=3.0):
             b.add_box(b.add_body(position=p, orientation=q), (EDGE / 2,) * 3, density=DENS)
         else:
             b.add_sphere(b.add_body(position=p), RAD, density=DENS)
-    world = RigidWorld(b.finalize(), substeps=substeps)
+    world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel)
     world.step()                                   # compile / load the cache outside the timing
     world.profile = {k: 0.0 for k in world.profile}
     steps = int(round(seconds * 60)) - 1
@@ -130,6 +130,9 @@ def main():
     ap.add_argument("--engines", nargs="+", default=["inertia", "pybullet", "mujoco"])
     ap.add_argument("--substeps", type=int, default=8)
     ap.add_argument("--stack-seconds", type=float, default=10.0)
+    ap.add_argument("--parallel", choices=["auto", "yes", "no"], default="no",
+                    help="Inertia's parallel colour-batch kernels (default no: on a loaded 2-core machine "
+                         "every parallel launch waits for a time slice)")
     ap.add_argument("--pyramid", action="store_true", help="also run the 20-base pyramid for 30 s")
     a = ap.parse_args()
     import numba
@@ -137,12 +140,13 @@ def main():
     results = {}
     for shape in a.shapes:
         if "inertia" in a.engines:
-            world, per_step, deepest = inertia_pile(a.n, shape, substeps=a.substeps)
+            par = {"auto": "auto", "yes": True, "no": False}[a.parallel]
+            world, per_step, deepest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
             ms_per_s = per_step.sum() / (len(per_step) / 60.0) * 1e3
             last = per_step[-60:].mean() * 60 * 1e3
             results[("inertia", shape)] = ms_per_s
             prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in world.profile.items())
-            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps}: {ms_per_s:9.1f} ms per "
+            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: {ms_per_s:9.1f} ms per "
                   f"simulated s (last 1 s {last:8.1f}; {per_step.mean() * 1e3:.2f} ms per 1/60 s step), "
                   f"{world.contacts.active_count} manifolds at the end, deepest penetration "
                   f"{deepest * 1e3:.2f} mm over the run ({world.max_penetration() * 1e3:.2f} mm at the end), "

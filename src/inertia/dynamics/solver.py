@@ -247,7 +247,7 @@ def _apply_angular(ctx, b, sign, l, ii):
         qd[k] += sign * dw[k]
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static_soft):
     i = ctx.cons_manifold[c]
     ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
@@ -316,14 +316,23 @@ def _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static
             ctx.cons_rolling_mass[c, k] = 0.0
 
 
-@njit(cache=True, parallel=True)
-def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, soft, static_soft):
-    """Anchors, effective masses, softness and pre-step normal velocities of each constraint."""
-    for c in prange(n_cons):
+@njit(cache=True)
+def _prepare_range(ctx, body_q, lo, hi, contact_point, contact_separation, soft, static_soft):
+    for c in range(lo, hi):
         _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static_soft)
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
+def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, soft, static_soft):
+    """Anchors, effective masses, softness and pre-step normal velocities of each constraint."""
+    nch = min(n_cons, CHUNKS)
+    for ch in prange(nch):
+        a = n_cons * ch // nch
+        b = n_cons * (ch + 1) // nch
+        _prepare_range(ctx, body_q, a, b, contact_point, contact_separation, soft, static_soft)
+
+
+@njit(inline="always")
 def _warm_one(ctx, c):
     i = ctx.cons_manifold[c]
     ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
@@ -357,7 +366,7 @@ def _anchor_motion(ctx, b, r):
     return add(dp, cross(dt, r))
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _solve_one(ctx, c, use_bias, inv_h, push_max):
     i = ctx.cons_manifold[c]
     ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
@@ -450,7 +459,7 @@ def _solve_one(ctx, c, use_bias, inv_h, push_max):
         _apply_angular(ctx, bb, 1.0, l, iib)
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _restitution_one(ctx, c, threshold):
     i = ctx.cons_manifold[c]
     e = ctx.contact_restitution[i]
@@ -483,34 +492,70 @@ def _restitution_one(ctx, c, threshold):
         _apply(ctx, bb, 1.0, p, rb, imb, iib)
 
 
+@njit(cache=True)
+def _warm_range(ctx, items, lo, hi):
+    for t in range(lo, hi):
+        _warm_one(ctx, items[t])
+
+
+@njit(cache=True)
+def _solve_range(ctx, items, lo, hi, use_bias, inv_h, push_max):
+    for t in range(lo, hi):
+        _solve_one(ctx, items[t], use_bias, inv_h, push_max)
+
+
+@njit(cache=True)
+def _restitution_range(ctx, items, lo, hi, threshold):
+    for t in range(lo, hi):
+        _restitution_one(ctx, items[t], threshold)
+
+
+# Each colour is cut into at most CHUNKS contiguous runs; a parallel iteration solves one run through
+# a single call (passing the context bundle costs a reference count per array, so once per run, not
+# once per constraint). Runs of one colour touch disjoint bodies, so any split gives the same bits.
+CHUNKS = 16
+
+
 @njit(cache=True, parallel=True)
 def warm_start(ctx, colour_start, colour_items):
+    """Apply the accumulated impulses (colour by colour; the overflow colour serially)."""
     ncol = colour_start.shape[0] - 1
     for col in range(ncol - 1):
-        for t in prange(colour_start[col], colour_start[col + 1]):
-            _warm_one(ctx, colour_items[t])
-    for t in range(colour_start[ncol - 1], colour_start[ncol]):   # overflow colour: serial
-        _warm_one(ctx, colour_items[t])
+        lo, hi = colour_start[col], colour_start[col + 1]
+        nch = min(hi - lo, CHUNKS)
+        for ch in prange(nch):
+            a = lo + (hi - lo) * ch // nch
+            b = lo + (hi - lo) * (ch + 1) // nch
+            _warm_range(ctx, colour_items, a, b)
+    _warm_range(ctx, colour_items, colour_start[ncol - 1], colour_start[ncol])
 
 
 @njit(cache=True, parallel=True)
 def solve_contacts(ctx, colour_start, colour_items, use_bias, inv_h, push_max):
+    """One soft-step iteration over every contact (with bias) or the relax iteration (without)."""
     ncol = colour_start.shape[0] - 1
     for col in range(ncol - 1):
-        for t in prange(colour_start[col], colour_start[col + 1]):
-            _solve_one(ctx, colour_items[t], use_bias, inv_h, push_max)
-    for t in range(colour_start[ncol - 1], colour_start[ncol]):
-        _solve_one(ctx, colour_items[t], use_bias, inv_h, push_max)
+        lo, hi = colour_start[col], colour_start[col + 1]
+        nch = min(hi - lo, CHUNKS)
+        for ch in prange(nch):
+            a = lo + (hi - lo) * ch // nch
+            b = lo + (hi - lo) * (ch + 1) // nch
+            _solve_range(ctx, colour_items, a, b, use_bias, inv_h, push_max)
+    _solve_range(ctx, colour_items, colour_start[ncol - 1], colour_start[ncol], use_bias, inv_h, push_max)
 
 
 @njit(cache=True, parallel=True)
 def restitution(ctx, colour_start, colour_items, threshold):
+    """Restitution pass after the substeps."""
     ncol = colour_start.shape[0] - 1
     for col in range(ncol - 1):
-        for t in prange(colour_start[col], colour_start[col + 1]):
-            _restitution_one(ctx, colour_items[t], threshold)
-    for t in range(colour_start[ncol - 1], colour_start[ncol]):
-        _restitution_one(ctx, colour_items[t], threshold)
+        lo, hi = colour_start[col], colour_start[col + 1]
+        nch = min(hi - lo, CHUNKS)
+        for ch in prange(nch):
+            a = lo + (hi - lo) * ch // nch
+            b = lo + (hi - lo) * (ch + 1) // nch
+            _restitution_range(ctx, colour_items, a, b, threshold)
+    _restitution_range(ctx, colour_items, colour_start[ncol - 1], colour_start[ncol], threshold)
 
 
 @njit(cache=True)

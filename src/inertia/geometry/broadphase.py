@@ -31,7 +31,7 @@ __all__ = ["shape_world_bounds", "sort_and_sweep"]
 _BIG = 1e30
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
     b = shapes.shape_body[s]
     lp = shapes.shape_local_pose[s]
@@ -113,11 +113,20 @@ def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, po
         aabb_out[s, 3 + k] = hi[k] + m + ang + max(0.0, lin[k])
 
 
+@njit(cache=True)
+def _bounds_range(lo, hi, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
+    for s in range(lo, hi):
+        _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out)
+
+
 @njit(cache=True, parallel=True)
 def shape_world_bounds(shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
     """World pose and swept, margin-fattened AABB of every shape (one row per iteration)."""
-    for s in prange(shapes.shape_type.shape[0]):
-        _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out)
+    n = shapes.shape_type.shape[0]
+    nch = min(n, 16)
+    for ch in prange(nch):
+        _bounds_range(n * ch // nch, n * (ch + 1) // nch, shapes, body_type, body_bound_radius, body_q,
+                      body_qd, dt, pose_out, aabb_out)
 
 
 @njit(inline="always")

@@ -604,7 +604,7 @@ def _body_speed(b, body_qd, radius):
     return (qd[3], qd[4], qd[5]), w * radius[b]
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
     sa, sb = pairs[i, 0], pairs[i, 1]
     ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
@@ -638,11 +638,20 @@ def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca
         ca.contact_total_normal_impulse[i, k] = 0.0
 
 
+@njit(cache=True)
+def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    for i in range(lo, hi):
+        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca)
+
+
 @njit(cache=True, parallel=True)
 def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
     """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring)."""
-    for i in prange(npairs):
-        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca)
+    # contiguous runs of pairs, one call each (passing the bundles costs once per run, not per pair)
+    nch = min(npairs, 16)
+    for ch in prange(nch):
+        _narrow_range(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, keys, shapes, pose, body_qd,
+                      body_bound_radius, dt, ca)
 
 
 @njit(cache=True)
