@@ -109,7 +109,8 @@ class SolverContext(NamedTuple):
 
 
 @njit(cache=True)
-def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h):
+def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
+                            ang_damp, force, torque, gravity, body_q, body_qd, h):
     if body_type[b] != S.DYNAMIC or not body_awake[b]:
         return
     qd = body_qd[b]
@@ -136,7 +137,8 @@ def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, bod
                          lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h):
     """v += h (g + F/m); w += h I^-1 (tau - w x I w) (body frame); then v /= 1 + h c (damping)."""
     for b in prange(body_q.shape[0]):
-        _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h)
+        _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
+                                ang_damp, force, torque, gravity, body_q, body_qd, h)
 
 
 @njit(cache=True)
@@ -179,7 +181,8 @@ def integrate_positions(body_type, body_awake, body_q, body_qd, body_dp, body_dt
 
 
 @njit(cache=True)
-def _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out, inv_inertia_out):
+def _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out,
+                               inv_inertia_out):
     if body_type[b] != S.DYNAMIC or not body_awake[b]:
         inv_mass_out[b] = 0.0
         for k in range(9):
@@ -201,7 +204,8 @@ def world_inverse_inertia(body_type, body_awake, body_inv_mass, body_inv_inertia
                           inv_mass_out, inv_inertia_out):
     """Solver masses: R diag(I^-1) R^T for awake dynamic bodies, zero for every other body."""
     for b in prange(body_q.shape[0]):
-        _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out, inv_inertia_out)
+        _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out,
+                                   inv_inertia_out)
 
 
 @njit(inline="always")
@@ -383,7 +387,8 @@ def _solve_one(ctx, c, use_bias, inv_h, push_max):
         ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
         rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
         # current gap: detected gap plus the relative motion of the anchors since detection
-        s = dot(n, sub(_anchor_motion(ctx, bb, rb), _anchor_motion(ctx, ba, ra))) + ctx.cons_base_separation[c, k]
+        s = dot(n, sub(_anchor_motion(ctx, bb, rb), _anchor_motion(ctx, ba, ra))) \
+            + ctx.cons_base_separation[c, k]
         bias, mscale, iscale = 0.0, 1.0, 0.0
         if s > 0.0:
             bias = s * inv_h                 # speculative: close the gap, no further
