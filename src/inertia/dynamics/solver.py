@@ -212,16 +212,16 @@ def world_inverse_inertia(body_type, body_awake, body_inv_mass, body_inv_inertia
 def _body_vel(ctx, b):
     if b < 0:
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
-    qd = ctx.body_qd[b]
-    return (qd[3], qd[4], qd[5]), (qd[0], qd[1], qd[2])
+    qd = ctx.body_qd
+    return (qd[b, 3], qd[b, 4], qd[b, 5]), (qd[b, 0], qd[b, 1], qd[b, 2])
 
 
 @njit(inline="always")
 def _inv_i(ctx, b):
     if b < 0:
         return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    m = ctx.body_inv_inertia_world[b]
-    return (m[0], m[1], m[2], m[3], m[4], m[5], m[6], m[7], m[8])
+    m = ctx.body_inv_inertia_world
+    return (m[b, 0], m[b, 1], m[b, 2], m[b, 3], m[b, 4], m[b, 5], m[b, 6], m[b, 7], m[b, 8])
 
 
 @njit(inline="always")
@@ -234,11 +234,11 @@ def _apply(ctx, b, sign, p, r, im, ii):
     """Impulse sign * p at offset r of body b (only dynamic awake bodies have im > 0)."""
     if b < 0 or im == 0.0:
         return
-    qd = ctx.body_qd[b]
+    qd = ctx.body_qd
     dw = mat_vec(ii, cross(r, p))
     for k in range(3):
-        qd[3 + k] += sign * im * p[k]
-        qd[k] += sign * dw[k]
+        qd[b, 3 + k] += sign * im * p[k]
+        qd[b, k] += sign * dw[k]
 
 
 @njit(inline="always")
@@ -246,9 +246,9 @@ def _apply_angular(ctx, b, sign, l, ii):
     if b < 0:
         return
     dw = mat_vec(ii, l)
-    qd = ctx.body_qd[b]
+    qd = ctx.body_qd
     for k in range(3):
-        qd[k] += sign * dw[k]
+        qd[b, k] += sign * dw[k]
 
 
 @njit(inline="always")
