@@ -1,0 +1,187 @@
+"""Rigid bodies: Inertia's RigidWorld vs PyBullet and MuJoCo (CG solver) on the peers' 3D scenes.
+
+Scenes (parameters from ../shared/peers/bench_3d_rigid.py, whose scene code is imported when found):
+- pile: N boxes (0.2 m) or spheres (r 0.1 m), density 1000, dropped from a jittered 10 x 10 x 10 grid
+  (pitch 0.3 m, lowest layer at 0.5 m, random box orientations, seed 0) onto a plane; 3 s simulated.
+- stack: 10 boxes of 0.2 m exactly stacked; 10 s simulated (the 60 s claim: ``--stack-seconds 60``).
+- pyramid: 20-base box pyramid, 30 s (``--pyramid``).
+
+Reported for Inertia: ms of wall time per simulated second (whole run, and the last second), contact
+manifolds, deepest penetration, bodies asleep at the end, and the per-stage times from
+``world.profile``. The peers run in the same process at their own defaults (PyBullet dt 1/240,
+50 iterations; MuJoCo dt 0.002 with the CG solver), so the ratio "peer ms per simulated second /
+Inertia ms per simulated second" compares equal simulated time, not equal steps.
+
+Run: PYTHONPATH=src python benchmarks/bench_rigid.py [--n 1000] [--shapes box sphere] [--engines inertia pybullet mujoco]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+PEERS = os.environ.get("INERTIA_PEERS", "/work/shared/peers")
+EDGE, RAD, DENS, PITCH = 0.2, 0.1, 1000.0, 0.3
+
+
+def grid_positions(n, seed=0):
+    """The peers' jittered grid (same RNG stream), so all engines drop the same pile."""
+    if os.path.isdir(PEERS):
+        sys.path.insert(0, PEERS)
+        try:
+            from bench_3d_rigid import grid_positions as peer_grid
+            return peer_grid(n, seed)
+        except ImportError:
+            pass
+    nx = 10 if n == 1000 else int(math.ceil(math.sqrt(n / 4)))
+    layers = int(math.ceil(n / (nx * nx)))
+    rng = np.random.default_rng(seed)
+    pos = []
+    for k in range(layers):
+        for i in range(nx):
+            for j in range(nx):
+                if len(pos) < n:
+                    pos.append(((i - (nx - 1) / 2) * PITCH + rng.uniform(-0.02, 0.02),
+                                (j - (nx - 1) / 2) * PITCH + rng.uniform(-0.02, 0.02), 0.5 + k * PITCH))
+    q = rng.normal(size=(n, 4))
+    return np.array(pos), q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0):
+    from inertia.model import ModelBuilder
+    from inertia.rigid.world import RigidWorld
+    pos, quat = grid_positions(n)
+    b = ModelBuilder()
+    b.add_plane()
+    for p, q in zip(pos, quat):
+        if shape == "box":
+            b.add_box(b.add_body(position=p, orientation=q), (EDGE / 2,) * 3, density=DENS)
+        else:
+            b.add_sphere(b.add_body(position=p), RAD, density=DENS)
+    world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel)
+    world.step()                                   # compile / load the cache outside the timing
+    world.profile = {k: 0.0 for k in world.profile}
+    steps = int(round(seconds * 60)) - 1
+    per_step, deepest = [], 0.0
+    for s in range(steps):
+        t0 = time.perf_counter()
+        world.step()
+        per_step.append(time.perf_counter() - t0)
+        if s >= steps - 60:                        # the last second: the pile has formed
+            deepest = max(deepest, world.max_penetration())
+    return world, np.array(per_step), deepest
+
+
+def inertia_stack(seconds, substeps):
+    from inertia.model import ModelBuilder
+    from inertia.rigid.world import RigidWorld
+    b = ModelBuilder()
+    b.add_plane()
+    for k in range(10):
+        b.add_box(b.add_body(position=(0, 0, EDGE / 2 + k * EDGE)), (EDGE / 2,) * 3)
+    world = RigidWorld(b.finalize(), substeps=substeps, enable_sleep=False)
+    p0 = world.state.body_q[-1, :3].copy()
+    world.step(60)
+    settled = world.state.body_q[-1, :3].copy()
+    t0 = time.perf_counter()
+    world.step(int(round((seconds - 1) * 60)))
+    wall = time.perf_counter() - t0
+    p1 = world.state.body_q[-1, :3]
+    return wall / (seconds - 1), p0, settled, p1.copy()
+
+
+def inertia_pyramid(base=20, seconds=30.0, substeps=8):
+    from inertia.model import ModelBuilder
+    from inertia.rigid.world import RigidWorld
+    h = EDGE / 2
+    b = ModelBuilder()
+    b.add_plane()
+    for row in range(base):
+        for k in range(base - row):
+            b.add_box(b.add_body(position=((k - (base - row - 1) / 2) * 2.05 * h, 0, h + 2 * h * row)), (h, h, h))
+    world = RigidWorld(b.finalize(), substeps=substeps)
+    q0 = world.state.body_q.copy()
+    t0 = time.perf_counter()
+    world.step(int(round(seconds * 60)))
+    wall = time.perf_counter() - t0
+    disp = np.linalg.norm(world.state.body_q[:, :3] - q0[:, :3], axis=1)
+    return wall / seconds, disp.max(), int(world.state.body_awake.sum()), world.model.body_count
+
+
+def peer_pile(engine, n, shape, mj_solver="cg"):
+    sys.path.insert(0, PEERS)
+    import bench_3d_rigid as peers
+    if engine == "mujoco":
+        peers.MJ_SOLVER[0] = mj_solver
+        times, _load, dt, info = peers.mujoco_pile(n, shape)
+    else:
+        times, _load, dt, info = peers.pybullet_pile(n, shape)
+    return np.array(times), dt, info
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--n", type=int, default=1000)
+    ap.add_argument("--shapes", nargs="+", default=["box", "sphere"])
+    ap.add_argument("--engines", nargs="+", default=["inertia", "pybullet", "mujoco"])
+    ap.add_argument("--substeps", type=int, default=8)
+    ap.add_argument("--stack-seconds", type=float, default=10.0)
+    ap.add_argument("--parallel", choices=["auto", "yes", "no"], default="no",
+                    help="Inertia's parallel colour-batch kernels (default no: on a loaded 2-core machine "
+                         "every parallel launch waits for a time slice)")
+    ap.add_argument("--pyramid", action="store_true", help="also run the 20-base pyramid for 30 s")
+    a = ap.parse_args()
+    import numba
+    print(f"numba threads {numba.config.NUMBA_NUM_THREADS}, cpu count {os.cpu_count()}")
+    results = {}
+    for shape in a.shapes:
+        if "inertia" in a.engines:
+            par = {"auto": "auto", "yes": True, "no": False}[a.parallel]
+            world, per_step, deepest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
+            ms_per_s = per_step.sum() / (len(per_step) / 60.0) * 1e3
+            last = per_step[-60:].mean() * 60 * 1e3
+            results[("inertia", shape)] = ms_per_s
+            prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in world.profile.items())
+            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: {ms_per_s:9.1f} ms per "
+                  f"simulated s (last 1 s {last:8.1f}; {per_step.mean() * 1e3:.2f} ms per 1/60 s step), "
+                  f"{world.contacts.active_count} manifolds at the end, deepest penetration "
+                  f"{deepest * 1e3:.2f} mm in the last second ({world.max_penetration() * 1e3:.2f} mm at the end), "
+                  f"{int((~world.state.body_awake).sum())}/{a.n} asleep")
+            print(f"         per-stage ms per step: {prof}")
+        for eng in ("pybullet", "mujoco"):
+            if eng not in a.engines:
+                continue
+            try:
+                __import__(eng)
+            except ImportError:
+                print(f"{eng:8s} not installed")
+                continue
+            times, dt, info = peer_pile(eng, a.n, shape)
+            ms_per_s = times.mean() / dt * 1e3
+            last = times[-10:].mean() / dt * 1e3
+            results[(eng, shape)] = ms_per_s
+            # deepest penetration of the lowest layer from the lowest body centre
+            depth = (EDGE / 2 if shape == "box" else RAD) - info["zmin"]
+            print(f"{eng:8s} pile N={a.n} {shape:6s} dt={dt:.5f}: {ms_per_s:9.1f} ms per simulated s (last 1 s "
+                  f"{last:8.1f}), {info['ncon_end']} contacts at the end, lowest centre {info['zmin']:.4f} m "
+                  f"(>= {max(depth, 0) * 1e3:.2f} mm into the floor)")
+            if ("inertia", shape) in results:
+                print(f"         ratio {eng} / inertia = {ms_per_s / results[('inertia', shape)]:.2f}")
+    if "inertia" in a.engines:
+        per_s, p0, settled, p1 = inertia_stack(a.stack_seconds, a.substeps)
+        print(f"inertia  stack of 10 boxes, {a.stack_seconds:.0f} s: {per_s * 1e3:.2f} ms per simulated s; top box "
+              f"moved {np.linalg.norm(p1 - settled) * 1e3:.3f} mm after settling in the first second "
+              f"(sag {(p0[2] - settled[2]) * 1e3:.2f} mm, lateral {np.linalg.norm(p1[:2] - p0[:2]) * 1e3:.3f} mm)")
+        if a.pyramid:
+            per_s, disp, awake, nb = inertia_pyramid()
+            print(f"inertia  pyramid base 20 ({nb} boxes), 30 s: {per_s * 1e3:.1f} ms per simulated s, largest "
+                  f"displacement {disp * 1e3:.2f} mm, {nb - awake}/{nb} asleep at the end")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,615 @@
+"""Soft-step contact solver for rigid bodies (maximal coordinates), with graph colouring.
+
+One step (DESIGN.md "The world step"; each line a kernel here):
+```
+prepare_contacts()                       # anchors, effective masses, softness, pre-step velocities
+for each of the n substeps (h = dt / n):
+    integrate_velocities()               # gravity, applied force/torque, gyroscopic term, damping
+    warm_start()                         # apply the accumulated impulses
+    solve(use_bias=True)                 # soft contacts push apart at most push_max_velocity
+    integrate_positions()                # x += h v, q <- exp(h w / 2) q
+    solve(use_bias=False)                # relax: remove the velocity the bias added
+restitution()                            # bounce where the pre-step approach speed > threshold
+```
+Soft constraint (Catto 2024): a contact is a spring-damper of frequency ``f`` (Hz) and damping ratio
+``zeta`` solved implicitly; with ``omega = 2 pi f``, ``a1 = 2 zeta + h omega``, ``a2 = h omega a1``,
+``a3 = 1 / (1 + a2)``: bias rate ``omega / a1``, mass scale ``a2 a3``, impulse scale ``a3``. The
+impulse of one iteration is ``-m_eff * mass_scale * (v_n + bias) - impulse_scale * lambda`` with the
+bias ``max(bias_rate * s, -push_max_velocity)`` for a penetration ``s < 0``. A positive gap ``s`` is a
+speculative contact: bias ``s / h`` lets the bodies close it in this substep and no further, which is
+the continuous collision of the soft step. The current gap is the detected one plus the anchors' relative
+motion since detection (linearised: dp + dtheta x r), so contacts stay valid over the substeps.
+
+Friction is Coulomb at each point with a circular cone |lambda_t| <= mu lambda_n; rolling resistance
+limits the relative angular impulse to ``rolling_friction * sum(lambda_n)`` (a lever arm in metres).
+Restitution uses the most negative relative normal velocity seen before the step or before a
+substep's solve while the gap was closed (so the speed gained under gravity within the step counts),
+only where it exceeds the threshold and the point carried an impulse.
+
+Parallel solve: constraints are greedily coloured in their (sorted) order so no two constraints of a
+colour share a dynamic body (static, kinematic and sleeping bodies are read-only and do not count);
+colours run one after another, the constraints of one colour in parallel. Each write hits a different
+body, so results are identical at any thread count; the serial twin runs the same order. Constraints
+that find no free colour among 63 go to an overflow colour solved serially.
+
+References
+- Catto, E. (2024). Solver2D; Box2D v3 "soft step" solver (substepping, soft contacts, relax,
+  restitution, speculative contacts, graph colouring).
+- Catto, E. (2005). Iterative dynamics with temporal coherence (sequential impulses, warm starting).
+- Tonge, R. (2012). Solving rigid body contacts (GDC) -- soft constraints and relax passes.
+
+Limitations
+- One iteration per substep (the soft step's design): tall stacks need 4-8 substeps.
+- Effective masses use the inertia at the start of the step (as Box2D v3 does).
+- The gyroscopic term is explicit: very fast-spinning, very elongated bodies may gain energy.
+- No twisting (spin about the normal) friction beyond what rolling resistance provides.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from .._jit import serial_twin
+from ..geometry import shapes as S
+from ..geometry._tup import add, cross, dot, mat_vec, qrot, qrot_inv, scale, sub
+
+__all__ = ["SolverContext", "soft_coefficients", "prepare_contacts", "integrate_velocities",
+           "integrate_positions", "solve_contacts", "warm_start", "restitution", "colour_constraints",
+           "MAX_COLOURS"]
+
+MAX_COLOURS = 63   # plus one overflow colour solved serially
+
+
+def soft_coefficients(hertz: float, damping_ratio: float, h: float):
+    """(bias_rate 1/s, mass_scale, impulse_scale) of a soft constraint (Catto 2024)."""
+    if hertz == 0.0:
+        return 0.0, 1.0, 0.0
+    omega = 2.0 * math.pi * hertz
+    a1 = 2.0 * damping_ratio + h * omega
+    a2 = h * omega * a1
+    a3 = 1.0 / (1.0 + a2)
+    return omega / a1, a2 * a3, a3
+
+
+class SolverContext(NamedTuple):
+    """Arrays every solver stage reads and writes (one bundle, like Box2D's b2StepContext)."""
+    # bodies (B rows): state views and per-step scratch
+    body_q: np.ndarray            # (B, 7) state, written by integrate_positions
+    body_qd: np.ndarray           # (B, 6) state (angular, linear), written by every velocity stage
+    body_dp: np.ndarray           # (B, 3) m, displacement since prepare_contacts
+    body_dtheta: np.ndarray       # (B, 3) rad, rotation vector sum(h w) since prepare_contacts
+    body_inv_mass: np.ndarray     # (B,) 1/kg used by the solver (0: static, kinematic, asleep)
+    body_inv_inertia_world: np.ndarray  # (B, 9) 1/(kg m^2), world frame, row-major, from prepare
+    # contacts (M rows, indexed by manifold) -- the shared buffer, impulses accumulated in place
+    contact_body: np.ndarray
+    contact_point_count: np.ndarray
+    contact_normal: np.ndarray
+    contact_tangent: np.ndarray
+    contact_friction: np.ndarray
+    contact_restitution: np.ndarray
+    contact_rolling_friction: np.ndarray
+    contact_normal_impulse: np.ndarray
+    contact_tangent_impulse: np.ndarray
+    contact_rolling_impulse: np.ndarray
+    contact_max_normal_impulse: np.ndarray
+    contact_total_normal_impulse: np.ndarray
+    contact_relative_velocity: np.ndarray
+    # constraints (N rows, one per solved manifold; written by prepare_contacts)
+    cons_manifold: np.ndarray     # (N,) int32 manifold row
+    cons_anchor: np.ndarray       # (N, 4, 2, 3) m, world offsets from each body's centre at prepare
+    cons_base_separation: np.ndarray  # (N, 4) m, separation at detection
+    cons_normal_mass: np.ndarray  # (N, 4) kg
+    cons_tangent_mass: np.ndarray  # (N, 4, 2) kg
+    cons_rolling_mass: np.ndarray  # (N, 9) kg m^2 (inverse of the summed world inverse inertias)
+    cons_soft: np.ndarray         # (N, 3) bias_rate, mass_scale, impulse_scale
+
+
+@njit(cache=True)
+def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
+                            ang_damp, force, torque, gravity, body_q, body_qd, h):
+    if body_type[b] != S.DYNAMIC or not body_awake[b]:
+        return
+    qd = body_qd[b]
+    im = body_inv_mass[b]
+    for k in range(3):
+        qd[3 + k] += h * (gravity[k] + im * force[b, k])
+    q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+    wb = qrot_inv(q, (qd[0], qd[1], qd[2]))
+    tb = qrot_inv(q, (torque[b, 0], torque[b, 1], torque[b, 2]))
+    iw = (body_inertia[b, 0] * wb[0], body_inertia[b, 1] * wb[1], body_inertia[b, 2] * wb[2])
+    gyro = cross(wb, iw)
+    dw = (h * body_inv_inertia[b, 0] * (tb[0] - gyro[0]), h * body_inv_inertia[b, 1] * (tb[1] - gyro[1]),
+          h * body_inv_inertia[b, 2] * (tb[2] - gyro[2]))
+    dww = qrot(q, dw)
+    ld = 1.0 / (1.0 + h * lin_damp[b])
+    ad = 1.0 / (1.0 + h * ang_damp[b])
+    for k in range(3):
+        qd[k] = (qd[k] + dww[k]) * ad
+        qd[3 + k] *= ld
+
+
+@njit(cache=True, parallel=True)
+def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia,
+                         lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h):
+    """v += h (g + F/m); w += h I^-1 (tau - w x I w) (body frame); then v /= 1 + h c (damping)."""
+    for b in prange(body_q.shape[0]):
+        _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
+                                ang_damp, force, torque, gravity, body_q, body_qd, h)
+
+
+@njit(cache=True)
+def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
+    if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
+        return
+    qd = body_qd[b]
+    for k in range(3):
+        body_q[b, k] += h * qd[3 + k]
+        body_dp[b, k] += h * qd[3 + k]
+        body_dtheta[b, k] += h * qd[k]
+    wx, wy, wz = qd[0], qd[1], qd[2]
+    speed = math.sqrt(wx * wx + wy * wy + wz * wz)
+    half = 0.5 * speed * h
+    if half < 1e-4:
+        h2 = half * half
+        s = 0.5 * h * (1.0 - h2 / 6.0)
+        c = 1.0 - 0.5 * h2
+    else:
+        s = math.sin(half) / speed
+        c = math.cos(half)
+    dq = (c, wx * s, wy * s, wz * s)
+    q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+    rw = dq[0] * q[0] - dq[1] * q[1] - dq[2] * q[2] - dq[3] * q[3]
+    rx = dq[0] * q[1] + dq[1] * q[0] + dq[2] * q[3] - dq[3] * q[2]
+    ry = dq[0] * q[2] - dq[1] * q[3] + dq[2] * q[0] + dq[3] * q[1]
+    rz = dq[0] * q[3] + dq[1] * q[2] - dq[2] * q[1] + dq[3] * q[0]
+    inv = 1.0 / math.sqrt(rw * rw + rx * rx + ry * ry + rz * rz)
+    body_q[b, 3] = rw * inv
+    body_q[b, 4] = rx * inv
+    body_q[b, 5] = ry * inv
+    body_q[b, 6] = rz * inv
+
+
+@njit(cache=True, parallel=True)
+def integrate_positions(body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
+    """x += h v; q <- exp(h w / 2) q (exact for constant w), renormalised. Kinematic bodies too."""
+    for b in prange(body_q.shape[0]):
+        _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h)
+
+
+@njit(cache=True)
+def _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out,
+                               inv_inertia_out):
+    if body_type[b] != S.DYNAMIC or not body_awake[b]:
+        inv_mass_out[b] = 0.0
+        for k in range(9):
+            inv_inertia_out[b, k] = 0.0
+        return
+    inv_mass_out[b] = body_inv_mass[b]
+    q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+    cols = (qrot(q, (1.0, 0.0, 0.0)), qrot(q, (0.0, 1.0, 0.0)), qrot(q, (0.0, 0.0, 1.0)))
+    for r in range(3):
+        for c in range(3):
+            acc = 0.0
+            for k in range(3):
+                acc += cols[k][r] * body_inv_inertia[b, k] * cols[k][c]
+            inv_inertia_out[b, 3 * r + c] = acc
+
+
+@njit(cache=True, parallel=True)
+def world_inverse_inertia(body_type, body_awake, body_inv_mass, body_inv_inertia, body_q,
+                          inv_mass_out, inv_inertia_out):
+    """Solver masses: R diag(I^-1) R^T for awake dynamic bodies, zero for every other body."""
+    for b in prange(body_q.shape[0]):
+        _world_inverse_inertia_one(b, body_type, body_awake, body_inv_mass, body_inv_inertia, body_q, inv_mass_out,
+                                   inv_inertia_out)
+
+
+@njit(inline="always")
+def _body_vel(ctx, b):
+    if b < 0:
+        return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
+    qd = ctx.body_qd
+    return (qd[b, 3], qd[b, 4], qd[b, 5]), (qd[b, 0], qd[b, 1], qd[b, 2])
+
+
+@njit(inline="always")
+def _inv_i(ctx, b):
+    if b < 0:
+        return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    m = ctx.body_inv_inertia_world
+    return (m[b, 0], m[b, 1], m[b, 2], m[b, 3], m[b, 4], m[b, 5], m[b, 6], m[b, 7], m[b, 8])
+
+
+@njit(inline="always")
+def _inv_m(ctx, b):
+    return 0.0 if b < 0 else ctx.body_inv_mass[b]
+
+
+@njit(inline="always")
+def _apply(ctx, b, sign, p, r, im, ii):
+    """Impulse sign * p at offset r of body b (only dynamic awake bodies have im > 0)."""
+    if b < 0 or im == 0.0:
+        return
+    qd = ctx.body_qd
+    dw = mat_vec(ii, cross(r, p))
+    for k in range(3):
+        qd[b, 3 + k] += sign * im * p[k]
+        qd[b, k] += sign * dw[k]
+
+
+@njit(inline="always")
+def _apply_angular(ctx, b, sign, l, ii):
+    if b < 0:
+        return
+    dw = mat_vec(ii, l)
+    qd = ctx.body_qd
+    for k in range(3):
+        qd[b, k] += sign * dw[k]
+
+
+@njit(inline="always")
+def _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static_soft):
+    i = ctx.cons_manifold[c]
+    ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
+    n = (ctx.contact_normal[i, 0], ctx.contact_normal[i, 1], ctx.contact_normal[i, 2])
+    t1 = (ctx.contact_tangent[i, 0, 0], ctx.contact_tangent[i, 0, 1], ctx.contact_tangent[i, 0, 2])
+    t2 = (ctx.contact_tangent[i, 1, 0], ctx.contact_tangent[i, 1, 1], ctx.contact_tangent[i, 1, 2])
+    ima, imb = _inv_m(ctx, ba), _inv_m(ctx, bb)
+    iia, iib = _inv_i(ctx, ba), _inv_i(ctx, bb)
+    va, wa = _body_vel(ctx, ba)
+    vb, wb = _body_vel(ctx, bb)
+    sr = static_soft if (ima == 0.0 or imb == 0.0) else soft
+    ctx.cons_soft[c, 0] = sr[0]
+    ctx.cons_soft[c, 1] = sr[1]
+    ctx.cons_soft[c, 2] = sr[2]
+    xa = (0.0, 0.0, 0.0)
+    qa = (1.0, 0.0, 0.0, 0.0)
+    if ba >= 0:
+        xa = (body_q[ba, 0], body_q[ba, 1], body_q[ba, 2])
+        qa = (body_q[ba, 3], body_q[ba, 4], body_q[ba, 5], body_q[ba, 6])
+    xb = (0.0, 0.0, 0.0)
+    qb = (1.0, 0.0, 0.0, 0.0)
+    if bb >= 0:
+        xb = (body_q[bb, 0], body_q[bb, 1], body_q[bb, 2])
+        qb = (body_q[bb, 3], body_q[bb, 4], body_q[bb, 5], body_q[bb, 6])
+    for k in range(ctx.contact_point_count[i]):
+        p = (contact_point[i, k, 0], contact_point[i, k, 1], contact_point[i, k, 2])
+        ra = sub(p, xa)
+        rb = sub(p, xb)
+        for m in range(3):
+            ctx.cons_anchor[c, k, 0, m] = ra[m]
+            ctx.cons_anchor[c, k, 1, m] = rb[m]
+        ctx.cons_base_separation[c, k] = contact_separation[i, k]
+        # effective mass along a direction d: 1 / (ma + mb + (ra x d).Ia^-1 (ra x d) + ...)
+        for ax in range(3):
+            d = n if ax == 0 else (t1 if ax == 1 else t2)
+            rda = cross(ra, d)
+            rdb = cross(rb, d)
+            kk = ima + imb + dot(rda, mat_vec(iia, rda)) + dot(rdb, mat_vec(iib, rdb))
+            mass = 1.0 / kk if kk > 0.0 else 0.0
+            if ax == 0:
+                ctx.cons_normal_mass[c, k] = mass
+            else:
+                ctx.cons_tangent_mass[c, k, ax - 1] = mass
+        dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
+        ctx.contact_relative_velocity[i, k] = dot(dv, n)
+        ctx.contact_max_normal_impulse[i, k] = 0.0
+        ctx.contact_total_normal_impulse[i, k] = 0.0
+    # rolling: inverse of (Ia^-1 + Ib^-1)
+    m = (iia[0] + iib[0], iia[1] + iib[1], iia[2] + iib[2], iia[3] + iib[3], iia[4] + iib[4],
+         iia[5] + iib[5], iia[6] + iib[6], iia[7] + iib[7], iia[8] + iib[8])
+    det = (m[0] * (m[4] * m[8] - m[5] * m[7]) - m[1] * (m[3] * m[8] - m[5] * m[6])
+           + m[2] * (m[3] * m[7] - m[4] * m[6]))
+    if abs(det) > 1e-300 and ctx.contact_rolling_friction[i] > 0.0:
+        inv = 1.0 / det
+        ctx.cons_rolling_mass[c, 0] = (m[4] * m[8] - m[5] * m[7]) * inv
+        ctx.cons_rolling_mass[c, 1] = (m[2] * m[7] - m[1] * m[8]) * inv
+        ctx.cons_rolling_mass[c, 2] = (m[1] * m[5] - m[2] * m[4]) * inv
+        ctx.cons_rolling_mass[c, 3] = (m[5] * m[6] - m[3] * m[8]) * inv
+        ctx.cons_rolling_mass[c, 4] = (m[0] * m[8] - m[2] * m[6]) * inv
+        ctx.cons_rolling_mass[c, 5] = (m[2] * m[3] - m[0] * m[5]) * inv
+        ctx.cons_rolling_mass[c, 6] = (m[3] * m[7] - m[4] * m[6]) * inv
+        ctx.cons_rolling_mass[c, 7] = (m[1] * m[6] - m[0] * m[7]) * inv
+        ctx.cons_rolling_mass[c, 8] = (m[0] * m[4] - m[1] * m[3]) * inv
+    else:
+        for k in range(9):
+            ctx.cons_rolling_mass[c, k] = 0.0
+
+
+@njit(cache=True)
+def _prepare_range(ctx, body_q, lo, hi, contact_point, contact_separation, soft, static_soft):
+    for c in range(lo, hi):
+        _prepare_one(c, ctx, body_q, contact_point, contact_separation, soft, static_soft)
+
+
+@njit(cache=True, parallel=True)
+def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, soft, static_soft):
+    """Anchors, effective masses, softness and pre-step normal velocities of each constraint."""
+    nch = min(n_cons, CHUNKS)
+    for ch in prange(nch):
+        a = n_cons * ch // nch
+        b = n_cons * (ch + 1) // nch
+        _prepare_range(ctx, body_q, a, b, contact_point, contact_separation, soft, static_soft)
+
+
+@njit(inline="always")
+def _warm_one(ctx, c):
+    i = ctx.cons_manifold[c]
+    ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
+    ima, imb = _inv_m(ctx, ba), _inv_m(ctx, bb)
+    iia, iib = _inv_i(ctx, ba), _inv_i(ctx, bb)
+    n = (ctx.contact_normal[i, 0], ctx.contact_normal[i, 1], ctx.contact_normal[i, 2])
+    t1 = (ctx.contact_tangent[i, 0, 0], ctx.contact_tangent[i, 0, 1], ctx.contact_tangent[i, 0, 2])
+    t2 = (ctx.contact_tangent[i, 1, 0], ctx.contact_tangent[i, 1, 1], ctx.contact_tangent[i, 1, 2])
+    for k in range(ctx.contact_point_count[i]):
+        ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
+        rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
+        p = add(add(scale(n, ctx.contact_normal_impulse[i, k]), scale(t1, ctx.contact_tangent_impulse[i, k, 0])),
+                scale(t2, ctx.contact_tangent_impulse[i, k, 1]))
+        _apply(ctx, ba, -1.0, p, ra, ima, iia)
+        _apply(ctx, bb, 1.0, p, rb, imb, iib)
+    l = (ctx.contact_rolling_impulse[i, 0], ctx.contact_rolling_impulse[i, 1], ctx.contact_rolling_impulse[i, 2])
+    _apply_angular(ctx, ba, -1.0, l, iia)
+    _apply_angular(ctx, bb, 1.0, l, iib)
+
+
+@njit(inline="always")
+def _anchor_motion(ctx, b, r):
+    """Displacement of the anchor at offset r since prepare, linearised in the rotation:
+    dp + dtheta x r. It is exact for a rolling sphere (its surface point under the centre does not
+    move along n) and first-order for corners; rotating the anchor instead would lift a rolling ball
+    off the ground by r (1 - cos(w dt))."""
+    if b < 0:
+        return (0.0, 0.0, 0.0)
+    dp = (ctx.body_dp[b, 0], ctx.body_dp[b, 1], ctx.body_dp[b, 2])
+    dt = (ctx.body_dtheta[b, 0], ctx.body_dtheta[b, 1], ctx.body_dtheta[b, 2])
+    return add(dp, cross(dt, r))
+
+
+@njit(inline="always")
+def _solve_one(ctx, c, use_bias, inv_h, push_max):
+    i = ctx.cons_manifold[c]
+    ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
+    ima, imb = _inv_m(ctx, ba), _inv_m(ctx, bb)
+    iia, iib = _inv_i(ctx, ba), _inv_i(ctx, bb)
+    n = (ctx.contact_normal[i, 0], ctx.contact_normal[i, 1], ctx.contact_normal[i, 2])
+    t1 = (ctx.contact_tangent[i, 0, 0], ctx.contact_tangent[i, 0, 1], ctx.contact_tangent[i, 0, 2])
+    t2 = (ctx.contact_tangent[i, 1, 0], ctx.contact_tangent[i, 1, 1], ctx.contact_tangent[i, 1, 2])
+    bias_rate, soft_mass, soft_imp = ctx.cons_soft[c, 0], ctx.cons_soft[c, 1], ctx.cons_soft[c, 2]
+    npts = ctx.contact_point_count[i]
+    total_normal = 0.0
+    # -- non-penetration
+    for k in range(npts):
+        ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
+        rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
+        # current gap: detected gap plus the relative motion of the anchors since detection
+        s = dot(n, sub(_anchor_motion(ctx, bb, rb), _anchor_motion(ctx, ba, ra))) \
+            + ctx.cons_base_separation[c, k]
+        bias, mscale, iscale = 0.0, 1.0, 0.0
+        if s > 0.0:
+            bias = s * inv_h                 # speculative: close the gap, no further
+        elif use_bias:
+            bias = max(bias_rate * s, -push_max)
+            mscale, iscale = soft_mass, soft_imp
+        va, wa = _body_vel(ctx, ba)
+        vb, wb = _body_vel(ctx, bb)
+        vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n)
+        if vn + max(s, 0.0) * inv_h < 0.0 and vn < ctx.contact_relative_velocity[i, k]:
+            # approach speed at impact (for restitution): the fastest approach of any pass in which
+            # the contact acts, so the speed gained within the step, the speed a speculative contact
+            # is about to remove, and a speed handed on along a chain of touching bodies (Newton's
+            # cradle) all count
+            ctx.contact_relative_velocity[i, k] = vn
+        old = ctx.contact_normal_impulse[i, k]
+        lam = -ctx.cons_normal_mass[c, k] * mscale * (vn + bias) - iscale * old
+        new = max(old + lam, 0.0)
+        lam = new - old
+        ctx.contact_normal_impulse[i, k] = new
+        if new > ctx.contact_max_normal_impulse[i, k]:
+            ctx.contact_max_normal_impulse[i, k] = new
+        if not use_bias:
+            # relax is the substep's last pass: its accumulated impulse is what the substep applied
+            ctx.contact_total_normal_impulse[i, k] += new
+        total_normal += new
+        p = scale(n, lam)
+        _apply(ctx, ba, -1.0, p, ra, ima, iia)
+        _apply(ctx, bb, 1.0, p, rb, imb, iib)
+    # -- Coulomb friction, circular cone at each point
+    mu = ctx.contact_friction[i]
+    for k in range(npts):
+        ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
+        rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
+        va, wa = _body_vel(ctx, ba)
+        vb, wb = _body_vel(ctx, bb)
+        dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
+        o1 = ctx.contact_tangent_impulse[i, k, 0]
+        o2 = ctx.contact_tangent_impulse[i, k, 1]
+        n1 = o1 - ctx.cons_tangent_mass[c, k, 0] * dot(dv, t1)
+        n2 = o2 - ctx.cons_tangent_mass[c, k, 1] * dot(dv, t2)
+        lim = mu * ctx.contact_normal_impulse[i, k]
+        mag = math.sqrt(n1 * n1 + n2 * n2)
+        if mag > lim:
+            f = lim / mag
+            n1 *= f
+            n2 *= f
+        ctx.contact_tangent_impulse[i, k, 0] = n1
+        ctx.contact_tangent_impulse[i, k, 1] = n2
+        p = add(scale(t1, n1 - o1), scale(t2, n2 - o2))
+        _apply(ctx, ba, -1.0, p, ra, ima, iia)
+        _apply(ctx, bb, 1.0, p, rb, imb, iib)
+    # -- rolling resistance: |angular impulse| <= rolling_friction * total normal impulse
+    rr = ctx.contact_rolling_friction[i]
+    if rr > 0.0:
+        va, wa = _body_vel(ctx, ba)
+        vb, wb = _body_vel(ctx, bb)
+        dw = sub(wb, wa)
+        rm = (ctx.cons_rolling_mass[c, 0], ctx.cons_rolling_mass[c, 1], ctx.cons_rolling_mass[c, 2],
+              ctx.cons_rolling_mass[c, 3], ctx.cons_rolling_mass[c, 4], ctx.cons_rolling_mass[c, 5],
+              ctx.cons_rolling_mass[c, 6], ctx.cons_rolling_mass[c, 7], ctx.cons_rolling_mass[c, 8])
+        d = mat_vec(rm, dw)
+        old = (ctx.contact_rolling_impulse[i, 0], ctx.contact_rolling_impulse[i, 1], ctx.contact_rolling_impulse[i, 2])
+        new = sub(old, d)
+        lim = rr * total_normal
+        mag = math.sqrt(dot(new, new))
+        if mag > lim:
+            new = scale(new, lim / mag)
+        for m in range(3):
+            ctx.contact_rolling_impulse[i, m] = new[m]
+        l = sub(new, old)
+        _apply_angular(ctx, ba, -1.0, l, iia)
+        _apply_angular(ctx, bb, 1.0, l, iib)
+
+
+@njit(inline="always")
+def _restitution_one(ctx, c, threshold):
+    i = ctx.cons_manifold[c]
+    e = ctx.contact_restitution[i]
+    if e == 0.0:
+        return
+    ba, bb = ctx.contact_body[i, 0], ctx.contact_body[i, 1]
+    ima, imb = _inv_m(ctx, ba), _inv_m(ctx, bb)
+    iia, iib = _inv_i(ctx, ba), _inv_i(ctx, bb)
+    n = (ctx.contact_normal[i, 0], ctx.contact_normal[i, 1], ctx.contact_normal[i, 2])
+    for k in range(ctx.contact_point_count[i]):
+        vrel = ctx.contact_relative_velocity[i, k]
+        if vrel > -threshold or ctx.contact_max_normal_impulse[i, k] == 0.0:
+            continue
+        ra = (ctx.cons_anchor[c, k, 0, 0], ctx.cons_anchor[c, k, 0, 1], ctx.cons_anchor[c, k, 0, 2])
+        rb = (ctx.cons_anchor[c, k, 1, 0], ctx.cons_anchor[c, k, 1, 1], ctx.cons_anchor[c, k, 1, 2])
+        va, wa = _body_vel(ctx, ba)
+        vb, wb = _body_vel(ctx, bb)
+        vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n)
+        old = ctx.contact_normal_impulse[i, k]
+        # drive the normal velocity to -e times the approach velocity
+        lam = -ctx.cons_normal_mass[c, k] * (vn + e * vrel)
+        new = max(old + lam, 0.0)
+        lam = new - old
+        ctx.contact_normal_impulse[i, k] = new
+        ctx.contact_total_normal_impulse[i, k] += lam
+        if new > ctx.contact_max_normal_impulse[i, k]:
+            ctx.contact_max_normal_impulse[i, k] = new
+        p = scale(n, lam)
+        _apply(ctx, ba, -1.0, p, ra, ima, iia)
+        _apply(ctx, bb, 1.0, p, rb, imb, iib)
+
+
+@njit(cache=True)
+def _warm_range(ctx, items, lo, hi):
+    for t in range(lo, hi):
+        _warm_one(ctx, items[t])
+
+
+@njit(cache=True)
+def _solve_range(ctx, items, lo, hi, use_bias, inv_h, push_max):
+    for t in range(lo, hi):
+        _solve_one(ctx, items[t], use_bias, inv_h, push_max)
+
+
+@njit(cache=True)
+def _restitution_range(ctx, items, lo, hi, threshold):
+    for t in range(lo, hi):
+        _restitution_one(ctx, items[t], threshold)
+
+
+# Each colour is cut into at most CHUNKS contiguous runs; a parallel iteration solves one run through
+# a single call (passing the context bundle costs a reference count per array, so once per run, not
+# once per constraint). Runs of one colour touch disjoint bodies, so any split gives the same bits.
+CHUNKS = 16
+
+
+@njit(cache=True, parallel=True)
+def warm_start(ctx, colour_start, colour_items):
+    """Apply the accumulated impulses (colour by colour; the overflow colour serially)."""
+    ncol = colour_start.shape[0] - 1
+    for col in range(ncol - 1):
+        lo, hi = colour_start[col], colour_start[col + 1]
+        nch = min(hi - lo, CHUNKS)
+        for ch in prange(nch):
+            a = lo + (hi - lo) * ch // nch
+            b = lo + (hi - lo) * (ch + 1) // nch
+            _warm_range(ctx, colour_items, a, b)
+    _warm_range(ctx, colour_items, colour_start[ncol - 1], colour_start[ncol])
+
+
+@njit(cache=True, parallel=True)
+def solve_contacts(ctx, colour_start, colour_items, use_bias, inv_h, push_max):
+    """One soft-step iteration over every contact (with bias) or the relax iteration (without)."""
+    ncol = colour_start.shape[0] - 1
+    for col in range(ncol - 1):
+        lo, hi = colour_start[col], colour_start[col + 1]
+        nch = min(hi - lo, CHUNKS)
+        for ch in prange(nch):
+            a = lo + (hi - lo) * ch // nch
+            b = lo + (hi - lo) * (ch + 1) // nch
+            _solve_range(ctx, colour_items, a, b, use_bias, inv_h, push_max)
+    _solve_range(ctx, colour_items, colour_start[ncol - 1], colour_start[ncol], use_bias, inv_h, push_max)
+
+
+@njit(cache=True, parallel=True)
+def restitution(ctx, colour_start, colour_items, threshold):
+    """Restitution pass after the substeps."""
+    ncol = colour_start.shape[0] - 1
+    for col in range(ncol - 1):
+        lo, hi = colour_start[col], colour_start[col + 1]
+        nch = min(hi - lo, CHUNKS)
+        for ch in prange(nch):
+            a = lo + (hi - lo) * ch // nch
+            b = lo + (hi - lo) * (ch + 1) // nch
+            _restitution_range(ctx, colour_items, a, b, threshold)
+    _restitution_range(ctx, colour_items, colour_start[ncol - 1], colour_start[ncol], threshold)
+
+
+@njit(cache=True)
+def colour_constraints(cons_manifold, n_cons, contact_body, body_inv_mass, body_mask, colour_of,
+                       colour_start, colour_items):
+    """Greedy colouring in constraint order: the lowest colour free at both dynamic endpoints
+    (bitmask per body); overflow colour ``MAX_COLOURS`` when none is free. Then a counting sort
+    (stable) into ``colour_items`` with CSR ``colour_start (MAX_COLOURS + 2,)``."""
+    body_mask[:] = 0
+    ncol = colour_start.shape[0] - 1
+    for c in range(n_cons):
+        i = cons_manifold[c]
+        ba, bb = contact_body[i, 0], contact_body[i, 1]
+        da = ba >= 0 and body_inv_mass[ba] > 0.0
+        db = bb >= 0 and body_inv_mass[bb] > 0.0
+        used = np.uint64(0)
+        if da:
+            used |= body_mask[ba]
+        if db:
+            used |= body_mask[bb]
+        col = ncol - 1
+        for k in range(ncol - 1):
+            if (used >> np.uint64(k)) & np.uint64(1) == 0:
+                col = k
+                break
+        colour_of[c] = col
+        if col < ncol - 1:
+            bit = np.uint64(1) << np.uint64(col)
+            if da:
+                body_mask[ba] |= bit
+            if db:
+                body_mask[bb] |= bit
+    colour_start[:] = 0
+    for c in range(n_cons):
+        colour_start[colour_of[c] + 1] += 1
+    for k in range(ncol):
+        colour_start[k + 1] += colour_start[k]
+    fill = colour_start[:ncol].copy()
+    for c in range(n_cons):
+        col = colour_of[c]
+        colour_items[fill[col]] = c
+        fill[col] += 1
+
+
+def serial_versions():
+    """The serial twins of the parallel stage kernels (same code and order; prange runs as range)."""
+    return dict(integrate_velocities=serial_twin(integrate_velocities),
+                integrate_positions=serial_twin(integrate_positions),
+                world_inverse_inertia=serial_twin(world_inverse_inertia),
+                prepare_contacts=serial_twin(prepare_contacts),
+                warm_start=serial_twin(warm_start), solve_contacts=serial_twin(solve_contacts),
+                restitution=serial_twin(restitution))

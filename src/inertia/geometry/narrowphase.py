@@ -1,0 +1,715 @@
+"""Narrow phase: closed-form contact manifolds (up to four points, with feature keys) per candidate pair.
+
+Stage ``narrow_phase`` (read -> write): candidate pairs, shape world poses, body velocities ->
+`inertia.dynamics.contacts.Contacts` rows (``contact_point_count``, normal A->B, points midway between
+the surfaces, separations, feature keys, combined material, tangent basis). Manifold ``i`` belongs to
+pair ``i``; each iteration writes only its own row, so the parallel loop is deterministic.
+
+Speculative contacts (continuous collision): a pair keeps every point whose gap is below
+``max(margin_a, margin_b) + dt * (|v_b - v_a| + |w_a| r_a + |w_b| r_b)`` -- the distance the bodies can
+close in one step -- and the solver lets the gap close to zero but not beyond (Catto 2024, "soft step"
+speculative contacts). A fast sphere therefore stops at a thin wall instead of passing it.
+
+Pairs (A has the lower type code): sphere-sphere, sphere-box, sphere-capsule, sphere-plane, box-box,
+box-capsule, box-plane, capsule-capsule, capsule-plane, cylinder-plane, hull-plane.
+Box-box is the separating-axis test over the 15 axes with a hysteresis that prefers faces to edges,
+reference/incident face clipping (Sutherland-Hodgman), and reduction to four points (deepest point,
+farthest point, largest triangle, largest quad) after Gregorius (2015).
+
+References
+- Gregorius, D. (2013). The separating axis test between convex polyhedra. GDC.
+- Gregorius, D. (2015). Robust contact creation for physics simulations. GDC.
+- Catto, E. (2024). Solver2D / Box2D v3: speculative contacts, feature ids for warm starting.
+- Ericson, C. (2005). Real-Time Collision Detection, 5.1.9 (closest points of two segments).
+
+Limitations
+- Box-capsule uses the two end spheres and the segment point closest to the box (found by alternating
+  projection); a capsule whose segment passes through the box's interior gets the end points only.
+- Pairs with cylinders or hulls other than against planes, and triangle meshes/heightfields, are not
+  collided yet (no points): they need GJK/EPA from ``inertia.geometry.convex``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from . import shapes as S
+from ._tup import add, cross, dot, madd, norm, orthonormal_basis, qrot, qrot_inv, scale, sub
+
+__all__ = ["narrow_phase", "match_warm_start"]
+
+_inl = njit(inline="always")
+
+
+@_inl
+def _emit(ca, i, k, p, sep, feature):
+    ca.contact_point[i, k, 0] = p[0]
+    ca.contact_point[i, k, 1] = p[1]
+    ca.contact_point[i, k, 2] = p[2]
+    ca.contact_separation[i, k] = sep
+    ca.contact_feature[i, k] = feature
+
+
+@_inl
+def _set_normal(ca, i, n):
+    ca.contact_normal[i, 0] = n[0]
+    ca.contact_normal[i, 1] = n[1]
+    ca.contact_normal[i, 2] = n[2]
+
+
+@_inl
+def _pose(pose, s):
+    r = pose[s]
+    return (r[0], r[1], r[2]), (r[3], r[4], r[5], r[6])
+
+
+# ------------------------------------------------------------------------------------------- spheres
+@njit(cache=True)
+def _sphere_sphere(ca, i, ca_, ra, cb, rb, spec):
+    d = sub(cb, ca_)
+    dist = norm(d)
+    sep = dist - ra - rb
+    if sep > spec:
+        return 0
+    n = scale(d, 1.0 / dist) if dist > 1e-12 else (0.0, 0.0, 1.0)
+    _set_normal(ca, i, n)
+    # midway between the two surface points
+    p = madd(ca_, n, ra + 0.5 * sep)
+    _emit(ca, i, 0, p, sep, 0)
+    return 1
+
+
+@njit(cache=True)
+def _sphere_plane(ca, i, c, r, pp, pq, spec):
+    n = qrot(pq, (0.0, 0.0, 1.0))
+    sep = dot(sub(c, pp), n) - r
+    if sep > spec:
+        return 0
+    _set_normal(ca, i, scale(n, -1.0))
+    _emit(ca, i, 0, madd(c, n, -(r + 0.5 * sep)), sep, 0)
+    return 1
+
+
+@njit(cache=True)
+def _sphere_box(ca, i, c, r, pb, qb, h, spec):
+    # sphere centre in the box frame; closest box point by clamping
+    lc = qrot_inv(qb, sub(c, pb))
+    cl = (min(max(lc[0], -h[0]), h[0]), min(max(lc[1], -h[1]), h[1]), min(max(lc[2], -h[2]), h[2]))
+    d = sub(lc, cl)
+    dist = norm(d)
+    if dist > 1e-12:
+        sep = dist - r
+        if sep > spec:
+            return 0
+        nl = scale(d, 1.0 / dist)                          # box -> sphere, box frame
+        feature = 0
+    else:
+        # centre inside: leave through the nearest face
+        best, axis, sgn = 1e300, 0, 1.0
+        for k in range(3):
+            gap = h[k] - abs(lc[k])
+            if gap < best:
+                best, axis = gap, k
+                sgn = 1.0 if lc[k] >= 0 else -1.0
+        nl = (sgn if axis == 0 else 0.0, sgn if axis == 1 else 0.0, sgn if axis == 2 else 0.0)
+        sep = -best - r
+        cl = (lc[0] + nl[0] * best, lc[1] + nl[1] * best, lc[2] + nl[2] * best)
+        feature = 1 + axis
+    nw = qrot(qb, nl)
+    surf_box = add(pb, qrot(qb, cl))
+    _set_normal(ca, i, scale(nw, -1.0))                    # A = sphere -> B = box
+    _emit(ca, i, 0, madd(surf_box, nw, 0.5 * sep), sep, feature)
+    return 1
+
+
+@_inl
+def _segment_point(c, u, h, p):
+    """Closest point to p on the segment c + s u, |s| <= h."""
+    s = min(max(dot(sub(p, c), u), -h), h)
+    return madd(c, u, s)
+
+
+@njit(cache=True)
+def _sphere_capsule(ca, i, c, r, pc, qc, rc, hc, spec):
+    u = qrot(qc, (0.0, 0.0, 1.0))
+    q = _segment_point(pc, u, hc, c)
+    return _sphere_sphere(ca, i, c, r, q, rc, spec)
+
+
+# ------------------------------------------------------------------------------------------ capsules
+@_inl
+def _segments_closest(c1, u1, h1, c2, u2, h2):
+    """Parameters (s, t) of the closest points c1 + s u1, c2 + t u2 (unit directions, |s|<=h1, |t|<=h2)."""
+    r = sub(c1, c2)
+    b = dot(u1, u2)
+    c = dot(u1, r)
+    f = dot(u2, r)
+    denom = 1.0 - b * b
+    s = 0.0
+    if denom > 1e-12:
+        s = min(max((b * f - c) / denom, -h1), h1)
+    t = f + b * s
+    if t < -h2 or t > h2:
+        t = min(max(t, -h2), h2)
+        s = min(max(b * t - c, -h1), h1)
+    return s, t
+
+
+@njit(cache=True)
+def _capsule_capsule(ca, i, pa, qa, ra, ha, pb, qb, rb, hb, spec):
+    ua = qrot(qa, (0.0, 0.0, 1.0))
+    ub = qrot(qb, (0.0, 0.0, 1.0))
+    b = dot(ua, ub)
+    if abs(b) > 0.999:
+        # near-parallel: overlap interval of B's segment projected on A's gives two points
+        s0 = dot(sub(pb, pa), ua)
+        lo = max(-ha, s0 - hb * abs(b))
+        hi = min(ha, s0 + hb * abs(b))
+        perp = sub(sub(pb, pa), scale(ua, s0))
+        pn = norm(perp)
+        if hi - lo > 1e-6 * (ha + hb) and pn > 1e-9:
+            n = scale(perp, 1.0 / pn)
+            cnt = 0
+            for k in range(2):
+                s = lo if k == 0 else hi
+                p1 = madd(pa, ua, s)
+                p2 = _segment_point(pb, ub, hb, p1)
+                sep = dot(sub(p2, p1), n) - ra - rb
+                if sep <= spec:
+                    _emit(ca, i, cnt, madd(p1, n, ra + 0.5 * sep), sep, k)
+                    cnt += 1
+            if cnt > 0:
+                _set_normal(ca, i, n)
+            return cnt
+    s, t = _segments_closest(pa, ua, ha, pb, ub, hb)
+    return _sphere_sphere(ca, i, madd(pa, ua, s), ra, madd(pb, ub, t), rb, spec)
+
+
+@njit(cache=True)
+def _capsule_plane(ca, i, pc, qc, r, h, pp, pq, spec):
+    u = qrot(qc, (0.0, 0.0, 1.0))
+    n = qrot(pq, (0.0, 0.0, 1.0))
+    cnt = 0
+    for k in range(2):
+        e = madd(pc, u, h if k == 0 else -h)
+        sep = dot(sub(e, pp), n) - r
+        if sep <= spec:
+            _emit(ca, i, cnt, madd(e, n, -(r + 0.5 * sep)), sep, k)
+            cnt += 1
+    if cnt > 0:
+        _set_normal(ca, i, scale(n, -1.0))
+    return cnt
+
+
+@_inl
+def _box_support(pb, ax, ay, az, h, n):
+    """max over the box of dot(x, n)."""
+    return dot(pb, n) + h[0] * abs(dot(ax, n)) + h[1] * abs(dot(ay, n)) + h[2] * abs(dot(az, n))
+
+
+@njit(cache=True)
+def _box_capsule(ca, i, pb, qb, h, pc, qc, r, hc, spec):
+    """A = box, B = capsule."""
+    u = qrot(qc, (0.0, 0.0, 1.0))
+    # candidate segment points: both ends, and the point closest to the box (alternating projection)
+    x = pc
+    for _ in range(8):
+        lc = qrot_inv(qb, sub(x, pb))
+        cl = (min(max(lc[0], -h[0]), h[0]), min(max(lc[1], -h[1]), h[1]), min(max(lc[2], -h[2]), h[2]))
+        x = _segment_point(pc, u, hc, add(pb, qrot(qb, cl)))
+    cands = (madd(pc, u, hc), madd(pc, u, -hc), x)
+    # the manifold normal: that of the candidate sphere with the smallest gap
+    best_sep, best_n = 1e300, (0.0, 0.0, 1.0)
+    for k in range(3):
+        c = cands[k]
+        lc = qrot_inv(qb, sub(c, pb))
+        cl = (min(max(lc[0], -h[0]), h[0]), min(max(lc[1], -h[1]), h[1]), min(max(lc[2], -h[2]), h[2]))
+        d = sub(lc, cl)
+        dist = norm(d)
+        if dist > 1e-12:
+            sep, nl = dist - r, scale(d, 1.0 / dist)
+        else:
+            best_gap, axis, sgn = 1e300, 0, 1.0
+            for a in range(3):
+                gap = h[a] - abs(lc[a])
+                if gap < best_gap:
+                    best_gap, axis = gap, a
+                    sgn = 1.0 if lc[a] >= 0 else -1.0
+            nl = (sgn if axis == 0 else 0.0, sgn if axis == 1 else 0.0, sgn if axis == 2 else 0.0)
+            sep = -best_gap - r
+        if sep < best_sep:
+            best_sep, best_n = sep, qrot(qb, nl)
+    if best_sep > spec:
+        return 0
+    n = best_n
+    ax = qrot(qb, (1.0, 0.0, 0.0))
+    ay = qrot(qb, (0.0, 1.0, 0.0))
+    az = qrot(qb, (0.0, 0.0, 1.0))
+    top = _box_support(pb, ax, ay, az, h, n)
+    cnt = 0
+    for k in range(2):
+        e = cands[k]
+        sep = dot(e, n) - r - top
+        if sep <= spec:
+            _emit(ca, i, cnt, madd(e, n, -(r + 0.5 * sep)), sep, k)
+            cnt += 1
+    if cnt == 0:
+        e = cands[2]
+        sep = dot(e, n) - r - top
+        _emit(ca, i, 0, madd(e, n, -(r + 0.5 * sep)), sep, 2)
+        cnt = 1
+    _set_normal(ca, i, n)
+    return cnt
+
+
+# ----------------------------------------------------------------------------- four-point reduction
+@njit(cache=True)
+def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
+    """Keep at most four of ``n_in`` candidate points: the deepest, the farthest from it, then the two
+    that add the most area (Gregorius 2015), in that order."""
+    if n_in <= 4:
+        for k in range(n_in):
+            _emit(ca, i, k, (pts[k, 0], pts[k, 1], pts[k, 2]), seps[k], feats[k])
+        return n_in
+    chosen = np.full(4, -1, np.int64)
+    best = 0
+    for k in range(1, n_in):
+        if seps[k] < seps[best]:
+            best = k
+    chosen[0] = best
+    p0 = (pts[best, 0], pts[best, 1], pts[best, 2])
+    far, far_d = -1, -1.0
+    for k in range(n_in):
+        d = sub((pts[k, 0], pts[k, 1], pts[k, 2]), p0)
+        dd = dot(d, d)
+        if k != best and dd > far_d:
+            far, far_d = k, dd
+    chosen[1] = far
+    p1 = (pts[far, 0], pts[far, 1], pts[far, 2])
+    third, third_a = -1, -1e300
+    for k in range(n_in):
+        if k == best or k == far:
+            continue
+        pk = (pts[k, 0], pts[k, 1], pts[k, 2])
+        a = dot(cross(sub(p1, p0), sub(pk, p0)), normal)
+        if abs(a) > third_a:
+            third, third_a = k, abs(a)
+    chosen[2] = third
+    p2 = (pts[third, 0], pts[third, 1], pts[third, 2])
+    # orient the triangle, then the point most outside one of its edges
+    sgn = 1.0 if dot(cross(sub(p1, p0), sub(p2, p0)), normal) >= 0 else -1.0
+    fourth, fourth_a = -1, 0.0
+    for k in range(n_in):
+        if k == best or k == far or k == third:
+            continue
+        pk = (pts[k, 0], pts[k, 1], pts[k, 2])
+        a0 = sgn * dot(cross(sub(p1, p0), sub(pk, p0)), normal)
+        a1 = sgn * dot(cross(sub(p2, p1), sub(pk, p1)), normal)
+        a2 = sgn * dot(cross(sub(p0, p2), sub(pk, p2)), normal)
+        a = min(a0, min(a1, a2))
+        if a < fourth_a:
+            fourth, fourth_a = k, a
+    cnt = 0
+    for c in range(4):
+        k = chosen[c] if c < 3 else fourth
+        if k < 0:
+            continue
+        _emit(ca, i, cnt, (pts[k, 0], pts[k, 1], pts[k, 2]), seps[k], feats[k])
+        cnt += 1
+    return cnt
+
+
+# ---------------------------------------------------------------------------------------- box-plane
+@njit(cache=True)
+def _box_plane(ca, i, pb, qb, h, pp, pq, spec):
+    n = qrot(pq, (0.0, 0.0, 1.0))
+    pts = np.empty((8, 3))
+    seps = np.empty(8)
+    feats = np.empty(8, np.int64)
+    cnt = 0
+    for v in range(8):
+        lv = (h[0] if v & 1 else -h[0], h[1] if v & 2 else -h[1], h[2] if v & 4 else -h[2])
+        w = add(pb, qrot(qb, lv))
+        sep = dot(sub(w, pp), n)
+        if sep <= spec:
+            p = madd(w, n, -0.5 * sep)
+            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = p
+            seps[cnt] = sep
+            feats[cnt] = v
+            cnt += 1
+    normal = scale(n, -1.0)
+    if cnt > 0:
+        _set_normal(ca, i, normal)
+    return _reduce_and_emit(ca, i, pts, seps, feats, cnt, normal)
+
+
+# -------------------------------------------------------------------------------------- cylinder/hull
+@njit(cache=True)
+def _cylinder_plane(ca, i, pc, qc, r, h, pp, pq, spec):
+    n = qrot(pq, (0.0, 0.0, 1.0))
+    u = qrot(qc, (0.0, 0.0, 1.0))
+    pts = np.empty((8, 3))
+    seps = np.empty(8)
+    feats = np.empty(8, np.int64)
+    cnt = 0
+    # rim direction of each cap pointing most into the plane: -n with its axial part removed
+    m = madd(scale(n, -1.0), u, dot(n, u))
+    mn = norm(m)
+    if mn < 1e-3:
+        # cap flat on the plane: four rim points of each cap along the cylinder's own x, y axes
+        ex = qrot(qc, (1.0, 0.0, 0.0))
+        ey = qrot(qc, (0.0, 1.0, 0.0))
+        for cap in range(2):
+            cc = madd(pc, u, h if cap == 0 else -h)
+            for k in range(4):
+                d = ex if k < 2 else ey
+                w = madd(cc, d, r if k % 2 == 0 else -r)
+                sep = dot(sub(w, pp), n)
+                if sep <= spec:
+                    p = madd(w, n, -0.5 * sep)
+                    pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = p
+                    seps[cnt] = sep
+                    feats[cnt] = cap * 4 + k
+                    cnt += 1
+    else:
+        m = scale(m, 1.0 / mn)
+        for cap in range(2):
+            w = madd(madd(pc, u, h if cap == 0 else -h), m, r)
+            sep = dot(sub(w, pp), n)
+            if sep <= spec:
+                p = madd(w, n, -0.5 * sep)
+                pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = p
+                seps[cnt] = sep
+                feats[cnt] = 8 + cap
+                cnt += 1
+    normal = scale(n, -1.0)
+    if cnt > 0:
+        _set_normal(ca, i, normal)
+    return _reduce_and_emit(ca, i, pts, seps, feats, cnt, normal)
+
+
+@njit(cache=True)
+def _hull_plane(ca, i, ph, qh, verts, v0, nv, pp, pq, spec):
+    n = qrot(pq, (0.0, 0.0, 1.0))
+    pts = np.empty((nv, 3))
+    seps = np.empty(nv)
+    feats = np.empty(nv, np.int64)
+    cnt = 0
+    for k in range(nv):
+        v = verts[v0 + k]
+        w = add(ph, qrot(qh, (v[0], v[1], v[2])))
+        sep = dot(sub(w, pp), n)
+        if sep <= spec:
+            p = madd(w, n, -0.5 * sep)
+            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = p
+            seps[cnt] = sep
+            feats[cnt] = k
+            cnt += 1
+    normal = scale(n, -1.0)
+    if cnt > 0:
+        _set_normal(ca, i, normal)
+    return _reduce_and_emit(ca, i, pts, seps, feats, cnt, normal)
+
+
+# ------------------------------------------------------------------------------------------- box-box
+@njit(cache=True)
+def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, spec, ref_is_a, code):
+    """Clip the incident box's face most opposed to ``n`` (reference -> incident) against the side
+    planes of the reference face ``k`` and keep the points within ``spec`` of the reference plane."""
+    cf = madd(ref_p, n, ref_h[k])
+    k1, k2 = (k + 1) % 3, (k + 2) % 3
+    u, v = ref_ax[k1], ref_ax[k2]
+    hu, hv = ref_h[k1], ref_h[k2]
+    # incident face: the face whose outward normal is most anti-parallel to n
+    j, best = 0, -1.0
+    for a in range(3):
+        d = abs(dot(n, inc_ax[a]))
+        if d > best:
+            best, j = d, a
+    sj = -1.0 if dot(n, inc_ax[j]) > 0 else 1.0
+    ci = madd(inc_p, inc_ax[j], sj * inc_h[j])
+    e1, e2 = inc_ax[(j + 1) % 3], inc_ax[(j + 2) % 3]
+    h1, h2 = inc_h[(j + 1) % 3], inc_h[(j + 2) % 3]
+    # polygon in reference-face coordinates (x along u, y along v, z along n) + feature ids
+    poly = np.empty((16, 4))
+    tmp = np.empty((16, 4))
+    for c in range(4):
+        s1 = 1.0 if (c == 0 or c == 3) else -1.0
+        s2 = 1.0 if c < 2 else -1.0
+        w = sub(madd(madd(ci, e1, s1 * h1), e2, s2 * h2), cf)
+        poly[c, 0], poly[c, 1], poly[c, 2], poly[c, 3] = dot(w, u), dot(w, v), dot(w, n), c
+    count = 4
+    for plane in range(4):
+        ax = 0 if plane < 2 else 1
+        sg = 1.0 if plane % 2 == 0 else -1.0
+        lim = hu if ax == 0 else hv
+        out = 0
+        for c in range(count):
+            d = (c + 1) % count
+            dp = sg * poly[c, ax] - lim
+            dq = sg * poly[d, ax] - lim
+            if dp <= 0.0:
+                for m in range(4):
+                    tmp[out, m] = poly[c, m]
+                out += 1
+            if (dp < 0.0 and dq > 0.0) or (dp > 0.0 and dq < 0.0):
+                t = dp / (dp - dq)
+                for m in range(3):
+                    tmp[out, m] = poly[c, m] + t * (poly[d, m] - poly[c, m])
+                tmp[out, 3] = 8 * (plane + 1) + (int(poly[c, 3]) & 7)
+                out += 1
+        count = out
+        for c in range(count):
+            for m in range(4):
+                poly[c, m] = tmp[c, m]
+        if count == 0:
+            return 0
+    pts = np.empty((16, 3))
+    seps = np.empty(16)
+    feats = np.empty(16, np.int64)
+    cnt = 0
+    for c in range(count):
+        z = poly[c, 2]
+        if z <= spec:
+            p = madd(madd(madd(cf, u, poly[c, 0]), v, poly[c, 1]), n, 0.5 * z)
+            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = p
+            seps[cnt] = z
+            feats[cnt] = ((code * 6 + j * 2 + (1 if sj > 0 else 0)) << 8) + int(poly[c, 3])
+            cnt += 1
+    if cnt == 0:
+        return 0
+    normal = n if ref_is_a else scale(n, -1.0)
+    _set_normal(ca, i, normal)
+    return _reduce_and_emit(ca, i, pts, seps, feats, cnt, normal)
+
+
+@njit(cache=True)
+def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec):
+    A = (qrot(qa, (1.0, 0.0, 0.0)), qrot(qa, (0.0, 1.0, 0.0)), qrot(qa, (0.0, 0.0, 1.0)))
+    B = (qrot(qb, (1.0, 0.0, 0.0)), qrot(qb, (0.0, 1.0, 0.0)), qrot(qb, (0.0, 0.0, 1.0)))
+    d = sub(pb, pa)
+    # face axes of A and of B
+    sa, ka = -1e300, 0
+    for k in range(3):
+        s = abs(dot(d, A[k])) - (ha[k] + hb[0] * abs(dot(A[k], B[0])) + hb[1] * abs(dot(A[k], B[1]))
+                                 + hb[2] * abs(dot(A[k], B[2])))
+        if s > spec:
+            return 0
+        if s > sa:
+            sa, ka = s, k
+    sb, kb = -1e300, 0
+    for k in range(3):
+        s = abs(dot(d, B[k])) - (hb[k] + ha[0] * abs(dot(B[k], A[0])) + ha[1] * abs(dot(B[k], A[1]))
+                                 + ha[2] * abs(dot(B[k], A[2])))
+        if s > spec:
+            return 0
+        if s > sb:
+            sb, kb = s, k
+    # edge-edge axes
+    se, ie, je = -1e300, -1, -1
+    ne = (0.0, 0.0, 1.0)
+    for a in range(3):
+        for b in range(3):
+            c = cross(A[a], B[b])
+            ln = norm(c)
+            if ln < 1e-6:
+                continue
+            c = scale(c, 1.0 / ln)
+            s = abs(dot(d, c)) - (ha[0] * abs(dot(A[0], c)) + ha[1] * abs(dot(A[1], c)) + ha[2] * abs(dot(A[2], c))
+                                  + hb[0] * abs(dot(B[0], c)) + hb[1] * abs(dot(B[1], c)) + hb[2] * abs(dot(B[2], c)))
+            if s > spec:
+                return 0
+            if s > se:
+                se, ie, je, ne = s, a, b, c
+    # hysteresis: faces of A, then faces of B, then edges, each only when clearly better
+    scale_len = min(min(ha[0], ha[1]), min(ha[2], min(hb[0], min(hb[1], hb[2]))))
+    tol = 0.005 * scale_len
+    use_b = sb > sa + tol
+    face_sep = sb if use_b else sa
+    if ie >= 0 and se > face_sep + 2.0 * tol:
+        # edge-edge: closest points of the two edges nearest each other along n (A -> B)
+        if dot(d, ne) < 0:
+            ne = scale(ne, -1.0)
+        ca_ = pa
+        for k in range(3):
+            if k != ie:
+                ca_ = madd(ca_, A[k], ha[k] if dot(ne, A[k]) > 0 else -ha[k])
+        cb_ = pb
+        for k in range(3):
+            if k != je:
+                cb_ = madd(cb_, B[k], -hb[k] if dot(ne, B[k]) > 0 else hb[k])
+        s, t = _segments_closest(ca_, A[ie], ha[ie], cb_, B[je], hb[je])
+        p1 = madd(ca_, A[ie], s)
+        p2 = madd(cb_, B[je], t)
+        sep = dot(sub(p2, p1), ne)
+        if sep > spec:
+            return 0
+        _set_normal(ca, i, ne)
+        _emit(ca, i, 0, scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
+        return 1
+    if use_b:
+        n = B[kb] if dot(d, B[kb]) < 0 else scale(B[kb], -1.0)      # B -> A
+        return _box_face_manifold(ca, i, pb, B, hb, kb, n, pa, A, ha, spec, False, 3 + kb)
+    n = A[ka] if dot(d, A[ka]) > 0 else scale(A[ka], -1.0)          # A -> B
+    return _box_face_manifold(ca, i, pa, A, ha, ka, n, pb, B, hb, spec, True, ka)
+
+
+# ------------------------------------------------------------------------------------------ dispatch
+@njit(cache=True)
+def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
+    pa, qa = _pose(pose, sa)
+    pb, qb = _pose(pose, sb)
+    A = shapes.shape_params[sa]
+    B = shapes.shape_params[sb]
+    if ta == S.SPHERE:
+        if tb == S.SPHERE:
+            return _sphere_sphere(ca, i, pa, A[0], pb, B[0], spec)
+        if tb == S.BOX:
+            return _sphere_box(ca, i, pa, A[0], pb, qb, (B[0], B[1], B[2]), spec)
+        if tb == S.CAPSULE:
+            return _sphere_capsule(ca, i, pa, A[0], pb, qb, B[0], B[1], spec)
+        if tb == S.PLANE:
+            return _sphere_plane(ca, i, pa, A[0], pb, qb, spec)
+    elif ta == S.BOX:
+        if tb == S.BOX:
+            return _box_box(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec)
+        if tb == S.CAPSULE:
+            return _box_capsule(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, B[0], B[1], spec)
+        if tb == S.PLANE:
+            return _box_plane(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec)
+    elif ta == S.CAPSULE:
+        if tb == S.CAPSULE:
+            return _capsule_capsule(ca, i, pa, qa, A[0], A[1], pb, qb, B[0], B[1], spec)
+        if tb == S.PLANE:
+            return _capsule_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec)
+    elif ta == S.CYLINDER:
+        if tb == S.PLANE:
+            return _cylinder_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec)
+    elif ta == S.CONVEX_HULL:
+        if tb == S.PLANE:
+            return _hull_plane(ca, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
+                               shapes.shape_vert_count[sa], pb, qb, spec)
+    return 0
+
+
+@njit(inline="always")
+def _body_speed(b, body_qd, radius):
+    if b < 0:
+        return (0.0, 0.0, 0.0), 0.0
+    qd = body_qd[b]
+    w = math.sqrt(qd[0] * qd[0] + qd[1] * qd[1] + qd[2] * qd[2])
+    return (qd[3], qd[4], qd[5]), w * radius[b]
+
+
+@njit(inline="always")
+def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    sa, sb = pairs[i, 0], pairs[i, 1]
+    ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
+    ca.contact_shape[i, 0] = sa
+    ca.contact_shape[i, 1] = sb
+    ca.contact_body[i, 0] = ba
+    ca.contact_body[i, 1] = bb
+    ca.contact_key[i] = keys[i]
+    ca.contact_friction[i] = math.sqrt(shapes.shape_friction[sa] * shapes.shape_friction[sb])
+    ca.contact_restitution[i] = max(shapes.shape_restitution[sa], shapes.shape_restitution[sb])
+    ca.contact_rolling_friction[i] = max(shapes.shape_rolling_friction[sa],
+                                         shapes.shape_rolling_friction[sb])
+    ca.contact_is_sensor[i] = shapes.shape_is_sensor[sa] or shapes.shape_is_sensor[sb]
+    # speculative distance: what the pair can close within the step
+    va, wa = _body_speed(ba, body_qd, body_bound_radius)
+    vb, wb = _body_speed(bb, body_qd, body_bound_radius)
+    spec = max(shapes.shape_margin[sa], shapes.shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
+    cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec)
+    ca.contact_point_count[i] = cnt
+    n = (ca.contact_normal[i, 0], ca.contact_normal[i, 1], ca.contact_normal[i, 2])
+    t1, t2 = orthonormal_basis(n)
+    for m in range(3):
+        ca.contact_tangent[i, 0, m] = t1[m]
+        ca.contact_tangent[i, 1, m] = t2[m]
+        ca.contact_rolling_impulse[i, m] = 0.0
+    for k in range(4):
+        ca.contact_normal_impulse[i, k] = 0.0
+        ca.contact_tangent_impulse[i, k, 0] = 0.0
+        ca.contact_tangent_impulse[i, k, 1] = 0.0
+        ca.contact_max_normal_impulse[i, k] = 0.0
+        ca.contact_total_normal_impulse[i, k] = 0.0
+
+
+@njit(cache=True)
+def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    for i in range(lo, hi):
+        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca)
+
+
+@njit(cache=True, parallel=True)
+def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring)."""
+    # contiguous runs of pairs, one call each (passing the bundles costs once per run, not per pair)
+    nch = min(npairs, 16)
+    for ch in prange(nch):
+        _narrow_range(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, keys, shapes, pose, body_qd,
+                      body_bound_radius, dt, ca)
+
+
+@njit(cache=True)
+def compact_active(ca, npairs):
+    """Scan: indices of manifolds with points, in pair order. Returns their count."""
+    n = 0
+    for i in range(npairs):
+        if ca.contact_point_count[i] > 0:
+            ca.active[n] = i
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def match_warm_start(prev, prev_count, cur, cur_count, match_distance):
+    """Copy the previous step's impulses onto this step's points of the same pair (both lists sorted by
+    key: a linear merge). A point takes the impulse of the previous point with the same feature key,
+    else of the nearest previous point within ``match_distance`` (m) -- clipping can rename a corner
+    when a face tilts past a side plane or the reference face swaps, and losing its impulse would make
+    a stack jitter. Tangent impulses are re-projected on the new tangent basis."""
+    j = 0
+    md2 = match_distance * match_distance
+    for i in range(cur_count):
+        key = cur.contact_key[i]
+        while j < prev_count and prev.contact_key[j] < key:
+            j += 1
+        if j >= prev_count:
+            break
+        if prev.contact_key[j] != key or cur.contact_point_count[i] == 0:
+            continue
+        for m in range(3):
+            cur.contact_rolling_impulse[i, m] = prev.contact_rolling_impulse[j, m]
+        for k in range(cur.contact_point_count[i]):
+            f = cur.contact_feature[i, k]
+            found = -1
+            for kp in range(prev.contact_point_count[j]):
+                if prev.contact_feature[j, kp] == f:
+                    found = kp
+                    break
+            if found < 0:
+                best = md2
+                for kp in range(prev.contact_point_count[j]):
+                    d2 = 0.0
+                    for m in range(3):
+                        d = cur.contact_point[i, k, m] - prev.contact_point[j, kp, m]
+                        d2 += d * d
+                    if d2 < best:
+                        best, found = d2, kp
+            if found < 0:
+                continue
+            kp = found
+            cur.contact_normal_impulse[i, k] = prev.contact_normal_impulse[j, kp]
+            # old tangent impulse vector, expressed in the new tangent basis
+            g0 = prev.contact_tangent_impulse[j, kp, 0]
+            g1 = prev.contact_tangent_impulse[j, kp, 1]
+            for ax in range(2):
+                acc = 0.0
+                for m in range(3):
+                    acc += (g0 * prev.contact_tangent[j, 0, m] + g1 * prev.contact_tangent[j, 1, m]) \
+                        * cur.contact_tangent[i, ax, m]
+                cur.contact_tangent_impulse[i, k, ax] = acc

@@ -1,0 +1,46 @@
+"""The shape table's type codes and the per-type parameter layout (one table for every system).
+
+Every collision shape is one row of the Model's shape table (see ``inertia.model``):
+
+============== ===== ===================================================================
+type            code  ``shape_params`` columns (metres)
+============== ===== ===================================================================
+SPHERE          0     radius
+BOX             1     half extents hx, hy, hz
+CAPSULE         2     radius, half length of the core segment along local z
+CYLINDER        3     radius, half height along local z
+CONVEX_HULL     4     unused (vertices in ``geom_vertices`` by ``shape_vert_start/count``)
+TRIANGLE_MESH   5     unused (static only; not yet collided by the rigid narrow phase)
+PLANE           6     unused: the plane is the local z = 0 plane, normal +z, solid z <= 0
+HEIGHTFIELD     7     reserved (not yet supported)
+============== ===== ===================================================================
+
+Shape poses are given in the owning body's frame (centre of mass, principal axes); ``shape_body``
+is -1 for static world geometry.
+"""
+
+from __future__ import annotations
+
+SPHERE = 0
+BOX = 1
+CAPSULE = 2
+CYLINDER = 3
+CONVEX_HULL = 4
+TRIANGLE_MESH = 5
+PLANE = 6
+HEIGHTFIELD = 7
+
+SHAPE_NAMES = {
+    "sphere": SPHERE, "box": BOX, "capsule": CAPSULE, "cylinder": CYLINDER,
+    "convex_hull": CONVEX_HULL, "triangle_mesh": TRIANGLE_MESH, "plane": PLANE,
+    "heightfield": HEIGHTFIELD,
+}
+
+#: body motion types (``body_type`` column of the Model)
+DYNAMIC = 0
+KINEMATIC = 1
+STATIC = 2
+BODY_TYPE_NAMES = {"dynamic": DYNAMIC, "kinematic": KINEMATIC, "static": STATIC}
+
+__all__ = ["SPHERE", "BOX", "CAPSULE", "CYLINDER", "CONVEX_HULL", "TRIANGLE_MESH", "PLANE",
+           "HEIGHTFIELD", "SHAPE_NAMES", "DYNAMIC", "KINEMATIC", "STATIC", "BODY_TYPE_NAMES"]

@@ -1,0 +1,197 @@
+"""Narrow-phase manifolds against closed-form separations, normals and contact points."""
+
+import math
+
+import numpy as np
+import pytest
+
+from inertia.dynamics.contacts import Contacts
+from inertia.geometry.broadphase import shape_world_bounds, sort_and_sweep
+from inertia.geometry.narrowphase import compact_active, narrow_phase
+from inertia.model import ModelBuilder
+
+
+def _manifolds(builder, dt=1.0 / 60.0):
+    """Run broad and narrow phase once on the builder's scene; returns the Contacts and the model."""
+    m = builder.finalize()
+    st = m.state()
+    ns = m.shape_count
+    pose, aabb = np.zeros((ns, 7)), np.zeros((ns, 6))
+    shapes = m.shapes()
+    shape_world_bounds(shapes, m.body_type, m.body_bound_radius, st.body_q, st.body_qd, dt, pose, aabb)
+    pairs, keys = np.zeros((64, 2), np.int32), np.zeros(64, np.int64)
+    n = sort_and_sweep(aabb, shapes, m.body_type, st.body_awake, np.zeros(ns, np.int64), keys, pairs)
+    c = Contacts(64)
+    narrow_phase(pairs, keys, n, shapes, pose, st.body_qd, m.body_bound_radius, dt, c.arrays())
+    c.count = n
+    c.active_count = compact_active(c.arrays(), n)
+    return c, m
+
+
+def _only(c):
+    act = c.manifolds()
+    assert len(act) == 1
+    i = act[0]
+    k = c.contact_point_count[i]
+    return c.contact_normal[i], c.contact_point[i, :k], c.contact_separation[i, :k], c.contact_feature[i, :k]
+
+
+def _rot(axis, angle):
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    return (math.cos(angle / 2), *(axis * math.sin(angle / 2)))
+
+
+def test_sphere_sphere_gap_normal_and_midpoint():
+    b = ModelBuilder(default_margin=0.5)
+    b.add_sphere(b.add_body(position=(0, 0, 0)), 0.3)
+    b.add_sphere(b.add_body(position=(1.0, 0.0, 0.0)), 0.5)
+    n, p, s, _ = _only(_manifolds(b)[0])
+    # gap = |c_b - c_a| - r_a - r_b; normal from A to B; point midway between the surfaces
+    assert s[0] == pytest.approx(0.2, abs=1e-12)
+    assert n == pytest.approx([1, 0, 0], abs=1e-12)
+    assert p[0] == pytest.approx([0.4, 0, 0], abs=1e-12)
+
+
+def test_box_resting_on_a_plane_gives_its_four_corners():
+    b = ModelBuilder()
+    b.add_plane()
+    b.add_box(b.add_body(position=(0.3, -0.2, 0.099)), (0.2, 0.1, 0.1))
+    n, p, s, f = _only(_manifolds(b)[0])
+    assert n == pytest.approx([0, 0, -1], abs=1e-12)          # box (A) -> plane (B)
+    assert s == pytest.approx([-0.001] * 4, abs=1e-12)
+    corners = sorted((round(x, 9), round(y, 9)) for x, y in p[:, :2])
+    assert corners == sorted([(0.1, -0.3), (0.5, -0.3), (0.1, -0.1), (0.5, -0.1)])
+    assert len(set(f.tolist())) == 4
+
+
+def test_tilted_box_on_plane_touches_with_its_lowest_edge():
+    b = ModelBuilder(default_margin=0.001)
+    b.add_plane()
+    # rotated 30 deg about x: the lowest edge is at z = c_z - (hy sin 30 + hz cos 30)
+    h = 0.1
+    low = h * math.sin(math.radians(30)) + h * math.cos(math.radians(30))
+    b.add_box(b.add_body(position=(0, 0, low - 0.002), orientation=_rot((1, 0, 0), math.radians(30))), (h, h, h))
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert len(s) == 2
+    assert s == pytest.approx([-0.002, -0.002], abs=1e-12)
+
+
+def test_box_on_box_face_clipping_gives_the_overlap_square():
+    b = ModelBuilder()
+    b.add_box(b.add_body(position=(0, 0, 0)), (0.5, 0.5, 0.5))
+    # a smaller box on top, rotated 45 deg about z, 1 mm into the lower one: its four bottom corners
+    # lie inside the big face, so the manifold is those corners at separation -1 mm
+    b.add_box(b.add_body(position=(0, 0, 0.5 + 0.2 - 0.001), orientation=_rot((0, 0, 1), math.pi / 4)),
+              (0.2, 0.2, 0.2))
+    n, p, s, f = _only(_manifolds(b)[0])
+    assert n == pytest.approx([0, 0, 1], abs=1e-12)
+    assert s == pytest.approx([-0.001] * 4, abs=1e-12)
+    radii = np.hypot(p[:, 0], p[:, 1])
+    assert radii == pytest.approx([0.2 * math.sqrt(2)] * 4, abs=1e-12)
+    assert p[:, 2] == pytest.approx([0.5 - 0.0005] * 4, abs=1e-12)
+
+
+def test_box_on_box_clipped_polygon_is_reduced_to_four_points():
+    b = ModelBuilder()
+    b.add_box(b.add_body(position=(0, 0, 0)), (0.3, 0.3, 0.3))
+    # same-size box rotated 45 deg about z: the overlap of the two squares is an octagon (8 points),
+    # reduced to 4 that keep the deepest point and a large area
+    b.add_box(b.add_body(position=(0, 0, 0.6 - 0.001), orientation=_rot((0, 0, 1), math.pi / 4)),
+              (0.3, 0.3, 0.3))
+    n, p, s, f = _only(_manifolds(b)[0])
+    assert len(s) == 4
+    assert s == pytest.approx([-0.001] * 4, abs=1e-12)
+    # the kept quad spans the octagon: its area is at least half the octagon's
+    octagon = 2 * (1 + math.sqrt(2)) * (0.6 * (math.sqrt(2) - 1)) ** 2
+    xy = p[:, :2]
+    c = xy.mean(axis=0)
+    order = np.argsort(np.arctan2(xy[:, 1] - c[1], xy[:, 0] - c[0]))
+    x, y = xy[order, 0], xy[order, 1]
+    area = 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1)))
+    assert area > 0.5 * octagon
+
+
+def test_box_box_edge_edge_contact():
+    b = ModelBuilder(default_margin=0.01)
+    h = 0.1
+    # two cubes each standing on an edge: A's top edge along x, B's bottom edge along y
+    qa = _rot((1, 0, 0), math.pi / 4)
+    qb = _rot((0, 1, 0), math.pi / 4)
+    d = h * math.sqrt(2)
+    b.add_box(b.add_body(position=(0, 0, 0), orientation=qa), (h, h, h))
+    b.add_box(b.add_body(position=(0, 0, 2 * d + 0.003), orientation=qb), (h, h, h))
+    n, p, s, f = _only(_manifolds(b)[0])
+    assert len(s) == 1
+    assert s[0] == pytest.approx(0.003, abs=1e-9)
+    assert n == pytest.approx([0, 0, 1], abs=1e-9)
+    assert p[0] == pytest.approx([0, 0, d + 0.0015], abs=1e-9)
+
+
+def test_sphere_inside_box_leaves_through_nearest_face():
+    b = ModelBuilder()
+    b.add_sphere(b.add_body(position=(0.25, 0, 0)), 0.1)
+    b.add_box(b.add_body(position=(0, 0, 0)), (0.3, 0.5, 0.5))
+    n, p, s, _ = _only(_manifolds(b)[0])
+    # centre 0.05 inside the +x face: depth = 0.05 + r
+    assert s[0] == pytest.approx(-0.15, abs=1e-12)
+    assert n == pytest.approx([-1, 0, 0], abs=1e-12)     # sphere (A) -> box (B)
+
+
+def test_parallel_capsules_get_two_points():
+    b = ModelBuilder()
+    r, hl = 0.05, 0.3
+    b.add_capsule(b.add_body(position=(0, 0, 0)), r, hl)
+    b.add_capsule(b.add_body(position=(0.099, 0, 0.1)), r, hl)   # overlap of the segments 0.5 long
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert len(s) == 2
+    assert s == pytest.approx([-0.001, -0.001], abs=1e-12)
+    assert sorted(p[:, 2]) == pytest.approx([-0.2, 0.3], abs=1e-12)
+
+
+def test_capsule_lying_on_a_plane_and_on_a_box():
+    b = ModelBuilder()
+    b.add_plane()
+    q = _rot((0, 1, 0), math.pi / 2)                       # segment along x
+    b.add_capsule(b.add_body(position=(0, 0, 0.049), orientation=q), 0.05, 0.2)
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert s == pytest.approx([-0.001, -0.001], abs=1e-12)
+    b = ModelBuilder()
+    b.add_box(b.add_body(position=(0, 0, 0)), (0.5, 0.5, 0.1))
+    b.add_capsule(b.add_body(position=(0, 0, 0.149), orientation=q), 0.05, 0.2)
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert n == pytest.approx([0, 0, 1], abs=1e-12)        # box (A) -> capsule (B)
+    assert s == pytest.approx([-0.001, -0.001], abs=1e-12)
+
+
+def test_cylinder_on_its_side_and_standing():
+    b = ModelBuilder()
+    b.add_plane()
+    q = _rot((1, 0, 0), math.pi / 2)
+    b.add_cylinder(b.add_body(position=(0, 0, 0.099), orientation=q), 0.1, 0.2)
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert s == pytest.approx([-0.001, -0.001], abs=1e-12)       # the two rim points of the caps
+    b = ModelBuilder()
+    b.add_plane()
+    b.add_cylinder(b.add_body(position=(0, 0, 0.199)), 0.1, 0.2)
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert len(s) == 4 and s == pytest.approx([-0.001] * 4, abs=1e-12)
+
+
+def test_hull_vertices_against_plane():
+    b = ModelBuilder()
+    b.add_plane()
+    tet = np.array([[0, 0, 0.3], [0.2, 0, -0.1], [-0.1, 0.17, -0.1], [-0.1, -0.17, -0.1]])
+    body = b.add_body(position=(0, 0, 0.098), mass=1.0, inertia=(0.01, 0.01, 0.01))
+    b.add_convex_hull(body, tet)
+    n, p, s, _ = _only(_manifolds(b)[0])
+    assert s == pytest.approx([-0.002] * 3, abs=1e-12)
+
+
+def test_speculative_distance_grows_with_speed():
+    # a sphere 0.5 m above the ground: no contact at rest, a speculative one when it falls at 60 m/s
+    for v, expect in ((0.0, 0), (60.0, 1)):
+        b = ModelBuilder()
+        b.add_plane()
+        b.add_sphere(b.add_body(position=(0, 0, 0.6), linear_velocity=(0, 0, -v)), 0.1)
+        c, _ = _manifolds(b)
+        assert len(c.manifolds()) == expect

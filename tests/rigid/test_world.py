@@ -1,0 +1,365 @@
+"""RigidWorld against closed forms: rolling, sliding, bouncing, stacking, tunnelling, determinism.
+
+Each test builds its scene inline and names the reference it checks.
+"""
+
+import hashlib
+import math
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from inertia.errors import SimulationDiverged
+from inertia.model import ModelBuilder
+from inertia.rigid.world import RigidWorld
+
+G = 9.81
+
+
+def _incline(theta, *, friction):
+    """Builder with gravity and a plane through the origin tilted by theta about y (downhill = -x)."""
+    b = ModelBuilder(gravity=(0.0, 0.0, -G))
+    b.add_plane(normal=(math.sin(theta), 0.0, math.cos(theta)), friction=friction)
+    return b
+
+
+def _roll_acceleration(body_kind, theta=math.radians(20.0), friction=1.0, t_end=1.0):
+    """Measured acceleration along the slope (from the velocity after t_end, semi-implicit Euler is
+    exact for a constant acceleration) and the angular velocity about the rolling axis."""
+    b = _incline(theta, friction=friction)
+    n = np.array([math.sin(theta), 0.0, math.cos(theta)])
+    r, m = 0.1, 2.0
+    if body_kind in ("solid_sphere", "shell"):
+        i_axis = 0.4 * m * r * r if body_kind == "solid_sphere" else 2.0 / 3.0 * m * r * r
+        body = b.add_body(position=n * r, mass=m, inertia=(i_axis, i_axis, i_axis))
+        b.add_sphere(body, r, friction=friction)
+    else:
+        # cylinder axis along world y: rotate local z onto y
+        i_axis = 0.5 * m * r * r if body_kind == "cylinder" else m * r * r
+        i_perp = m * (3 * r * r + 0.1 ** 2) / 12.0
+        q = (math.cos(math.pi / 4), -math.sin(math.pi / 4), 0.0, 0.0)
+        body = b.add_body(position=n * r, orientation=q, mass=m, inertia=(i_perp, i_perp, i_axis))
+        b.add_cylinder(body, r, 0.05, friction=friction)
+    world = RigidWorld(b.finalize(), dt=1.0 / 60.0, substeps=4, enable_sleep=False)
+    steps = int(round(t_end * 60))
+    world.step(steps)
+    downhill = np.array([math.cos(theta), 0.0, -math.sin(theta)])
+    v = world.state.body_qd[0, 3:]
+    return float(v @ downhill) / (steps * world.dt), world, i_axis / (m * r * r)
+
+
+@pytest.mark.parametrize("kind", ["solid_sphere", "shell", "cylinder", "hoop"])
+def test_rolling_down_an_incline(kind):
+    # rolling without slipping: a = g sin(theta) / (1 + I / (m r^2))
+    theta = math.radians(20.0)
+    a, world, k = _roll_acceleration(kind, theta)
+    expected = G * math.sin(theta) / (1.0 + k)
+    assert a == pytest.approx(expected, rel=0.01)
+    # and it rolls: the contact point is at rest, v = w r
+    v = np.linalg.norm(world.state.body_qd[0, 3:])
+    w = np.linalg.norm(world.state.body_qd[0, :3])
+    assert w * 0.1 == pytest.approx(v, rel=0.01)
+
+
+def test_sphere_slips_above_the_friction_threshold():
+    # rolling needs mu >= (2/7) tan(theta) for a solid sphere; below it the sphere slides with
+    # a = g (sin(theta) - mu cos(theta)) and spins up at 5 mu g cos(theta) / (2 r)
+    theta, mu = math.radians(30.0), 0.05
+    assert mu < 2.0 / 7.0 * math.tan(theta)
+    a, world, _ = _roll_acceleration("solid_sphere", theta, friction=mu)
+    assert a == pytest.approx(G * (math.sin(theta) - mu * math.cos(theta)), rel=0.01)
+    w = np.linalg.norm(world.state.body_qd[0, :3])
+    assert w == pytest.approx(5 * mu * G * math.cos(theta) / (2 * 0.1) * 1.0, rel=0.01)
+
+
+def test_sliding_sphere_starts_rolling_at_the_predicted_distance():
+    # a sphere launched sliding (w = 0) on a flat floor: kinetic friction decelerates it and spins it
+    # up until v = w r at t = 2 v0 / (7 mu g), after s = 12 v0^2 / (49 mu g)
+    v0, mu, r = 3.0, 0.3, 0.1
+    b = ModelBuilder()
+    b.add_plane(friction=mu)
+    body = b.add_body(position=(0, 0, r), linear_velocity=(v0, 0, 0))
+    b.add_sphere(body, r, friction=mu)
+    world = RigidWorld(b.finalize(), dt=1.0 / 240.0, substeps=4, enable_sleep=False)
+    xs, slips = [], []
+    for _ in range(240):
+        world.step()
+        qd = world.state.body_qd[0]
+        xs.append(world.state.body_q[0, 0])
+        slips.append(qd[3] - qd[1] * r)      # contact-point slip: v_x - w_y r
+        if slips[-1] < 1e-9:
+            break
+    # the slip falls linearly; interpolate the step where it reaches zero
+    k = len(slips) - 1
+    frac = slips[k - 1] / (slips[k - 1] - slips[k])
+    x_roll = xs[k - 1] + frac * (xs[k] - xs[k - 1])
+    assert x_roll == pytest.approx(12 * v0 ** 2 / (49 * mu * G), rel=0.02)
+    # afterwards it rolls at 5/7 v0
+    assert world.state.body_qd[0, 3] == pytest.approx(5.0 / 7.0 * v0, rel=0.01)
+
+
+def test_block_stopping_distance():
+    # a sliding block decelerates at mu g: it stops after v0^2 / (2 mu g)
+    v0, mu = 3.0, 0.5
+    b = ModelBuilder()
+    b.add_plane(friction=mu)
+    body = b.add_body(position=(0, 0, 0.1), linear_velocity=(v0, 0, 0))
+    b.add_box(body, (0.1, 0.1, 0.1), friction=mu)
+    world = RigidWorld(b.finalize(), enable_sleep=False)
+    world.step(90)
+    assert world.state.body_qd[0, 3] == pytest.approx(0.0, abs=1e-6)
+    assert world.state.body_q[0, 0] == pytest.approx(v0 ** 2 / (2 * mu * G), rel=0.01)
+
+
+def test_bouncing_apex_heights():
+    # restitution e: each apex is e^2 times the previous one, h_n = e^(2n) h0. The approach speed is
+    # sampled once per substep, so the bounce speed errs by O(g h / v): 1/480 s steps keep the third
+    # bounce (v = 2.8 m/s) within 2 %
+    e, h0, r = 0.8, 1.0, 0.05
+    b = ModelBuilder()
+    b.add_plane(restitution=e)
+    body = b.add_body(position=(0, 0, h0 + r))
+    b.add_sphere(body, r, restitution=e)
+    world = RigidWorld(b.finalize(), dt=1.0 / 480.0, substeps=4, restitution_threshold=0.1,
+                       enable_sleep=False)
+    apexes, prev_vz = [], 0.0
+    for _ in range(int(4.0 * 480)):
+        world.step()
+        vz = world.state.body_qd[0, 5]
+        if prev_vz > 0.0 >= vz:
+            # parabola through the apex: h = z + vz_before^2 / (2 g) from the last upward sample
+            apexes.append(world.state.body_q[0, 2] - r + 0.0)
+        prev_vz = vz
+    assert len(apexes) >= 3
+    for n, h in enumerate(apexes[:3], start=1):
+        assert h == pytest.approx(e ** (2 * n) * h0, rel=0.02), (n, h)
+
+
+def test_newtons_cradle_conserves_momentum_and_energy():
+    # five equal balls 2 cm apart (beyond the 5 mm speculative margin, so the collisions happen one
+    # pair at a time), no gravity, e = 1: each collision swaps the two velocities, so the last ball
+    # leaves with v0 and momentum and energy are conserved. (Touching balls need simultaneous
+    # impulses; the sequential solver does not reproduce that ideal case.)
+    r, v0 = 0.05, 1.0
+    b = ModelBuilder(gravity=(0, 0, 0))
+    for k in range(5):
+        body = b.add_body(position=(k * (2 * r + 0.02), 0, 0),
+                          linear_velocity=(v0, 0, 0) if k == 0 else (0, 0, 0))
+        b.add_sphere(body, r, restitution=1.0, friction=0.0, margin=0.005)
+    model = b.finalize()
+    world = RigidWorld(model, dt=1.0 / 240.0, substeps=4, restitution_threshold=0.01, enable_sleep=False)
+    m = model.body_mass[0]
+    world.step(240)
+    v = world.state.body_qd[:, 3]
+    assert m * v.sum() == pytest.approx(m * v0, rel=1e-12)
+    assert 0.5 * m * (v ** 2).sum() == pytest.approx(0.5 * m * v0 ** 2, rel=1e-3)
+    assert v[-1] == pytest.approx(v0, rel=1e-3)
+    assert np.abs(v[:-1]).max() < 1e-3 * v0
+
+
+def _stack(n_boxes, *, sleep):
+    b = ModelBuilder()
+    b.add_plane()
+    for k in range(n_boxes):
+        body = b.add_body(position=(0, 0, 0.1 + 0.2 * k))
+        b.add_box(body, (0.1, 0.1, 0.1))
+    return RigidWorld(b.finalize(), enable_sleep=sleep)
+
+
+def test_ten_box_stack_stands_for_60_seconds():
+    # the top box settles within the first second (contacts sag under the weight above them) and
+    # then must not drift by more than 1 mm in the remaining 59 s (sleep off: the solver holds it)
+    world = _stack(10, sleep=False)
+    world.step(60)
+    settled = world.state.body_q[-1, :3].copy()
+    world.step(59 * 60)
+    top = world.state.body_q[-1, :3]
+    assert np.linalg.norm(top - settled) < 1e-3
+    # horizontally it stayed on the column it started on
+    assert np.linalg.norm(top[:2]) < 1e-3
+    assert world.max_penetration() < 5e-3
+
+
+def test_box_pyramid_stands_and_sleeps():
+    # a 12-base pyramid (78 boxes) stands 5 s (the benchmark runs the 20-base one for 30 s)
+    base, h = 12, 0.1
+    b = ModelBuilder()
+    b.add_plane()
+    for row in range(base):
+        for k in range(base - row):
+            body = b.add_body(position=((k - (base - row - 1) / 2) * 2.05 * h, 0, h + 2 * h * row))
+            b.add_box(body, (h, h, h))
+    world = RigidWorld(b.finalize())
+    q0 = world.state.body_q.copy()
+    world.step(300)
+    disp = np.linalg.norm(world.state.body_q[:, :3] - q0[:, :3], axis=1)
+    assert disp.max() < 0.01
+    assert not world.state.body_awake.any()
+
+
+def test_no_tunnelling_through_a_thin_wall():
+    # a 1 cm sphere at 300 m/s against a 1 cm wall at dt = 1/60: it travels 5 m per step
+    b = ModelBuilder(gravity=(0, 0, 0))
+    wall = b.add_body(body_type="static", position=(1.0, 0, 0))
+    b.add_box(wall, (0.005, 1.0, 1.0))
+    ball = b.add_body(position=(-3.0, 0, 0), linear_velocity=(300.0, 0, 0))
+    b.add_sphere(ball, 0.005)
+    world = RigidWorld(b.finalize(), dt=1.0 / 60.0)
+    for _ in range(5):
+        world.step()
+        assert world.state.body_q[1, 0] <= 1.0 - 0.005 - 0.005 + 1e-4
+    assert world.state.body_q[1, 0] == pytest.approx(0.99, abs=1e-3)
+
+
+def _pile_hash_script(threads):
+    return textwrap.dedent(f"""
+        import os, hashlib
+        os.environ["NUMBA_NUM_THREADS"] = "{threads}"
+        import numpy as np
+        from inertia.model import ModelBuilder
+        from inertia.rigid.world import RigidWorld
+        rng = np.random.default_rng(3)
+        b = ModelBuilder()
+        b.add_plane()
+        for k in range(48):
+            q = rng.normal(size=4); q /= np.linalg.norm(q)
+            body = b.add_body(position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.3 + 0.25 * k / 4),
+                              orientation=q)
+            if k % 3 == 0:
+                b.add_sphere(body, 0.08)
+            elif k % 3 == 1:
+                b.add_box(body, (0.1, 0.07, 0.05))
+            else:
+                b.add_capsule(body, 0.05, 0.08)
+        w = RigidWorld(b.finalize(), parallel=True)
+        w.step(90)
+        print(hashlib.sha256(w.state.body_q.tobytes() + w.state.body_qd.tobytes()).hexdigest())
+    """)
+
+
+# measured at NUMBA_NUM_THREADS=1 (and reproduced at 2) on the x86-64 reference machine
+GOLDEN_PILE_HASH = "8b9a603f2d110f323e60a174abd0b80b7c5d99ba0feb8aea79e450f420201824"
+
+
+def test_deterministic_at_1_and_2_threads():
+    env = dict(os.environ)
+    src = os.path.join(os.path.dirname(__file__), "..", "..", "src")
+    env["PYTHONPATH"] = os.path.abspath(src)
+    hashes = []
+    for threads in (1, 2):
+        out = subprocess.run([sys.executable, "-c", _pile_hash_script(threads)], capture_output=True,
+                             text=True, env=env, timeout=900)
+        assert out.returncode == 0, out.stderr[-2000:]
+        hashes.append(out.stdout.strip().splitlines()[-1])
+    assert hashes[0] == hashes[1]
+    assert hashes[0] == GOLDEN_PILE_HASH
+
+
+def test_checkpoint_and_restore_continue_bit_for_bit():
+    b = ModelBuilder()
+    b.add_plane()
+    for k in range(6):
+        body = b.add_body(position=(0.03 * k, 0, 0.15 + 0.22 * k), angular_velocity=(0.5, -0.3, 0.2))
+        b.add_box(body, (0.1, 0.1, 0.1))
+    world = RigidWorld(b.finalize())
+    world.step(30)
+    cp = world.save()
+    world.step(30)
+    first = world.state.body_q.tobytes() + world.state.body_qd.tobytes()
+    world.restore(cp)
+    world.step(30)
+    second = world.state.body_q.tobytes() + world.state.body_qd.tobytes()
+    assert first == second
+
+
+def test_initial_overlap_is_separated_gently_and_reported_once():
+    b = ModelBuilder(gravity=(0, 0, 0))
+    b1 = b.add_body(position=(0, 0, 0), name="left")
+    b.add_box(b1, (0.1, 0.1, 0.1))
+    b2 = b.add_body(position=(0.15, 0, 0), name="right")
+    b.add_box(b2, (0.1, 0.1, 0.1))
+    world = RigidWorld(b.finalize(), enable_sleep=False)
+    with pytest.warns(UserWarning, match="start overlapping.*left/right"):
+        world.step()
+    speeds = []
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for _ in range(60):
+            world.step()
+            speeds.append(np.abs(world.state.body_qd[:, 3:]).max())
+    # pushed apart at no more than the push-out speed, and separated after a second
+    assert max(speeds) <= world.push_max_velocity + 1e-9
+    assert world.state.body_q[1, 0] - world.state.body_q[0, 0] >= 0.2 - 2e-3
+    assert world.initial_overlaps[0][:2] == ("left", "right")
+
+
+def test_contact_events_begin_persist_end_and_sensors():
+    b = ModelBuilder()
+    plane = b.add_plane()
+    sensor = b.add_body(body_type="static", position=(0, 0, 0.5))
+    sensor_shape = b.add_box(sensor, (0.3, 0.3, 0.05), is_sensor=True)
+    ball = b.add_body(position=(0, 0, 1.0))
+    ball_shape = b.add_sphere(ball, 0.1)
+    world = RigidWorld(b.finalize(), enable_sleep=False)
+    begins, ends, max_imp = [], [], 0.0
+    for _ in range(90):
+        world.step()
+        ev = world.contact_events()
+        begins += [tuple(p) for p in ev["begin"]]
+        ends += [tuple(p) for p in ev["end"]]
+        if len(ev["persist_impulse"]):
+            max_imp = max(max_imp, ev["persist_impulse"].max())
+    # the ball passed through the sensor (entered and left it) and landed on the plane
+    assert (ball_shape, sensor_shape) in begins or (sensor_shape, ball_shape) in begins
+    assert (ball_shape, sensor_shape) in ends or (sensor_shape, ball_shape) in ends
+    assert (ball_shape, plane) in begins
+    assert world.state.body_q[1, 2] == pytest.approx(0.1, abs=2e-3)
+    # resting: the impulse per step carries the weight, m g dt
+    m = world.model.body_mass[1]
+    assert max_imp == pytest.approx(m * G * world.dt, rel=0.05)
+
+
+def test_pile_falls_asleep_and_wakes_when_hit():
+    b = ModelBuilder()
+    b.add_plane()
+    for k in range(3):
+        body = b.add_body(position=(0.25 * k, 0, 0.1))
+        b.add_box(body, (0.1, 0.1, 0.1))
+    hammer = b.add_body(position=(0, 0, 3.0), body_type="dynamic")
+    b.add_sphere(hammer, 0.1)
+    world = RigidWorld(b.finalize())
+    world.state.body_q[3, :3] = (0, 0, 30.0)          # far above: falls for ~2.4 s
+    world.step(60)
+    assert not world.state.body_awake[:3].any()
+    assert world.state.body_awake[3]
+    while world.state.body_q[3, 2] > 0.35:           # until the hammer reaches the first box
+        world.step()
+    world.step(3)
+    assert world.state.body_awake[0]
+
+
+def test_blow_up_names_the_body():
+    b = ModelBuilder()
+    body = b.add_body(position=(0, 0, 1), name="rocket")
+    b.add_sphere(body, 0.1)
+    world = RigidWorld(b.finalize(), max_speed=100.0)
+    world.control.body_force[0] = (0, 0, 1e9)
+    with pytest.raises(SimulationDiverged, match="rocket"):
+        world.step()
+
+
+def test_bad_world_arguments_name_the_argument():
+    b = ModelBuilder()
+    b.add_sphere(b.add_body(), 0.1)
+    model = b.finalize()
+    with pytest.raises(ValueError, match="substeps"):
+        RigidWorld(model, substeps=0)
+    with pytest.raises(ValueError, match="dt"):
+        RigidWorld(model, dt=-1.0)
+    with pytest.raises(ValueError, match="parallel"):
+        RigidWorld(model, parallel="yes")

@@ -1,0 +1,96 @@
+"""ModelBuilder: mass properties (closed forms, parallel axis, principal axes) and bad input."""
+
+import math
+
+import numpy as np
+import pytest
+
+from inertia.model import ModelBuilder, primitive_mass_properties
+from inertia.geometry import shapes as S
+
+
+def test_primitive_mass_properties_closed_forms():
+    rho = 500.0
+    m, i = primitive_mass_properties(S.SPHERE, (0.2, 0, 0, 0), rho)
+    assert m == pytest.approx(rho * 4 / 3 * math.pi * 0.2 ** 3, rel=1e-12)
+    assert np.diag(i) == pytest.approx([0.4 * m * 0.04] * 3, rel=1e-12)
+    m, i = primitive_mass_properties(S.BOX, (0.1, 0.2, 0.3), rho)
+    assert m == pytest.approx(rho * 0.2 * 0.4 * 0.6, rel=1e-12)
+    assert np.diag(i) == pytest.approx([m * (0.16 + 0.36) / 12, m * (0.04 + 0.36) / 12,
+                                        m * (0.04 + 0.16) / 12], rel=1e-12)
+    m, i = primitive_mass_properties(S.CYLINDER, (0.1, 0.25, 0, 0), rho)
+    assert m == pytest.approx(rho * math.pi * 0.01 * 0.5, rel=1e-12)
+    assert np.diag(i) == pytest.approx([m * (3 * 0.01 + 0.25) / 12] * 2 + [0.5 * m * 0.01], rel=1e-12)
+    # capsule = cylinder + sphere (two hemispheres); about the axis the moments simply add
+    r, hl = 0.1, 0.3
+    m, i = primitive_mass_properties(S.CAPSULE, (r, hl, 0, 0), rho)
+    mc, ms = rho * math.pi * r * r * 2 * hl, rho * 4 / 3 * math.pi * r ** 3
+    assert m == pytest.approx(mc + ms, rel=1e-12)
+    assert i[2, 2] == pytest.approx(0.5 * mc * r * r + 0.4 * ms * r * r, rel=1e-12)
+    # transverse: two hemispheres (83/320 m r^2 each about their centroids, 3r/8 from the flat face)
+    d = hl + 3 * r / 8
+    expected = mc * (3 * r * r + 4 * hl * hl) / 12 + 2 * (83 / 320 * ms / 2 * r * r + ms / 2 * d * d)
+    assert i[0, 0] == pytest.approx(expected, rel=1e-12)
+
+
+def test_compound_body_parallel_axis_and_principal_frame():
+    # two equal spheres 1 m apart: centre of mass between them; transverse moment 2 (2/5 m r^2 + m d^2)
+    b = ModelBuilder()
+    body = b.add_body(position=(1.0, 2.0, 3.0))
+    b.add_sphere(body, 0.1, position=(0.0, 0.0, 0.0))
+    b.add_sphere(body, 0.1, position=(1.0, 0.0, 0.0))
+    m = b.finalize()
+    ms = 1000 * 4 / 3 * math.pi * 0.001
+    assert m.body_mass[0] == pytest.approx(2 * ms, rel=1e-12)
+    assert m.state().body_q[0, :3] == pytest.approx([1.5, 2.0, 3.0], abs=1e-12)
+    moments = np.sort(m.body_inertia[0])
+    assert moments[0] == pytest.approx(2 * 0.4 * ms * 0.01, rel=1e-12)
+    assert moments[1:] == pytest.approx([2 * (0.4 * ms * 0.01 + ms * 0.25)] * 2, rel=1e-12)
+    # the shapes now sit at +-0.5 m from the body frame's origin along one principal axis
+    assert np.sort(np.linalg.norm(m.shape_local_pose[:, :3], axis=1)) == pytest.approx([0.5, 0.5], abs=1e-12)
+
+
+def test_explicit_mass_scales_the_inertia():
+    b = ModelBuilder()
+    body = b.add_body(mass=3.0)
+    b.add_box(body, (0.1, 0.1, 0.1))
+    m = b.finalize()
+    assert m.body_mass[0] == 3.0
+    assert m.body_inertia[0] == pytest.approx([3.0 * 0.08 / 12] * 3, rel=1e-12)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda b: b.add_sphere(b.add_body(), 0.1, density=0.0), "density"),
+    (lambda b: b.add_sphere(b.add_body(), -0.1), "radius"),
+    (lambda b: b.add_body(mass=-1.0), "mass"),
+    (lambda b: b.add_body(orientation=(1.0, 0.1, 0.0, 0.0)), "unit quaternion"),
+    (lambda b: b.add_body(orientation=(0.0, 0.0, 0.0, 0.0)), "orientation"),
+    (lambda b: b.add_sphere(b.add_body(), 0.1, material="rubber"), "unknown material key 'rubber'"),
+    (lambda b: b.add_body(body_type="frozen"), "body_type"),
+    (lambda b: b.add_shape(b.add_body(), "torus"), "shape_type"),
+    (lambda b: b.add_sphere(7, 0.1), "body"),
+    (lambda b: b.add_convex_hull(b.add_body(), [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]]), "coplanar"),
+    (lambda b: b.add_convex_hull(b.add_body(), [[0, 0, 0], [1, 0, 0], [0, 1, 0]]), "N >= 4"),
+    (lambda b: b.add_plane(body=b.add_body()), "plane"),
+    (lambda b: b.add_material("ice", friction=-0.1), "friction"),
+    (lambda b: b.add_material("ice", restitution=1.5), "restitution"),
+])
+def test_bad_input_names_the_argument(call, match):
+    with pytest.raises(ValueError, match=match):
+        call(ModelBuilder())
+
+
+def test_dynamic_body_without_mass_is_rejected_at_finalize():
+    b = ModelBuilder()
+    b.add_body(name="ghost")
+    with pytest.raises(ValueError, match="ghost"):
+        b.finalize()
+
+
+def test_materials_combine_by_geometric_mean_and_max():
+    # checked through the contact buffer in tests/geometry; here the table columns are filled
+    b = ModelBuilder()
+    b.add_material("rubber", friction=0.9, restitution=0.8, density=1100)
+    s = b.add_sphere(b.add_body(), 0.1, material="rubber")
+    m = b.finalize()
+    assert (m.shape_friction[s], m.shape_restitution[s], m.shape_density[s]) == (0.9, 0.8, 1100.0)
