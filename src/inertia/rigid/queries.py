@@ -31,8 +31,8 @@ Limitations
 - The AABB cull is a linear pass over the shapes (O(S) per query, no tree); fine for thousands of shapes
   and a few hundred queries per frame, not for tens of thousands of rays.
 - Query shapes must be convex (sphere, box, capsule, cylinder, convex hull). Triangle meshes and
-  heightfields in the world are not yet seen by shape casts, overlaps and closest points (rays see meshes
-  only through ``raycast.ray_cast`` once the model carries their triangles).
+  heightfields are seen by rays (their triangles under the ray's box, Moller-Trumbore) but not yet by
+  shape casts, overlaps and closest points.
 - Shape casts are translational (no rotation during the sweep) and stop within ``tolerance`` (1e-6 m)
   of contact; a query shape that already overlaps a shape reports fraction 0 for it.
 """
@@ -49,6 +49,7 @@ from .. import math as _m
 from ..geometry import shapes as S
 from ..geometry.convex import build_convex_hull, shape_distance, support_local
 from ..geometry.raycast import ray_cast as _ray_cast_shape
+from ..geometry.trimesh_collide import ray_triangles
 from ..geometry.raycast import shape_cast as _shape_cast_pair
 
 __all__ = ["RayHit", "ShapeHit", "ClosestPoints", "WorldQueries"]
@@ -109,8 +110,6 @@ def _ray_hits(shapes, pose, aabb, face_planes, face_start, face_count, origin, t
         if not _visible(s, shapes, mask, include_sensors):
             continue
         t = shapes.shape_type[s]
-        if t == S.TRIANGLE_MESH or t == S.HEIGHTFIELD:
-            continue
         # slab test of the segment against the shape's AABB
         lo, hi = 0.0, 1.0
         for k in range(3):
@@ -127,9 +126,13 @@ def _ray_hits(shapes, pose, aabb, face_planes, face_start, face_count, origin, t
                 hi = min(hi, t1)
         if lo > hi:
             continue
-        th, nrm = _ray_cast_shape(t, shapes.shape_params[s], pose[s], shapes.geom_vertices,
-                                  shapes.shape_vert_start[s], face_planes, face_start[s], face_count[s], tris, 0,
-                                  0, origin, translation, 1.0)
+        if t == S.TRIANGLE_MESH or t == S.HEIGHTFIELD:
+            th, nt = ray_triangles(shapes, s, pose[s], origin, translation)
+            nrm = np.array(nt)
+        else:
+            th, nrm = _ray_cast_shape(t, shapes.shape_params[s], pose[s], shapes.geom_vertices,
+                                      shapes.shape_vert_start[s], face_planes, face_start[s], face_count[s], tris,
+                                      0, 0, origin, translation, 1.0)
         if th <= 1.0:
             out_shape[n] = s
             out_t[n] = th
