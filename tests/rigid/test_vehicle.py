@@ -61,7 +61,7 @@ def test_braking_distance_is_v0_squared_over_2_mu_g():
         if st.body_qd[chassis, 3] < 1e-3:
             break
     dist = st.body_q[chassis, 0] - x0
-    assert dist == pytest.approx(v0 ** 2 / (2 * mu * G), rel=0.05)
+    assert dist == pytest.approx(v0 ** 2 / (2 * mu * G), rel=0.02)          # brief: 5 %; measured 0.1 %
     assert np.all(car.wheel_omega == 0.0)                             # locked
 
 

@@ -73,6 +73,14 @@ def _positive(v, name):
     return v
 
 
+def _clip(f_long, f_lat, limit):
+    """Clip a tyre force to the friction circle of radius ``limit``."""
+    mag = math.hypot(f_long, f_lat)
+    if mag > limit:
+        return f_long * limit / mag, f_lat * limit / mag
+    return f_long, f_lat
+
+
 def _quat_to_mat(q):
     w, x, y, z = q
     return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
@@ -169,18 +177,17 @@ class RaycastVehicle:
             om_b = self._spin_free(k, wh, dt)
             s_long = float(v_c @ f) - om_b * wh.radius
             s_lat = float(v_c @ lat)
-            locked = om_b == 0.0 and self.brake_torque > 0.0 and \
-                abs(s_long * m_q / dt) * wh.radius <= self.brake_torque
-            if locked:   # the brake holds the wheel: the chassis alone takes up the slip
-                f_long = -s_long * m_q / dt
-            else:
-                f_long = -s_long / (dt * (1.0 / m_q + wh.radius ** 2 / wh.inertia))
             f_lat = -s_lat * m_q / dt
             limit = wh.friction * fs
-            mag = math.hypot(f_long, f_lat)
-            if mag > limit:
-                f_long *= limit / mag
-                f_lat *= limit / mag
+            locked = False
+            if om_b == 0.0 and self.brake_torque > 0.0:
+                # the brake holds the wheel if it can resist the (friction-clipped) locked-wheel force
+                f_long, f_lat_l = _clip(-s_long * m_q / dt, f_lat, limit)
+                locked = abs(f_long) * wh.radius <= self.brake_torque
+                if locked:
+                    f_lat = f_lat_l
+            if not locked:
+                f_long, f_lat = _clip(-s_long / (dt * (1.0 / m_q + wh.radius ** 2 / wh.inertia)), f_lat, limit)
             F = fs * hit.normal + f_long * f + f_lat * lat
             force += F
             torque += np.cross(p - x, F)
