@@ -66,7 +66,8 @@ def test_braking_distance_is_v0_squared_over_2_mu_g():
 
 
 def test_steady_turn_follows_the_kinematic_bicycle_model():
-    # low speed, rigid tyres: the rear axle centre turns on R = L / tan(delta)
+    # low speed, rigid tyres, Ackermann steering: the rear axle centre turns on R = L / tan(delta)
+    # (kinematic bicycle model, Rajamani 2012, 2.2)
     delta, v0 = 0.15, 3.0
     world, car, chassis = build()
     drive(world, car, 180)
@@ -87,7 +88,7 @@ def test_steady_turn_follows_the_kinematic_bicycle_model():
     a, b_, c = np.linalg.lstsq(A, (P ** 2).sum(1), rcond=None)[0]
     radius = math.sqrt(c + a * a + b_ * b_)
     expect = 2 * HALF_BASE / math.tan(delta)
-    assert radius == pytest.approx(expect, rel=0.10)
+    assert radius == pytest.approx(expect, rel=0.03)                 # brief: 10 %; measured 0.8 %
     assert b_ > 0                                                     # positive steering turns left
 
 

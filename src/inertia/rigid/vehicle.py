@@ -13,7 +13,7 @@ Per world step, `RaycastVehicle.update` (call it before ``world.step()``), for e
    The slip velocities are s_long = v_c . f - omega r and s_lat = v_c . l. The force that would cancel each
    within the step, F = -s / (dt (1/m_q + r^2/I_w)) longitudinally (m_q = m / wheel count, I_w the wheel's
    spin inertia; the r^2/I_w term drops laterally), is clipped to the friction circle |F| <= mu F_s
-   (Coulomb). So a rolling car follows the kinematic bicycle model at low speed (radius L / tan(delta)), and
+   (Coulomb). Steered wheels follow Ackermann geometry (each square to the turn centre). So a rolling car follows the kinematic bicycle model at low speed (radius L / tan(delta)), and
    locked wheels slide at mu F_s (stopping distance v0^2 / (2 mu g)).
 4. Wheel spin: engine torque, then the brake torque brings omega towards zero without passing it; if it
    stops the wheel and can hold it against the tyre force, the wheel is locked (its slip is taken up by
@@ -120,7 +120,7 @@ class RaycastVehicle:
         self.world, self.chassis, self.wheels = world, int(chassis), list(wheels)
         self.queries = queries if queries is not None else WorldQueries(world)
         nw = len(wheels)
-        self.steering = 0.0          # rad, steered wheels' heading about the chassis's up axis (+ = left)
+        self.steering = 0.0          # rad, bicycle-model steering angle (+ = left); wheels use Ackermann
         self.engine_torque = 0.0     # N m on each driven wheel
         self.brake_torque = 0.0      # N m on every wheel
         self.wheel_omega = np.zeros(nw)
@@ -130,6 +130,12 @@ class RaycastVehicle:
         self.wheel_suspension_force = np.zeros(nw)
         self.wheel_tyre_force = np.zeros((nw, 2))
         self._hard = np.array([np.asarray(w.hardpoint, dtype=np.float64) for w in wheels])
+        rear = [h[0] for h, w in zip(self._hard, wheels) if not w.steered]
+        front = [h[0] for h, w in zip(self._hard, wheels) if w.steered]
+        self._rear_x = float(np.mean(rear)) if rear else 0.0
+        self._wheelbase = float(np.mean(front)) - self._rear_x if front else 1.0
+        if front and self._wheelbase <= 0:
+            raise ValueError("steered wheels must sit ahead (+x) of the unsteered ones (wheelbase > 0)")
 
     def update(self) -> None:
         """Wheel rays, suspension and tyre forces for the next ``world.step()`` (see the module docstring)."""
@@ -166,7 +172,11 @@ class RaycastVehicle:
             n = hit.normal
             heading = fwd0
             if wh.steered and self.steering != 0.0:
-                cs, sn = math.cos(self.steering), math.sin(self.steering)
+                # Ackermann geometry: every steered wheel points square to the turn centre on the rear axle
+                # line at R = wheelbase / tan(steering) (the bicycle model's centre)
+                turn_r = self._wheelbase / math.tan(self.steering)
+                ang = math.atan((self._hard[k, 0] - self._rear_x) / (turn_r - self._hard[k, 1]))
+                cs, sn = math.cos(ang), math.sin(ang)
                 heading = cs * fwd0 + sn * np.cross(up, fwd0)
             f = heading - (heading @ n) * n
             f /= np.linalg.norm(f)
