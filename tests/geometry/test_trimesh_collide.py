@@ -43,18 +43,26 @@ def test_sphere_rests_on_a_mesh_plane_at_its_radius():
 def test_sphere_and_box_rest_on_a_heightfield():
     # flat field at 0.3 m on a 9 x 7 grid; centre r (sphere) or hz (box) above it
     heights = np.full((9, 7), 0.3)
-    for kind in ("sphere", "box", "capsule"):
+    for kind in ("sphere", "box", "capsule", "cylinder", "hull"):
         b = ModelBuilder()
         b.add_heightfield(heights, (0.5, 0.5), position=(1.0, 0.0, 0.0))
-        body = b.add_body(position=(1.1, 0.2, 0.6))
+        body = b.add_body(position=(1.1, 0.2, 0.6), **({"mass": 1.0, "inertia": (0.01, 0.01, 0.01)}
+                                                          if kind == "hull" else {}))
         if kind == "sphere":
             b.add_sphere(body, 0.2)
             expect = 0.5
         elif kind == "box":
             b.add_box(body, (0.2, 0.15, 0.1))
             expect = 0.4
-        else:
+        elif kind == "capsule":
             b.add_capsule(body, 0.1, 0.2, orientation=(math.cos(math.pi / 4), math.sin(math.pi / 4), 0, 0))
+            expect = 0.4
+        elif kind == "cylinder":
+            b.add_cylinder(body, 0.15, 0.1)                        # upright: 16 rim points on the field
+            expect = 0.4
+        else:
+            cube = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.1, 0.1) for z in (-0.1, 0.1)])
+            b.add_convex_hull(body, cube)
             expect = 0.4
         world = RigidWorld(b.finalize(), enable_sleep=False)
         world.step(120)
