@@ -73,6 +73,9 @@ class ShapeArrays(NamedTuple):
     shape_vert_start: np.ndarray
     shape_vert_count: np.ndarray
     geom_vertices: np.ndarray
+    geom_bvh_bounds: np.ndarray
+    geom_bvh_nodes: np.ndarray
+    shape_bvh_start: np.ndarray
 
 
 def _unit_quat(value, name):
@@ -208,7 +211,9 @@ class Model:
     ``shape_density`` kg/m^3, ``shape_group``, ``shape_mask (S,) int32`` bitmasks (a pair collides when
     ``group_a & mask_b`` and ``group_b & mask_a`` are both non-zero), ``shape_is_sensor (S,) bool``
     (overlap events, no response), ``shape_vert_start``, ``shape_vert_count (S,) int32`` into
-    ``geom_vertices (V, 3)`` m (hull vertices in the shape frame).
+    ``geom_vertices (V, 3)`` m (hull vertices, mesh triangle lists, heightfield grid points; shape frame);
+    ``geom_bvh_bounds (N, 6)``, ``geom_bvh_nodes (N, 3) int32`` mesh BVH nodes from
+    ``shape_bvh_start (S,) int32`` (-1: no BVH; `inertia.geometry.bvh`).
 
     World: ``gravity (3,)`` m/s^2.
     """
@@ -364,11 +369,10 @@ class ModelBuilder:
         if shape_type not in S.SHAPE_NAMES:
             raise ValueError(f"shape_type must be one of {sorted(S.SHAPE_NAMES)}; got {shape_type!r}")
         code = S.SHAPE_NAMES[shape_type]
-        if code in (S.TRIANGLE_MESH, S.HEIGHTFIELD):
-            raise ValueError(f"shape_type {shape_type!r} is not supported by the rigid narrow phase yet; "
-                             "allowed: sphere, box, capsule, cylinder, convex_hull, plane")
-        if code == S.PLANE and body != -1 and self._bodies[body]["type"] == S.DYNAMIC:
-            raise ValueError("a plane (half-space) can only belong to body -1 or a static/kinematic body")
+        if code in (S.TRIANGLE_MESH, S.HEIGHTFIELD) and vertices is None:
+            raise ValueError(f"add {shape_type!r} shapes with add_triangle_mesh / add_heightfield")
+        if code in (S.PLANE, S.TRIANGLE_MESH, S.HEIGHTFIELD) and body != -1 and self._bodies[body]["type"] == S.DYNAMIC:
+            raise ValueError(f"a {shape_type} can only belong to body -1 or a static/kinematic body")
         if material is None:
             material = "default"
         if material not in self.materials:
@@ -399,8 +403,27 @@ class ModelBuilder:
             restitution=mat.restitution if restitution is None else _nonneg(restitution, "restitution", 1.0),
             rolling_friction=(mat.rolling_friction if rolling_friction is None
                               else _nonneg(rolling_friction, "rolling_friction")),
-            group=int(group), mask=int(mask), sensor=bool(is_sensor), verts=verts))
+            group=int(group), mask=int(mask), sensor=bool(is_sensor),
+            verts=verts if verts is not None else (vertices if code in (S.TRIANGLE_MESH, S.HEIGHTFIELD) else None),
+            bvh=None))
         return len(self._shapes) - 1
+
+    def add_triangle_mesh(self, vertices, triangles, *, body: int = -1, **kw):
+        """Static triangle mesh (``vertices (V, 3)`` m, ``triangles (T, 3)`` indices, counter-clockwise seen
+        from the solid's outside) on body -1 or a static/kinematic body. Stored as a triangle list in BVH
+        order (see `inertia.geometry.trimesh_collide`)."""
+        from .geometry.trimesh_collide import mesh_soup
+        soup, bvh = mesh_soup(vertices, triangles)
+        si = self.add_shape(body, "triangle_mesh", (len(soup) // 3, 0.0, 0.0, 0.0), vertices=soup, **kw)
+        self._shapes[si]["bvh"] = bvh
+        return si
+
+    def add_heightfield(self, heights, spacing, *, body: int = -1, **kw):
+        """Static heightfield: ``heights (nx, ny)`` m on a grid of ``spacing (dx, dy)`` m, centred on the
+        shape's local origin (x_i = (i - (nx - 1) / 2) dx), surface z = height, solid below."""
+        from .geometry.trimesh_collide import heightfield_vertices
+        verts, params = heightfield_vertices(heights, spacing)
+        return self.add_shape(body, "heightfield", params, vertices=verts, **kw)
 
     def add_sphere(self, body, radius, **kw):
         return self.add_shape(body, "sphere", (_positive(radius, "radius"),), **kw)
@@ -461,7 +484,7 @@ class ModelBuilder:
             parts = []
             for si in body_shapes[bi]:
                 sh = self._shapes[si]
-                if sh["sensor"] or sh["type"] == S.PLANE:
+                if sh["sensor"] or sh["type"] in (S.PLANE, S.TRIANGLE_MESH, S.HEIGHTFIELD):
                     continue
                 if sh["type"] == S.CONVEX_HULL:
                     if bd["type"] == S.DYNAMIC and (bd["mass"] is None or bd["inertia"] is None):
@@ -525,6 +548,14 @@ class ModelBuilder:
                 vcount[si] = len(sh["verts"])
                 verts.append(sh["verts"])
         geom_vertices = np.concatenate(verts) if verts else np.zeros((0, 3))
+        # -- CSR mesh BVH nodes
+        bvh_start = np.full(ns, -1, np.int32)
+        bvh_b, bvh_n = [np.zeros((0, 6))], [np.zeros((0, 3), np.int32)]
+        for si, sh in enumerate(self._shapes):
+            if sh.get("bvh") is not None:
+                bvh_start[si] = sum(len(x) for x in bvh_n)
+                bvh_b.append(sh["bvh"][0])
+                bvh_n.append(sh["bvh"][1])
 
         shape_params = np.array([sh["params"] for sh in self._shapes]).reshape(ns, 4)
         shape_type = np.array([sh["type"] for sh in self._shapes], np.int32)
@@ -564,6 +595,7 @@ class ModelBuilder:
             shape_mask=np.array([sh["mask"] for sh in self._shapes], np.int32).reshape(ns),
             shape_is_sensor=np.array([sh["sensor"] for sh in self._shapes], np.bool_).reshape(ns),
             shape_vert_start=vstart, shape_vert_count=vcount, geom_vertices=geom_vertices,
+            geom_bvh_bounds=np.concatenate(bvh_b), geom_bvh_nodes=np.concatenate(bvh_n), shape_bvh_start=bvh_start,
             gravity=self.gravity.copy())
         model._initial_q = q0
         model._initial_qd = qd0

@@ -74,7 +74,7 @@ def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, po
               p[0] * math.sqrt(max(0.0, 1.0 - az[2] * az[2])) + abs(az[2]) * p[1])
     lo = [0.0, 0.0, 0.0]
     hi = [0.0, 0.0, 0.0]
-    if t == S.CONVEX_HULL:
+    if t == S.CONVEX_HULL or t == S.TRIANGLE_MESH or t == S.HEIGHTFIELD:
         v0 = shapes.shape_vert_start[s]
         for k in range(3):
             lo[k] = _BIG

@@ -564,6 +564,8 @@ def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
     pb, qb = _pose(pose, sb)
     A = shapes.shape_params[sa]
     B = shapes.shape_params[sb]
+    if tb == S.TRIANGLE_MESH or tb == S.HEIGHTFIELD:  # meshes/heightfields: geometry/trimesh_collide.py
+        return _tm.collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec)
     if ta == S.SPHERE:
         if tb == S.SPHERE:
             return _sphere_sphere(ca, i, pa, A[0], pb, B[0], spec)
@@ -713,3 +715,6 @@ def match_warm_start(prev, prev_count, cur, cur_count, match_distance):
                     acc += (g0 * prev.contact_tangent[j, 0, m] + g1 * prev.contact_tangent[j, 1, m]) \
                         * cur.contact_tangent[i, ax, m]
                 cur.contact_tangent_impulse[i, k, ax] = acc
+
+
+from . import trimesh_collide as _tm  # noqa: E402  (imports this module's manifold helpers)

@@ -10,9 +10,9 @@ BOX             1     half extents hx, hy, hz
 CAPSULE         2     radius, half length of the core segment along local z
 CYLINDER        3     radius, half height along local z
 CONVEX_HULL     4     unused (vertices in ``geom_vertices`` by ``shape_vert_start/count``)
-TRIANGLE_MESH   5     unused (static only; not yet collided by the rigid narrow phase)
+TRIANGLE_MESH   5     triangle count T (static; triangle list + BVH, see geometry/trimesh_collide.py)
 PLANE           6     unused: the plane is the local z = 0 plane, normal +z, solid z <= 0
-HEIGHTFIELD     7     reserved (not yet supported)
+HEIGHTFIELD     7     nx, ny, dx, dy (static; grid points in geom_vertices, trimesh_collide.py)
 ============== ===== ===================================================================
 
 Shape poses are given in the owning body's frame (centre of mass, principal axes); ``shape_body``

@@ -1,0 +1,379 @@
+"""Static triangle meshes and heightfields in the shape table, and convex shapes colliding with them.
+
+Storage (no table beyond the contract's): a TRIANGLE_MESH row keeps its triangles as a triangle list in
+``geom_vertices`` (three rows per triangle, in BVH order, ``shape_params[0]`` = T) and its BVH nodes in
+``geom_bvh_bounds``/``geom_bvh_nodes`` from ``shape_bvh_start`` (`inertia.geometry.bvh`). A HEIGHTFIELD
+row keeps its grid points (x, y, height) in ``geom_vertices`` (row ``i * ny + j``), ``shape_params`` =
+(nx, ny, dx, dy); cell (i, j) holds the triangles (v00, v10, v11) and (v00, v11, v01), enumerated on the
+fly from the cells under a query box.
+
+Narrow phase (stage ``narrow_phase``, called from ``narrowphase._collide`` for pairs whose B is a mesh or
+heightfield), all in the mesh's local frame, candidates = triangles under A's box fattened by the
+speculative distance:
+- sphere: the closest point of each candidate triangle (Ericson 2005, 5.1.5); the nearest one gives the
+  single contact (normal from the sphere centre to that point, so edges and vertices round correctly);
+  a centre behind the triangle's face takes the face normal;
+- capsule: the same for its two end spheres (two points, the deeper one's normal);
+- box, cylinder (16 rim points), convex hull: vertex-face contacts: each vertex of A projected on the
+  candidate triangle containing it, separation along the face normal; the points are reduced to four
+  (deepest, farthest, largest triangle, largest quad) by the narrow phase's reduction (Gregorius 2015).
+Feature keys: triangle index * 64 + point index.
+
+References
+- Ericson, C. (2005). Real-Time Collision Detection. Morgan Kaufmann (5.1.5 closest point on a triangle).
+- Gregorius, D. (2015). Robust contact creation for physics simulations. GDC (manifold reduction).
+- Moller, T. and Trumbore, B. (1997). Fast, minimum storage ray-triangle intersection. JGT 2(1).
+
+Limitations
+- Vertex-face only for polytopes and cylinders: a box edge lying across a sharp terrain ridge, or a mesh
+  vertex poking into a box face, is not detected (fine for terrain and ramps; not for spiky meshes).
+- One manifold (one normal) per shape pair: a sphere touching two non-coplanar faces at once (resting in
+  a crease or valley) is held by the nearest face only and sinks ~1 mm into the other (measured: a
+  0.15 m sphere in a 0.5-slope V valley rests 0.66 mm low); per-triangle manifolds would fix it.
+- A capsule's segment crossing a ridge between its end spheres gets no middle point.
+- Meshes are one-sided surfaces seen from the side their face normals point to; no internal-edge
+  (ghost collision) smoothing, so a box sliding over a tessellated flat floor may catch on seams rarely.
+- One small scratch allocation per mesh pair per step (the candidate list).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from . import shapes as S
+from ._tup import add, cross, dot, madd, norm, qconj, qmul, qrot, qrot_inv, scale, sub
+from .bvh import build_bvh, bvh_query_box
+from .narrowphase import _reduce_and_emit, _set_normal
+
+__all__ = ["mesh_soup", "heightfield_vertices", "triangle_local", "triangle_candidates", "collide_triangles",
+           "ray_triangles"]
+
+_MAX_CANDIDATES = 256
+
+
+# ------------------------------------------------------------------------------------------ build (once)
+def mesh_soup(vertices, triangles):
+    """Validate a mesh and return (triangle list (3T, 3) in BVH order, (bvh bounds, bvh nodes))."""
+    v = np.asarray(vertices, dtype=np.float64)
+    t = np.asarray(triangles)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) < 3 or not np.all(np.isfinite(v)):
+        raise ValueError(f"vertices must be a finite (V >= 3, 3) array; got shape {v.shape}")
+    if t.ndim != 2 or t.shape[1] != 3 or len(t) < 1 or not np.issubdtype(t.dtype, np.integer):
+        raise ValueError(f"triangles must be an integer (T >= 1, 3) array; got shape {t.shape}, dtype {t.dtype}")
+    if t.min() < 0 or t.max() >= len(v):
+        raise ValueError(f"triangles must index vertices in [0, {len(v) - 1}]; got range [{t.min()}, {t.max()}]")
+    tv = v[t]
+    area2 = np.linalg.norm(np.cross(tv[:, 1] - tv[:, 0], tv[:, 2] - tv[:, 0]), axis=1)
+    if np.any(area2 <= 1e-14 * max(1.0, float(np.abs(v).max()) ** 2)):
+        raise ValueError(f"triangles {np.flatnonzero(area2 <= 0)[:10].tolist()} are degenerate (zero area)")
+    order, bounds, nodes = build_bvh(tv)
+    return tv[order].reshape(-1, 3), (bounds, nodes)
+
+
+def heightfield_vertices(heights, spacing):
+    """Grid points (nx * ny, 3) of a heightfield and its params (nx, ny, dx, dy)."""
+    h = np.asarray(heights, dtype=np.float64)
+    if h.ndim != 2 or h.shape[0] < 2 or h.shape[1] < 2 or not np.all(np.isfinite(h)):
+        raise ValueError(f"heights must be a finite (nx >= 2, ny >= 2) array; got shape {h.shape}")
+    sp = np.asarray(spacing, dtype=np.float64).reshape(-1)
+    if sp.shape != (2,) or not np.all(sp > 0) or not np.all(np.isfinite(sp)):
+        raise ValueError(f"spacing must be two positive numbers (dx, dy) in m; got {spacing!r}")
+    nx, ny = h.shape
+    x = (np.arange(nx) - 0.5 * (nx - 1)) * sp[0]
+    y = (np.arange(ny) - 0.5 * (ny - 1)) * sp[1]
+    X, Y = np.meshgrid(x, y, indexing="ij")
+    return np.stack([X.ravel(), Y.ravel(), h.ravel()], axis=1), (float(nx), float(ny), sp[0], sp[1])
+
+
+# ------------------------------------------------------------------------------------------ triangles
+@njit(cache=True)
+def _vtx(verts, r):
+    return (verts[r, 0], verts[r, 1], verts[r, 2])
+
+
+@njit(cache=True)
+def triangle_local(shapes, s, k):
+    """Vertices (3 tuples, the shape's local frame) of triangle ``k`` of mesh or heightfield row ``s``."""
+    v0 = shapes.shape_vert_start[s]
+    V = shapes.geom_vertices
+    if shapes.shape_type[s] == S.TRIANGLE_MESH:
+        return _vtx(V, v0 + 3 * k), _vtx(V, v0 + 3 * k + 1), _vtx(V, v0 + 3 * k + 2)
+    ny = int(shapes.shape_params[s, 1])
+    cell = k // 2
+    i = cell // (ny - 1)
+    j = cell - i * (ny - 1)
+    r00 = v0 + i * ny + j
+    r10 = r00 + ny
+    if k % 2 == 0:
+        return _vtx(V, r00), _vtx(V, r10), _vtx(V, r10 + 1)
+    return _vtx(V, r00), _vtx(V, r10 + 1), _vtx(V, r00 + 1)
+
+
+@njit(cache=True)
+def triangle_candidates(shapes, s, lo, hi, out):
+    """Triangles of mesh/heightfield row ``s`` that may touch the local box [lo, hi]; returns the count
+    (entries past ``len(out)`` are not written: grow and repeat)."""
+    if shapes.shape_type[s] == S.TRIANGLE_MESH:
+        return bvh_query_box(shapes.geom_bvh_bounds, shapes.geom_bvh_nodes, shapes.shape_bvh_start[s], lo, hi,
+                             out)
+    p = shapes.shape_params[s]
+    nx, ny, dx, dy = int(p[0]), int(p[1]), p[2], p[3]
+    x0 = -0.5 * (nx - 1) * dx
+    y0 = -0.5 * (ny - 1) * dy
+    i0 = max(0, int(math.floor((lo[0] - x0) / dx)))
+    i1 = min(nx - 2, int(math.floor((hi[0] - x0) / dx)))
+    j0 = max(0, int(math.floor((lo[1] - y0) / dy)))
+    j1 = min(ny - 2, int(math.floor((hi[1] - y0) / dy)))
+    V = shapes.geom_vertices
+    v0 = shapes.shape_vert_start[s]
+    n = 0
+    cap = out.shape[0]
+    for i in range(i0, i1 + 1):
+        for j in range(j0, j1 + 1):
+            r = v0 + i * ny + j
+            zmin = min(min(V[r, 2], V[r + 1, 2]), min(V[r + ny, 2], V[r + ny + 1, 2]))
+            zmax = max(max(V[r, 2], V[r + 1, 2]), max(V[r + ny, 2], V[r + ny + 1, 2]))
+            if zmin > hi[2] or zmax < lo[2]:
+                continue
+            for half in range(2):
+                if n < cap:
+                    out[n] = 2 * (i * (ny - 1) + j) + half
+                n += 1
+    return n
+
+
+@njit(cache=True)
+def _gather(shapes, s, lo, hi):
+    out = np.empty(_MAX_CANDIDATES, np.int64)
+    n = triangle_candidates(shapes, s, lo, hi, out)
+    if n > out.shape[0]:
+        out = np.empty(n, np.int64)
+        n = triangle_candidates(shapes, s, lo, hi, out)
+    return out, n
+
+
+@njit(cache=True)
+def _closest_point_triangle(p, a, b, c):
+    """Point of triangle abc closest to p (Ericson 2005, 5.1.5)."""
+    ab = sub(b, a)
+    ac = sub(c, a)
+    ap = sub(p, a)
+    d1 = dot(ab, ap)
+    d2 = dot(ac, ap)
+    if d1 <= 0.0 and d2 <= 0.0:
+        return a
+    bp = sub(p, b)
+    d3 = dot(ab, bp)
+    d4 = dot(ac, bp)
+    if d3 >= 0.0 and d4 <= d3:
+        return b
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
+        return madd(a, ab, d1 / (d1 - d3))
+    cp = sub(p, c)
+    d5 = dot(ab, cp)
+    d6 = dot(ac, cp)
+    if d6 >= 0.0 and d5 <= d6:
+        return c
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
+        return madd(a, ac, d2 / (d2 - d6))
+    va = d3 * d6 - d5 * d4
+    if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
+        return madd(b, sub(c, b), (d4 - d3) / ((d4 - d3) + (d5 - d6)))
+    denom = 1.0 / (va + vb + vc)
+    return add(a, add(scale(ab, vb * denom), scale(ac, vc * denom)))
+
+
+@njit(cache=True)
+def _face_normal(a, b, c):
+    n = cross(sub(b, a), sub(c, a))
+    return scale(n, 1.0 / norm(n))
+
+
+@njit(cache=True)
+def _sphere_triangles(c, r, shapes, s, cand, n):
+    """Nearest candidate triangle to a sphere: (separation, outward normal at the contact, triangle)."""
+    best_sep = np.inf
+    best_n = (0.0, 0.0, 1.0)
+    best_k = -1
+    for t in range(n):
+        k = cand[t]
+        a, b, cc = triangle_local(shapes, s, k)
+        q = _closest_point_triangle(c, a, b, cc)
+        d = sub(c, q)
+        dist = norm(d)
+        fn = _face_normal(a, b, cc)
+        if dot(d, fn) < 0.0:
+            sep = -dist - r          # centre behind the face
+            nrm = fn
+        else:
+            sep = dist - r
+            nrm = scale(d, 1.0 / dist) if dist > 1e-12 else fn
+        if sep < best_sep:
+            best_sep, best_n, best_k = sep, nrm, k
+    return best_sep, best_n, best_k
+
+
+@njit(cache=True)
+def _vertex_triangles(v, shapes, s, cand, n):
+    """Separation of a point along the face normal of the candidate triangle whose prism contains it
+    (the smallest |separation| if several do): (separation, face normal, triangle), inf if none."""
+    best_sep = np.inf
+    best_n = (0.0, 0.0, 1.0)
+    best_k = -1
+    for t in range(n):
+        k = cand[t]
+        a, b, c = triangle_local(shapes, s, k)
+        fn = _face_normal(a, b, c)
+        # inside the prism over the triangle: the point is on the inner side of the three edge planes
+        if (dot(cross(sub(b, a), sub(v, a)), fn) < -1e-12 or dot(cross(sub(c, b), sub(v, b)), fn) < -1e-12
+                or dot(cross(sub(a, c), sub(v, c)), fn) < -1e-12):
+            continue
+        sep = dot(sub(v, a), fn)
+        if abs(sep) < abs(best_sep):
+            best_sep, best_n, best_k = sep, fn, k
+    return best_sep, best_n, best_k
+
+
+@njit(cache=True)
+def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
+    """Manifold ``i`` for convex shape ``sa`` against mesh/heightfield ``sb``; returns the point count."""
+    pb = (pose[sb, 0], pose[sb, 1], pose[sb, 2])
+    qb = (pose[sb, 3], pose[sb, 4], pose[sb, 5], pose[sb, 6])
+    pa = qrot_inv(qb, (pose[sa, 0] - pb[0], pose[sa, 1] - pb[1], pose[sa, 2] - pb[2]))
+    qa = qmul(qconj(qb), (pose[sa, 3], pose[sa, 4], pose[sa, 5], pose[sa, 6]))
+    A = shapes.shape_params[sa]
+    lo = np.empty(3)
+    hi = np.empty(3)
+    if ta == S.SPHERE or ta == S.CAPSULE:
+        r = A[0]
+        h = A[1] if ta == S.CAPSULE else 0.0
+        e0 = madd(pa, qrot(qa, (0.0, 0.0, 1.0)), -h)
+        e1 = madd(pa, qrot(qa, (0.0, 0.0, 1.0)), h)
+        for k in range(3):
+            lo[k] = min(e0[k], e1[k]) - r - spec
+            hi[k] = max(e0[k], e1[k]) + r + spec
+        cand, n = _gather(shapes, sb, lo, hi)
+        s0, n0, k0 = _sphere_triangles(e0, r, shapes, sb, cand, n)
+        cnt = 0
+        if ta == S.SPHERE:
+            if s0 > spec:
+                return 0
+            _set_normal(ca, i, qrot(qb, scale(n0, -1.0)))
+            ca_p = add(pb, qrot(qb, madd(e0, n0, -(r + 0.5 * s0))))
+            _write(ca, i, 0, ca_p, s0, k0 * 64)
+            return 1
+        s1, n1, k1 = _sphere_triangles(e1, r, shapes, sb, cand, n)
+        nrm = n0 if s0 <= s1 else n1
+        if min(s0, s1) > spec:
+            return 0
+        _set_normal(ca, i, qrot(qb, scale(nrm, -1.0)))
+        if s0 <= spec:
+            _write(ca, i, cnt, add(pb, qrot(qb, madd(e0, n0, -(r + 0.5 * s0)))), s0, k0 * 64)
+            cnt += 1
+        if s1 <= spec:
+            _write(ca, i, cnt, add(pb, qrot(qb, madd(e1, n1, -(r + 0.5 * s1)))), s1, k1 * 64 + 1)
+            cnt += 1
+        return cnt
+    # polytopes and cylinders: vertex-face contacts
+    if ta == S.BOX:
+        nv = 8
+    elif ta == S.CYLINDER:
+        nv = 16
+    elif ta == S.CONVEX_HULL:
+        nv = shapes.shape_vert_count[sa]
+    else:
+        return 0
+    local = np.empty((nv, 3))
+    for v in range(nv):
+        if ta == S.BOX:
+            lv = (A[0] if v & 1 else -A[0], A[1] if v & 2 else -A[1], A[2] if v & 4 else -A[2])
+        elif ta == S.CYLINDER:
+            ang = 2.0 * math.pi * (v % 8) / 8.0
+            lv = (A[0] * math.cos(ang), A[0] * math.sin(ang), A[1] if v >= 8 else -A[1])
+        else:
+            lv = _vtx(shapes.geom_vertices, shapes.shape_vert_start[sa] + v)
+        w = add(pa, qrot(qa, lv))
+        local[v, 0], local[v, 1], local[v, 2] = w
+    for k in range(3):
+        lo[k] = local[:, k].min() - spec
+        hi[k] = local[:, k].max() + spec
+    cand, n = _gather(shapes, sb, lo, hi)
+    pts = np.empty((nv, 3))
+    seps = np.empty(nv)
+    feats = np.empty(nv, np.int64)
+    cnt = 0
+    deepest = np.inf
+    normal = (0.0, 0.0, -1.0)
+    for v in range(nv):
+        w = (local[v, 0], local[v, 1], local[v, 2])
+        sep, fn, k = _vertex_triangles(w, shapes, sb, cand, n)
+        if sep > spec:
+            continue
+        p = add(pb, qrot(qb, madd(w, fn, -0.5 * sep)))
+        pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = p
+        seps[cnt] = sep
+        feats[cnt] = k * 64 + v
+        cnt += 1
+        if sep < deepest:
+            deepest = sep
+            normal = qrot(qb, scale(fn, -1.0))
+    if cnt == 0:
+        return 0
+    _set_normal(ca, i, normal)
+    return _reduce_and_emit(ca, i, pts, seps, feats, cnt, normal)
+
+
+@njit(cache=True)
+def _write(ca, i, k, p, sep, feature):
+    ca.contact_point[i, k, 0] = p[0]
+    ca.contact_point[i, k, 1] = p[1]
+    ca.contact_point[i, k, 2] = p[2]
+    ca.contact_separation[i, k] = sep
+    ca.contact_feature[i, k] = feature
+
+
+# ------------------------------------------------------------------------------------------ rays
+@njit(cache=True)
+def ray_triangles(shapes, s, pose, origin, translation):
+    """First hit of the segment origin + t translation, t in [0, 1], on mesh/heightfield row ``s`` (two-sided,
+    Moller-Trumbore 1997): (t, unit world normal facing the ray), t = inf for a miss."""
+    pb = (pose[0], pose[1], pose[2])
+    qb = (pose[3], pose[4], pose[5], pose[6])
+    o = qrot_inv(qb, (origin[0] - pb[0], origin[1] - pb[1], origin[2] - pb[2]))
+    d = qrot_inv(qb, (translation[0], translation[1], translation[2]))
+    lo = np.empty(3)
+    hi = np.empty(3)
+    for k in range(3):
+        lo[k] = min(o[k], o[k] + d[k])
+        hi[k] = max(o[k], o[k] + d[k])
+    cand, n = _gather(shapes, s, lo, hi)
+    best = np.inf
+    best_n = (0.0, 0.0, 0.0)
+    for t in range(n):
+        a, b, c = triangle_local(shapes, s, cand[t])
+        e1 = sub(b, a)
+        e2 = sub(c, a)
+        pv = cross(d, e2)
+        det = dot(e1, pv)
+        if abs(det) < 1e-300:
+            continue
+        inv = 1.0 / det
+        tv = sub(o, a)
+        u = dot(tv, pv) * inv
+        if u < 0.0 or u > 1.0:
+            continue
+        qv = cross(tv, e1)
+        v = dot(d, qv) * inv
+        if v < 0.0 or u + v > 1.0:
+            continue
+        th = dot(e2, qv) * inv
+        if 0.0 <= th <= 1.0 and th < best:
+            best = th
+            fn = _face_normal(a, b, c)
+            best_n = fn if dot(fn, d) < 0.0 else scale(fn, -1.0)
+    return best, qrot(qb, best_n)
