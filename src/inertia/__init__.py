@@ -48,7 +48,14 @@ def __getattr__(name):
     if name == "World":
         from .world import World
         return World
-    if name in ("colliders", "fields", "render", "io", "viewer", "scene", "world", "sweep"):
+    if name in ("ModelBuilder", "Model", "State", "Control"):
+        from . import model
+        return getattr(model, name)
+    if name in ("RigidWorld", "FreeBodies", "WorldQueries", "RaycastVehicle"):
+        from . import rigid
+        return getattr(rigid, name)
+    if name in ("colliders", "fields", "render", "io", "viewer", "scene", "world", "sweep", "math", "geometry",
+                "dynamics", "rigid", "model", "fluids"):
         import importlib
         module = importlib.import_module(f".{name}", __name__)
         globals()[name] = module
