@@ -602,6 +602,8 @@ class SPHFluid:
         # 4. dt
         self._K.speed_squared(F.v, n, self._tmp1)
         vmax = math.sqrt(self._reduce(self._tmp1, n)[1])
+        if not math.isfinite(vmax):
+            self._diverged(self.last_dt)
         limit = self._dt_limit(vmax)
         if dt is None:
             dt = self.fixed_dt if self.fixed_dt is not None else min(self.dt_max, limit)
