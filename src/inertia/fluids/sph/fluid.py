@@ -122,7 +122,8 @@ class SPHFluid:
     spacing : float [m]
         Particle spacing dx; the particle volume is the lattice volume (about dx^D).
     domain : (lo, hi) pair of D-vectors [m]
-        The simulation box. Fluid particles leaving it (non-periodic axes) are removed.
+        The simulation box. Fluid particles more than one kernel support outside it
+        (non-periodic axes) are removed.
     method : "dfsph" (default) or "wcsph".
     kernel : "cubic_spline" (default) or "wendland_c2".
     smoothing_length : float [m]
@@ -488,7 +489,7 @@ class SPHFluid:
         if self._bodies:
             self._K.move_boundary(self._b_local, B.body, self._b_rest, self._body_x, self._body_rot, self._body_v,
                              self._body_w, B.x, B.v)
-        self._K.bin_cells(B.x, nbnd, self.grid, True, self._outflow_lo[:0], self._outflow_hi[:0], self._b_cell)
+        self._K.bin_cells(B.x, nbnd, self.grid, np.inf, self._outflow_lo[:0], self._outflow_hi[:0], self._b_cell)
         total = _bp.counting_sort(self._b_cell, self._ncells, self._b_start, self._b_order)
         assert total == nbnd
         o = self._b_order
@@ -507,7 +508,7 @@ class SPHFluid:
     def _sort_fluid(self):
         F = self._F
         cap = self.capacity
-        self._K.bin_cells(F.x, self._n, self.grid, False, self._outflow_lo, self._outflow_hi, self._cell_of)
+        self._K.bin_cells(F.x, self._n, self.grid, self.support, self._outflow_lo, self._outflow_hi, self._cell_of)
         n = _bp.counting_sort(self._cell_of, self._ncells, self._cell_start, self._order)
         o = self._order
         for arr, tmp in ((F.x, self._tmp2), (F.v, self._tmp2), (F.k_dens, self._tmp1), (F.k_div, self._tmp1),

@@ -4,9 +4,10 @@ Each step (``SPHFluid._neighbours``):
 
 1. ``bin_cells``: the cell of every active fluid particle in a dense grid over the domain, cells
    at least one kernel support wide (on a periodic axis the cell is ``L / floor(L / support)``
-   so that the cells tile the period). A fluid particle outside the domain on a non-periodic
-   axis gets cell -1 and is dropped by the sort (this is how outflow works); boundary particles
-   are clamped into the edge cells instead.
+   so that the cells tile the period). A fluid particle more than one support outside the
+   domain on a non-periodic axis gets cell -1 and is dropped by the sort (this is how outflow
+   works; closer ones, e.g. pressed into a wall's band, are clamped into the edge cells, as
+   every boundary particle is).
 2. ``inertia.collision.broadphase.counting_sort`` (reused: serial, stable, so the order is the
    same at any thread count) and ``broadphase.gather``: the fluid arrays are *reordered* into
    cell order and stay in that order ("sorted space"): neighbours become neighbours in memory.
@@ -58,23 +59,25 @@ class Grid(NamedTuple):
 
 
 @njit(cache=True, inline="always")
-def _cell_coord(v, d, grid, clamp):
+def _cell_coord(v, d, grid, margin):
+    # cell index on axis d; outside the domain: clamped into the edge cell when within margin
+    # [m] of it, else -1
     c = int(np.floor((v - grid.lo[d]) * grid.inv_cell[d]))
     n = grid.dims[d]
     if grid.periodic[d]:
         return c % n
     if c < 0 or c >= n:
-        if clamp:
-            return min(max(c, 0), n - 1)
-        return -1
+        if v < grid.lo[d] - margin or v > grid.lo[d] + grid.length[d] + margin:
+            return -1
+        return min(max(c, 0), n - 1)
     return c
 
 
 @njit(cache=True, parallel=True)
-def bin_cells(x, n, grid, clamp, outflow_lo, outflow_hi, cell_of):
-    """cell_of[i] = linear cell of particle i < n (-1 outside the domain unless clamp, and -1
-    inside any outflow box [outflow_lo[k], outflow_hi[k]) (K, 3)); -1 for i >= n (inactive
-    slots)."""
+def bin_cells(x, n, grid, margin, outflow_lo, outflow_hi, cell_of):
+    """cell_of[i] = linear cell of particle i < n: -1 beyond ``margin`` [m] outside the domain
+    (particles within it are clamped into the edge cells) and inside any outflow box
+    [outflow_lo[k], outflow_hi[k]) (K, 3); -1 for i >= n (inactive slots)."""
     dim = x.shape[1]
     for i in prange(cell_of.shape[0]):
         if i >= n:
@@ -91,9 +94,9 @@ def bin_cells(x, n, grid, clamp, outflow_lo, outflow_hi, cell_of):
         if drop:
             cell_of[i] = -1
             continue
-        cx = _cell_coord(x[i, 0], 0, grid, clamp)
-        cy = _cell_coord(x[i, 1], 1, grid, clamp)
-        cz = _cell_coord(x[i, 2], 2, grid, clamp) if dim == 3 else 0
+        cx = _cell_coord(x[i, 0], 0, grid, margin)
+        cy = _cell_coord(x[i, 1], 1, grid, margin)
+        cz = _cell_coord(x[i, 2], 2, grid, margin) if dim == 3 else 0
         if cx < 0 or cy < 0 or cz < 0:
             cell_of[i] = -1
         else:
