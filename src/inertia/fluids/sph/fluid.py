@@ -69,6 +69,7 @@ from ...errors import SimulationDiverged
 from . import kernels as _k
 from . import neighbours as _nb
 from .smoothing import SMOOTHING_RANGE, kernel_id, kernel_norm, kernel_value
+from .smoothing import kernel_gradient as _kernel_gradient
 
 __all__ = ["SPHFluid", "sample_block", "METHODS"]
 
@@ -110,6 +111,30 @@ def lattice_volume(kernel: str, dim: int, spacing: float, h: float) -> float:
     axis = np.arange(-reach, reach + 1) * spacing
     pts = np.stack([g.ravel() for g in np.meshgrid(*([axis] * dim), indexing="ij")], axis=1)
     return 1.0 / float(kernel_value(kernel, pts, h).sum())
+
+
+def lattice_shear_response(kernel: str, dim: int, spacing: float, h: float, shifts: int = 64) -> float:
+    """The viscosity term's response to the shear flow u_x = y^2 / 2 (for which nu lap u = nu),
+    per unit nu, at a particle of the lattice (lattice volume) whose other rows (y != 0) are
+    shifted along x by s, averaged over s in [0, dx): rows slide past each other in a shear flow.
+    The continuous operator gives 1; the cubic spline with h = dx gives 0.75 in 2D (0.66 for the
+    aligned lattice). ``SPHFluid`` divides the viscosity by it (a calibration of the discrete
+    operator at the particle spacing, like the lattice volume of the mass)."""
+    volume = lattice_volume(kernel, dim, spacing, h)
+    reach = int(math.ceil(2 * h / spacing)) + 1
+    axis = np.arange(-reach, reach + 1) * spacing
+    base = np.stack([g.ravel() for g in np.meshgrid(*([axis] * dim), indexing="ij")], axis=1)
+    total = 0.0
+    for s in (np.arange(shifts) + 0.5) / shifts * spacing:
+        pts = base.copy()
+        pts[pts[:, 1] != 0.0, 0] += s
+        pts = pts[np.any(pts != 0.0, axis=1)]
+        rel = -pts                                   # x_i - x_j with x_i at the origin
+        grad = _kernel_gradient(kernel, rel, h)
+        v_rel = -0.5 * pts[:, 1] ** 2                # (v_i - v_j)_x for u_x = y^2 / 2
+        r2 = (rel ** 2).sum(axis=1)
+        total += 2 * (dim + 2) * volume * (v_rel * rel[:, 0] / (r2 + 0.01 * h * h) * grad[:, 0]).sum()
+    return float(total / shifts)
 
 
 class SPHFluid:
@@ -220,6 +245,7 @@ class SPHFluid:
         self.volume = lattice_volume(kernel, dim, self.spacing, h)
         self.mass = self.rest_density * self.volume
         self._w0 = float(kernel_norm(self.kernel, dim, h))  # W(0) = sigma for both kernels
+        self._visc_scale = 1.0 / lattice_shear_response(kernel, dim, self.spacing, h)
         self._factor_eps = 1e-9 * (self.mass * self._w0 / h) ** 2
 
         # --- WCSPH sound speed and fixed-step checks
@@ -468,6 +494,7 @@ class SPHFluid:
         body = np.concatenate([np.full(p[0].shape[0], p[1], np.int64) for p in parts]) if parts else \
             np.zeros(0, np.int64)
         noslip = np.concatenate([np.full(p[0].shape[0], p[2]) for p in parts]) if parts else np.zeros(0)
+        noslip *= self._visc_scale
         local = np.concatenate([p[3] for p in parts]) if parts else np.zeros((0, d))
         psi = np.full(nbnd, self.rest_density * self.volume)
         self._B = _k.BoundaryArrays(np.ascontiguousarray(x), np.zeros((nbnd, d)), psi, body, noslip)
@@ -539,7 +566,7 @@ class SPHFluid:
         reach = self.cfl * self.spacing
         dt = 2.0 * reach / (vmax + math.sqrt(vmax * vmax + 4.0 * g * reach)) if (vmax > 0 or g > 0) else self.dt_max
         if self.viscosity > 0:
-            dt = min(dt, 0.125 * self.h * self.h / self.viscosity)
+            dt = min(dt, 0.125 * self.h * self.h / (self.viscosity * self._visc_scale))
         if self.method == "wcsph":
             dt = min(dt, self.cfl * self.h / (self.sound_speed + vmax))
         return dt
@@ -621,8 +648,8 @@ class SPHFluid:
             self._K.surface_normals(F, nf, n, m, self.support)
         g3 = np.zeros(3)
         g3[:self.dim] = self.gravity
-        self._K.nonpressure_accel(F, nf, nb, B, self.grid, n, m, self.rest_density, self.h, self.viscosity,
-                             self.surface_tension, g3)
+        self._K.nonpressure_accel(F, nf, nb, B, self.grid, n, m, self.rest_density, self.h,
+                                  self.viscosity * self._visc_scale, self.surface_tension, g3)
         self._K.kick(F, n, dt)
         if self.xsph > 0:
             self._K.xsph(F, nf, n, m, self.xsph)

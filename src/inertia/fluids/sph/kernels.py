@@ -262,7 +262,8 @@ def nonpressure_accel(F, nf, nb, B, grid, n, mass, rho0, h, viscosity, tension, 
     Viscosity (laminar, Monaghan 2005 / Morris et al. 1997 form, as used by Weiler et al. 2018):
         a_i = 2 (D + 2) nu sum_j (m / rho_ij) (v_ij . x_ij) / (|x_ij|^2 + 0.01 h^2) g_ij
     with rho_ij = (rho_i + rho_j) / 2, so that the pair forces are equal and opposite (momentum)
-    and against no-slip boundary particles the same with (psi_b / rho0, v_b, B.noslip[b]).
+    and against no-slip boundary particles the same with (psi_b / rho0, B.noslip[b]) and the
+    mirrored velocity 2 v_b - v_i (Morris et al. 1997), which puts the no-slip condition on the wall.
     Surface tension (Akinci, Akinci & Teschner 2013, eqs. 1-6), per unit mass:
         a_i = sum_j 2 rho0 / (rho_i + rho_j) [-tension m C(|x_ij|) x_ij / |x_ij| - tension (n_i - n_j)]."""
     F_accel = F.accel  # unpacked: Numba drops writes through a named tuple inside prange
@@ -315,7 +316,8 @@ def nonpressure_accel(F, nf, nb, B, grid, n, mass, rho0, h, viscosity, tension, 
             vy = F_v[i, 1] - B.v[b, 1]
             vz = (F_v[i, 2] - B.v[b, 2]) if dim == 3 else 0.0
             r2 = rx * rx + ry * ry + rz * rz
-            s = visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (r2 + eps)
+            # mirrored no-slip velocity v_b* = 2 v_b - v_i (Morris et al. 1997): v_i - v_b* = 2 (v_i - v_b)
+            s = 2.0 * visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (r2 + eps)
             ax += s * nb.g[k, 0]
             ay += s * nb.g[k, 1]
             if dim == 3:
@@ -405,7 +407,7 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
                 vx = F.v[i, 0] - B.v[b, 0]
                 vy = F.v[i, 1] - B.v[b, 1]
                 vz = (F.v[i, 2] - B.v[b, 2]) if dim == 3 else 0.0
-                s -= mass * visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (
+                s -= 2.0 * mass * visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (
                     rx * rx + ry * ry + rz * rz + eps)
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
