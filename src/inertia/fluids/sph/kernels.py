@@ -256,8 +256,9 @@ def _cohesion_spline(r, support):
 
 
 @njit(cache=True, parallel=True)
-def nonpressure_accel(F, nf, nb, B, grid, n, mass, rho0, h, viscosity, tension, gravity):
-    """accel_i = gravity + viscosity + surface tension (non-pressure accelerations).
+def nonpressure_accel(F, nf, nb, B, grid, n, mass, rho0, h, viscosity, wall_viscosity, tension, gravity):
+    """accel_i = gravity + viscosity + surface tension (non-pressure accelerations); the wall
+    viscous term only with wall_viscosity (off when the viscosity is solved implicitly).
 
     Viscosity (laminar, Monaghan 2005 / Morris et al. 1997 form, as used by Weiler et al. 2018):
         a_i = 2 (D + 2) nu sum_j (m / rho_ij) (v_ij . x_ij) / (|x_ij|^2 + 0.01 h^2) g_ij
@@ -307,7 +308,7 @@ def nonpressure_accel(F, nf, nb, B, grid, n, mass, rho0, h, viscosity, tension, 
         for k in range(nb.start[i], nb.start[i + 1]):
             b = nb.j[k]
             nu_b = B.noslip[b]
-            if nu_b <= 0.0:
+            if nu_b <= 0.0 or not wall_viscosity:
                 continue
             rx = F_x[i, 0] - B.x[b, 0]
             ry = F_x[i, 1] - B.x[b, 1]
@@ -482,3 +483,115 @@ def kernel_set(n: int):
         ns["gather"] = bp.gather_serial if serial else bp.gather
         _SETS[serial] = SimpleNamespace(**ns)
     return _SETS[serial]
+
+
+# --------------------------------------------------------------------------- implicit viscosity
+@njit(cache=True, parallel=True)
+def viscosity_operator(F, nf, nb, B, grid, n, mass, rho0, h, nu, dt, p, out, diag, rhs_wall):
+    """out_i = p_i - dt (L p)_i, the implicit viscosity matrix (Weiler, Koschier, Brand & Bender
+    2018, "A physically consistent implicit viscosity solver for SPH fluids", CGF 37(2), with the
+    laminar operator of ``nonpressure_accel``):
+        (L p)_i = 2 (D + 2) [nu sum_j (m / rho_ij) (p_ij . x_ij) / (r^2 + 0.01 h^2) g_ij
+                             + sum_b 2 nu_b (psi_b / rho0) (p_i . x_ib) / (r^2 + 0.01 h^2) g_ib].
+    The pair blocks g_ij x_ij^T are symmetric (g_ij is parallel to x_ij) and negative semi-
+    definite, so I - dt L is symmetric positive definite: conjugate gradients apply. Also
+    writes diag_i = 1 - dt trace(L_ii) / D (Jacobi preconditioner) and rhs_wall_i =
+    -dt sum_b 2 (D + 2) 2 nu_b (psi_b / rho0) (v_b . x_ib) / (r^2 + eps) g_ib (the known wall
+    velocities moved to the right-hand side)."""
+    F_rho = F.rho
+    F_x = F.x
+    dim = F_x.shape[1]
+    scale = 2.0 * (dim + 2)
+    eps = 0.01 * h * h
+    for i in prange(n):
+        x2 = F_x[i, 2] if dim == 3 else 0.0
+        lx = 0.0
+        ly = 0.0
+        lz = 0.0
+        tr = 0.0
+        for k in range(nf.start[i], nf.start[i + 1]):
+            j = nf.j[k]
+            rx = _min_image(F_x[i, 0] - F_x[j, 0], 0, grid)
+            ry = _min_image(F_x[i, 1] - F_x[j, 1], 1, grid)
+            rz = _min_image(x2 - F_x[j, 2], 2, grid) if dim == 3 else 0.0
+            c = scale * nu * 2.0 * mass / (F_rho[i] + F_rho[j]) / (rx * rx + ry * ry + rz * rz + eps)
+            px = p[i, 0] - p[j, 0]
+            py = p[i, 1] - p[j, 1]
+            pz = (p[i, 2] - p[j, 2]) if dim == 3 else 0.0
+            s = c * (px * rx + py * ry + pz * rz)
+            lx += s * nf.g[k, 0]
+            ly += s * nf.g[k, 1]
+            if dim == 3:
+                lz += s * nf.g[k, 2]
+            tr += c * (rx * nf.g[k, 0] + ry * nf.g[k, 1] + (rz * nf.g[k, 2] if dim == 3 else 0.0))
+        wx = 0.0
+        wy = 0.0
+        wz = 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            nu_b = B.noslip[b]
+            if nu_b <= 0.0:
+                continue
+            rx = F_x[i, 0] - B.x[b, 0]
+            ry = F_x[i, 1] - B.x[b, 1]
+            rz = (x2 - B.x[b, 2]) if dim == 3 else 0.0
+            c = scale * 2.0 * nu_b * B.psi[b] / rho0 / (rx * rx + ry * ry + rz * rz + eps)
+            s = c * (p[i, 0] * rx + p[i, 1] * ry + (p[i, 2] * rz if dim == 3 else 0.0))
+            sb = c * (B.v[b, 0] * rx + B.v[b, 1] * ry + (B.v[b, 2] * rz if dim == 3 else 0.0))
+            lx += s * nb.g[k, 0]
+            ly += s * nb.g[k, 1]
+            wx -= sb * nb.g[k, 0]
+            wy -= sb * nb.g[k, 1]
+            if dim == 3:
+                lz += s * nb.g[k, 2]
+                wz -= sb * nb.g[k, 2]
+            tr += c * (rx * nb.g[k, 0] + ry * nb.g[k, 1] + (rz * nb.g[k, 2] if dim == 3 else 0.0))
+        out[i, 0] = p[i, 0] - dt * lx
+        out[i, 1] = p[i, 1] - dt * ly
+        rhs_wall[i, 0] = dt * wx
+        rhs_wall[i, 1] = dt * wy
+        if dim == 3:
+            out[i, 2] = p[i, 2] - dt * lz
+            rhs_wall[i, 2] = dt * wz
+        diag[i] = 1.0 - dt * tr / dim
+
+
+@njit(cache=True, parallel=True)
+def dot_rows(a, b, n, partial):
+    """sum over rows < n and columns of a * b, in REDUCE_CHUNKS fixed chunks (same bits at any
+    thread count); partial (REDUCE_CHUNKS, 2) scratch."""
+    dim = a.shape[1]
+    chunk = (n + REDUCE_CHUNKS - 1) // REDUCE_CHUNKS
+    for c in prange(REDUCE_CHUNKS):
+        s = 0.0
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            for d in range(dim):
+                s += a[i, d] * b[i, d]
+        partial[c, 0] = s
+    s = 0.0
+    for c in range(REDUCE_CHUNKS):
+        s += partial[c, 0]
+    return s
+
+
+@njit(cache=True, parallel=True)
+def cg_update(n, alpha, p, ap, x, r, diag, z):
+    """x += alpha p; r -= alpha A p; z = r / diag."""
+    dim = x.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            x[i, d] += alpha * p[i, d]
+            r[i, d] -= alpha * ap[i, d]
+            z[i, d] = r[i, d] / diag[i]
+
+
+@njit(cache=True, parallel=True)
+def cg_direction(n, beta, z, p):
+    """p = z + beta p."""
+    dim = p.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            p[i, d] = z[i, d] + beta * p[i, d]
+
+
+_PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_update", "cg_direction")
