@@ -159,6 +159,7 @@ def scaling(million, steps):
 
 
 def main():
+    global T_STOP
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", nargs="+", default=["dfsph:2d", "numba:2d", "dfsph:3d", "scaling"])
     ap.add_argument("--steps3d", type=int, default=10)
@@ -166,7 +167,6 @@ def main():
     ap.add_argument("--million", action="store_true")
     ap.add_argument("--t-stop", type=float, default=T_STOP, help="end of the 2D timing window (s); 0.30 = the peers'")
     a = ap.parse_args()
-    global T_STOP
     T_STOP = a.t_stop
     import numba
     print(f"numba {numba.__version__}, {numba.get_num_threads()} threads, {os.cpu_count()} cpus")
