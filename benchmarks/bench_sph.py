@@ -1,0 +1,204 @@
+"""SPH dam break benchmark: Inertia's DFSPH (and WCSPH) against the peers' scene and baselines.
+
+Scene (the one of ``/work/shared/peers/bench_sph.py``, so the figures sit side by side): tank
+[0, 4] x [0, 4] m, water column [0, 1] x [0, 2] m against the left wall, g = -9.81, rho0 = 1000.
+  2D: spacing 0.01 m -> 100 x 200 = 20 000 fluid particles.
+  3D: the column extruded 1.08 m in z (tank depth), spacing 0.027 m -> 37 x 74 x 40 = 109 520
+      particles (the peers' SPlisHSPlasH block is 37 x 74 x 37 = 101 306; ours fills the tank
+      depth from wall to wall).
+Timing: like the peers, one sample = the steps that advance 0.01 s of simulated time inside
+t = 0.05-0.30 s (2D); the 3D case times ``--steps3d`` steps after reaching t = 0.02 s (a full
+window takes minutes), and "per simulated s" then uses their mean dt. Printed per case: ms per
+step (median, min, max over samples), ms per simulated second, mean dt and DFSPH iterations,
+the neighbour search's share (sort + neighbour lists), and the surge front at 0.1 / 0.2 / 0.3 s.
+
+Peers in the same run: the Numba WCSPH reference of the peers' script (imported from
+``/work/shared/peers/bench_sph.py``, run in this process with the same window; 2D only).
+PySPH and SPlisHSPlasH are not installed here (PySPH builds from source for ~6 min,
+SPlisHSPlasH's wheel needs a libGL preload): their figures from ``BASELINES.md`` (same kind of
+2-core machine, measured separately) are printed for reference, marked as such.
+
+Scaling: the 2D dam break at 10^4 and 10^5 particles (10^6 with ``--million``): ms per step and
+ns per particle-step over ``--scale-steps`` steps after 5 warm-up steps.
+
+Run:  PYTHONPATH=src python benchmarks/bench_sph.py [--cases dfsph:2d numba:2d dfsph:3d scaling]
+          [--steps3d 10] [--million]
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+
+import numpy as np
+
+import inertia as ia
+from inertia.fluids.sph import SPHFluid, sample_block
+
+PEERS = "/work/shared/peers"
+T_WARM, T_STOP, SAMPLE_DT = 0.05, 0.30, 0.01
+BASELINES = {  # /work/shared/peers/BASELINES.md, "SPH dam break" rows (median ms per step, s per simulated s)
+    "2d": [("SPlisHSPlasH 2.19 DFSPH (float32)", 32.6, 28.0), ("PySPH 1.0b2 WCSPH", 17.6, 291.0),
+           ("Numba WCSPH reference", 5.41, 104.0)],
+    "3d": [("SPlisHSPlasH 2.19 DFSPH (float32, 101 306)", 427.0, 133.0), ("PySPH 1.0b2 WCSPH", 561.0, 3400.0)],
+}
+
+
+def dam_break(dim, dx, method="dfsph"):
+    """The peers' dam break (see the module docstring) as an SPHFluid."""
+    if dim == 2:
+        x = sample_block((0.0, 0.0), (1.0, 2.0), dx)
+        lo, hi = (0.0, 0.0), (4.0, 4.0)
+    else:
+        depth = 40 * dx
+        x = sample_block((0.0, 0.0, 0.0), (1.0, 2.0, depth), dx)
+        lo, hi = (0.0, 0.0, 0.0), (4.0, 2.2, depth)
+    fluid = SPHFluid(x, spacing=dx, domain=(lo, hi), method=method, viscosity=0.0, xsph=0.0,
+                     density_tolerance=1e-3 if dim == 2 else 5e-4)
+    centre = 0.5 * (np.array(lo) + np.array(hi))
+    fluid.add_boundary(ia.colliders.Container(center=centre, half_extents=0.5 * (np.array(hi) - np.array(lo))),
+                       slip=True)
+    return fluid
+
+
+def run_inertia(dim, dx, steps3d):
+    fluid = dam_break(dim, dx)
+    t0 = time.perf_counter()
+    fluid.step()
+    first = time.perf_counter() - t0
+    fronts, samples, iters, dts = [], [], [], []
+    checks = [0.1, 0.2, 0.3]
+    start_profile = None
+    if dim == 2:
+        while fluid.time < T_WARM:
+            fluid.step()
+        start_profile = dict(fluid.profile)
+        window_start, sample_start, sample_steps = time.perf_counter(), time.perf_counter(), 0
+        boundary = T_WARM + SAMPLE_DT
+        while fluid.time < T_STOP - 1e-12:
+            fluid.step()
+            sample_steps += 1
+            iters.append(fluid.stats["density_iterations"] + fluid.stats["divergence_iterations"])
+            dts.append(fluid.last_dt)
+            if checks and fluid.time >= checks[0]:
+                checks.pop(0)
+                fronts.append(fluid.x[:, 0].max())
+            if fluid.time >= boundary - 1e-12:
+                now = time.perf_counter()
+                samples.append((now - sample_start) / sample_steps)
+                sample_start, sample_steps, boundary = now, 0, boundary + SAMPLE_DT
+        wall = time.perf_counter() - window_start
+        sim_t = sum(dts)
+    else:
+        while fluid.time < 0.02:
+            fluid.step()
+        start_profile = dict(fluid.profile)
+        window_start = time.perf_counter()
+        for _ in range(steps3d):
+            s0 = time.perf_counter()
+            fluid.step()
+            samples.append(time.perf_counter() - s0)
+            iters.append(fluid.stats["density_iterations"] + fluid.stats["divergence_iterations"])
+            dts.append(fluid.last_dt)
+        wall = time.perf_counter() - window_start
+        sim_t = sum(dts)
+    spent = {k: fluid.profile[k] - start_profile.get(k, 0.0) for k in fluid.profile}
+    total = sum(spent.values())
+    share = (spent.get("sort", 0.0) + spent.get("neighbours", 0.0)) / total
+    return dict(n=fluid.particle_count, per_step=samples, wall=wall, sim_t=sim_t, dt=float(np.mean(dts)),
+                iters=float(np.mean(iters)), share=share, fronts=fronts, first=first,
+                stages={k: v / total for k, v in spent.items()}, nb=fluid.boundary_x.shape[0])
+
+
+def run_numba_peer():
+    sys.path.insert(0, PEERS)
+    import bench_sph as peer  # noqa: E402  (the peers' script, imported, not copied)
+    return peer.run_numba(2)
+
+
+def report_inertia(name, r, dim):
+    ps = r["per_step"]
+    med = float(np.median(ps))
+    per_sim_s = r["wall"] / r["sim_t"]
+    print(f"{name:12s} {r['n']:7d} fluid + {r['nb']} boundary particles: per step median {med * 1e3:8.2f} ms "
+          f"(min {min(ps) * 1e3:.2f}, max {max(ps) * 1e3:.2f}); dt mean {r['dt'] * 1e3:.3f} ms; "
+          f"{r['iters']:.1f} pressure iterations/step")
+    print(f"{'':12s} {per_sim_s:8.1f} s per simulated s; neighbour search (sort + lists) {100 * r['share']:.0f} % "
+          f"of the step; stages " + ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["stages"].items()))
+    if r["fronts"]:
+        print(f"{'':12s} front x(0.1, 0.2, 0.3 s) = " + ", ".join(f"{f:.3f}" for f in r["fronts"]) +
+              " m (Koshizuka & Oka: 1.13, 1.33, 1.68)")
+    print(f"{'':12s} setup + first step (JIT) {r['first']:.1f} s")
+    for peer, ms, s_per_s in BASELINES[f"{dim}d"]:
+        print(f"{'':12s} vs {peer} [BASELINES.md, not this run]: per step x{ms / (med * 1e3):.2f}, "
+              f"per simulated s x{s_per_s / per_sim_s:.2f} (>1 = Inertia faster)")
+    return med, per_sim_s
+
+
+def scaling(million, steps):
+    counts = [(1e4, 0.01414), (1e5, 0.00447)] + ([(1e6, 0.001414)] if million else [])
+    rows = []
+    for target, dx in counts:
+        fluid = dam_break(2, dx)
+        for _ in range(5):
+            fluid.step()
+        t0 = time.perf_counter()
+        its = 0
+        for _ in range(steps):
+            fluid.step()
+            its += fluid.stats["density_iterations"] + fluid.stats["divergence_iterations"] + 2
+        wall = time.perf_counter() - t0
+        per, per_it = wall / steps, wall / its
+        rows.append((fluid.particle_count, per_it))
+        print(f"scaling      {fluid.particle_count:8d} particles: {per * 1e3:9.2f} ms per step, {its / steps:.0f} "
+              f"solver passes per step, {per_it * 1e3:.3f} ms per pass = "
+              f"{per_it / fluid.particle_count * 1e9:6.1f} ns per particle-pass")
+    for (n0, t0), (n1, t1) in zip(rows, rows[1:]):
+        print(f"scaling      x{n1 / n0:.1f} particles -> x{t1 / t0:.2f} time per solver pass "
+              f"(exponent {math.log(t1 / t0) / math.log(n1 / n0):.2f}; 1 = linear; the iteration count per step "
+              f"depends on the column height in particles, so per-pass cost is what scales)")
+
+
+def main():
+    global T_STOP
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cases", nargs="+", default=["dfsph:2d", "numba:2d", "dfsph:3d", "scaling"])
+    ap.add_argument("--steps3d", type=int, default=10)
+    ap.add_argument("--scale-steps", type=int, default=10)
+    ap.add_argument("--million", action="store_true")
+    ap.add_argument("--t-stop", type=float, default=T_STOP, help="end of the 2D timing window (s); 0.30 = the peers'")
+    a = ap.parse_args()
+    T_STOP = a.t_stop
+    import numba
+    print(f"numba {numba.__version__}, {numba.get_num_threads()} threads, {os.cpu_count()} cpus")
+    ours = None
+    for case in a.cases:
+        if case == "dfsph:2d":
+            ours = report_inertia("inertia 2D", run_inertia(2, 0.01, a.steps3d), 2)
+        elif case == "dfsph:3d":
+            report_inertia("inertia 3D", run_inertia(3, 0.027, a.steps3d), 3)
+        elif case == "numba:2d":
+            try:
+                r = run_numba_peer()
+            except Exception as e:  # noqa: BLE001  (report and go on)
+                print(f"numba:2d peer failed: {e}")
+                continue
+            med = float(np.median(r["per_step"]))
+            per_sim_s = r["wall"] / r["sim_t"]
+            print(f"numba WCSPH  {r['n']:7d} fluid particles (peers' reference, this run): per step median "
+                  f"{med * 1e3:.2f} ms, dt {r['dt_mean'] * 1e3:.4f} ms, {per_sim_s:.1f} s per simulated s; fronts "
+                  + ", ".join(f"{x:.3f}" for _, _, x in r["fronts"]))
+            if ours:
+                print(f"{'':12s} inertia DFSPH vs numba WCSPH (same run): per step x{med / ours[0]:.2f}, "
+                      f"per simulated s x{per_sim_s / ours[1]:.2f} (>1 = Inertia faster)")
+        elif case == "scaling":
+            scaling(a.million, a.scale_steps)
+        else:
+            raise SystemExit(f"unknown case {case!r}")
+
+
+if __name__ == "__main__":
+    main()

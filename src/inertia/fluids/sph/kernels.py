@@ -1,0 +1,597 @@
+"""Numba kernels of the SPH step: density, DFSPH pressure iterations, WCSPH pressure, viscosity,
+XSPH, surface tension, advection, body wrenches and fixed-chunk reductions.
+
+All kernels work in sorted space (see ``neighbours``) on the bundles ``FluidArrays``,
+``Neighbours`` and ``BoundaryArrays``; every parallel loop writes only row i of its outputs
+(gathers over the CSR neighbour lists), so results are the same at any thread count.
+
+Notation: ``m`` fluid particle mass [kg], ``rho0`` rest density [kg/m^3], ``psi_b = rho0 V_b``
+the boundary particle's "mass" [kg] (Akinci et al. 2012), ``g_ij = grad_i W(x_i - x_j)``.
+The pressure is carried as ``k_i = p_i / rho_i^2`` [m^5/(kg s^2)]: the symmetric pressure
+acceleration is ``a_i = -sum_j m (k_i + k_j) g_ij - k_i sum_b psi_b g_ib`` (pressure mirrored
+onto the boundary, Akinci et al. 2012) for both WCSPH and DFSPH.
+
+References: see the module docstring of ``inertia.fluids.sph.fluid``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from .neighbours import _min_image
+
+
+class FluidArrays(NamedTuple):
+    """Per fluid particle, in sorted space; rows [0, n) are live (capacity rows allocated)."""
+    x: np.ndarray        # (cap, D) [m] position; advect
+    v: np.ndarray        # (cap, D) [m/s] velocity; every velocity stage
+    rho: np.ndarray      # (cap,) [kg/m^3] summed density; density_and_factor
+    factor: np.ndarray   # (cap,) [1/kg^2 m^...] DFSPH factor 1/(|sum m g|^2 + sum |m g|^2); density_and_factor
+    k_dens: np.ndarray   # (cap,) [m^5/(kg s^2)] p / rho^2 of the density solve (WCSPH: Tait); kept for warm start
+    k_div: np.ndarray    # (cap,) [m^5/(kg s^2)] p / rho^2 of the divergence solve; kept for warm start
+    kappa: np.ndarray    # (cap,) the k increment of the current iteration
+    err: np.ndarray      # (cap,) per-particle error of the current iteration [kg/m^3 or kg/(m^3 s)]
+    accel: np.ndarray    # (cap, D) [m/s^2] non-pressure acceleration; nonpressure_accel
+    normal: np.ndarray   # (cap, D) [1] Akinci 2013 surface normal (support * grad colour); surface_normals
+    scratch: np.ndarray  # (cap, D) scratch velocities (XSPH)
+
+
+class Neighbours(NamedTuple):
+    """CSR neighbour lists of the fluid particles (sorted space), written by fill_neighbours."""
+    start: np.ndarray    # (cap + 1,) int64: neighbours of i are start[i]:start[i+1]
+    j: np.ndarray        # (M,) int32 neighbour index (fluid or boundary set)
+    w: np.ndarray        # (M,) [1/m^D] W_ij
+    g: np.ndarray        # (M, D) [1/m^(D+1)] grad_i W_ij
+
+
+class BoundaryArrays(NamedTuple):
+    """Boundary particles (sorted by cell), written by SPHFluid when bodies move."""
+    x: np.ndarray        # (Nb, D) [m] position
+    v: np.ndarray        # (Nb, D) [m/s] velocity of the solid at the particle
+    psi: np.ndarray      # (Nb,) [kg] rho0 * volume of the particle
+    body: np.ndarray     # (Nb,) int64 owning body (-1 static)
+    noslip: np.ndarray   # (Nb,) [m^2/s] viscosity towards this particle (0 = slip)
+
+
+REDUCE_CHUNKS = 64
+
+
+@njit(cache=True, parallel=True)
+def chunk_sum_max(values, n, partial, out):
+    """out[0] = sum(values[:n]), out[1] = max(values[:n]) in REDUCE_CHUNKS fixed chunks (the
+    same bits at any thread count); partial (REDUCE_CHUNKS, 2) scratch."""
+    chunk = (n + REDUCE_CHUNKS - 1) // REDUCE_CHUNKS
+    for c in prange(REDUCE_CHUNKS):
+        s = 0.0
+        m = 0.0
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            s += values[i]
+            if values[i] > m:
+                m = values[i]
+        partial[c, 0] = s
+        partial[c, 1] = m
+    s = 0.0
+    m = 0.0
+    for c in range(REDUCE_CHUNKS):
+        s += partial[c, 0]
+        m = max(m, partial[c, 1])
+    out[0] = s
+    out[1] = m
+
+
+@njit(cache=True, parallel=True)
+def speed_squared(v, n, out):
+    """out[i] = |v_i|^2 (NaN stays NaN)."""
+    dim = v.shape[1]
+    for i in prange(n):
+        s = 0.0
+        for d in range(dim):
+            s += v[i, d] * v[i, d]
+        out[i] = s if s == s else np.inf
+
+
+@njit(cache=True, parallel=True)
+def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps):
+    """rho_i = m W(0) + sum_j m W_ij + sum_b psi_b W_ib; DFSPH factor (Bender & Koschier 2017,
+    eq. 8 with the mass inside the sums): 1 / (|sum_j m g_ij + sum_b psi_b g_ib|^2 +
+    sum_j |m g_ij|^2), 0 where the denominator is below factor_eps (isolated particles)."""
+    F_factor = F.factor  # unpacked: Numba drops writes through a named tuple inside prange
+    F_rho = F.rho
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        rho = mass * w0
+        gx = 0.0
+        gy = 0.0
+        gz = 0.0
+        s = 0.0
+        for k in range(nf.start[i], nf.start[i + 1]):
+            rho += mass * nf.w[k]
+            ax = mass * nf.g[k, 0]
+            ay = mass * nf.g[k, 1]
+            az = mass * nf.g[k, 2] if dim == 3 else 0.0
+            gx += ax
+            gy += ay
+            gz += az
+            s += ax * ax + ay * ay + az * az
+        for k in range(nb.start[i], nb.start[i + 1]):
+            psi = B.psi[nb.j[k]]
+            rho += psi * nb.w[k]
+            gx += psi * nb.g[k, 0]
+            gy += psi * nb.g[k, 1]
+            if dim == 3:
+                gz += psi * nb.g[k, 2]
+        F_rho[i] = rho
+        denom = gx * gx + gy * gy + gz * gz + s
+        F_factor[i] = 1.0 / denom if denom > factor_eps else 0.0
+
+
+@njit(cache=True, inline="always")
+def _density_rate(F, nf, nb, B, i, mass):
+    # d rho_i / dt = sum_j m (v_i - v_j) . g_ij + sum_b psi_b (v_i - v_b) . g_ib
+    dim = F.x.shape[1]
+    rate = 0.0
+    for k in range(nf.start[i], nf.start[i + 1]):
+        j = nf.j[k]
+        for d in range(dim):
+            rate += mass * (F.v[i, d] - F.v[j, d]) * nf.g[k, d]
+    for k in range(nb.start[i], nb.start[i + 1]):
+        b = nb.j[k]
+        psi = B.psi[b]
+        for d in range(dim):
+            rate += psi * (F.v[i, d] - B.v[b, d]) * nb.g[k, d]
+    return rate
+
+
+@njit(cache=True, parallel=True)
+def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total):
+    """One DFSPH iteration, first half (Bender & Koschier 2017, algorithms 2 and 3).
+
+    density_mode: predicted density rho*_i = rho_i + dt drho_i/dt must reach rho0:
+        kappa_i = omega (rho*_i - rho0) / dt^2 * factor_i;  e_i = rho*_i - rho0.
+    divergence mode: drho_i/dt must vanish:
+        kappa_i = omega (drho_i/dt) / dt * factor_i;  e_i = drho_i/dt.
+    err_i = |e_i| where the particle is compressed or carries pressure, else 0 (the residual
+    of the complementarity problem p >= 0, rho* <= rho0, p (rho* - rho0) = 0).
+    omega = relaxation: the factor is the exact diagonal of the pressure system, whose
+    off-diagonal sum exceeds it (not diagonally dominant), so plain Jacobi (omega = 1) lets the
+    checkerboard mode grow when iterated to convergence; omega = 0.5 is the relaxed Jacobi of
+    Ihmsen et al. (2014), "Implicit incompressible SPH", IEEE TVCG 20(3), and converges.
+    The pressure stays non-negative (free surfaces): kappa_i is projected so that the running
+    total (k_dens or k_div, passed as ``total``, added to by apply_pressure) stays >= 0."""
+    F_err = F.err  # unpacked: Numba drops writes through a named tuple inside prange
+    F_factor = F.factor
+    F_kappa = F.kappa
+    F_rho = F.rho
+    for i in prange(n):
+        rate = _density_rate(F, nf, nb, B, i, mass)
+        if density_mode:
+            e = F_rho[i] + dt * rate - rho0
+            kap = relaxation * e * F_factor[i] / (dt * dt)
+        else:
+            e = rate
+            kap = relaxation * e * F_factor[i] / dt
+        # complementarity residual: compressed particles, and pressurised ones in either sign
+        F_err[i] = abs(e) if (e > 0.0 or total[i] > 0.0) else 0.0
+        if total[i] + kap < 0.0:
+            kap = -total[i]
+        F_kappa[i] = kap
+
+
+@njit(cache=True, parallel=True)
+def apply_pressure(F, nf, nb, B, n, mass, dt, kappa, total, accumulate):
+    """v_i += dt a_i with a_i = -sum_j m (kappa_i + kappa_j) g_ij - kappa_i sum_b psi_b g_ib
+    (the symmetric SPH pressure acceleration, kappa = p / rho^2; boundary pressure mirrored);
+    with accumulate, total_i += kappa_i (row i only: the sums read kappa, never total)."""
+    F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        ki = kappa[i]
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(nf.start[i], nf.start[i + 1]):
+            s = mass * (ki + kappa[nf.j[k]])
+            ax -= s * nf.g[k, 0]
+            ay -= s * nf.g[k, 1]
+            if dim == 3:
+                az -= s * nf.g[k, 2]
+        if ki != 0.0:
+            for k in range(nb.start[i], nb.start[i + 1]):
+                s = ki * B.psi[nb.j[k]]
+                ax -= s * nb.g[k, 0]
+                ay -= s * nb.g[k, 1]
+                if dim == 3:
+                    az -= s * nb.g[k, 2]
+        F_v[i, 0] += dt * ax
+        F_v[i, 1] += dt * ay
+        if dim == 3:
+            F_v[i, 2] += dt * az
+        if accumulate:
+            total[i] += ki
+
+
+@njit(cache=True, parallel=True)
+def tait_pressure(F, n, rho0, stiffness, exponent):
+    """WCSPH (Becker & Teschner 2007, eq. 6): p = B ((rho/rho0)^gamma - 1), clamped at 0 (no
+    tension at the free surface); stored as k_dens = p / rho^2."""
+    F_k_dens = F.k_dens  # unpacked: Numba drops writes through a named tuple inside prange
+    F_rho = F.rho
+    for i in prange(n):
+        rho = F_rho[i]
+        p = stiffness * ((rho / rho0) ** exponent - 1.0)
+        F_k_dens[i] = p / (rho * rho) if p > 0.0 else 0.0
+
+
+@njit(cache=True, parallel=True)
+def surface_normals(F, nf, n, mass, support):
+    """Akinci et al. 2013, eq. 4: n_i = support * sum_j (m / rho_j) g_ij."""
+    F_normal = F.normal  # unpacked: Numba drops writes through a named tuple inside prange
+    F_rho = F.rho
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            F_normal[i, d] = 0.0
+        for k in range(nf.start[i], nf.start[i + 1]):
+            s = support * mass / F_rho[nf.j[k]]
+            for d in range(dim):
+                F_normal[i, d] += s * nf.g[k, d]
+
+
+@njit(cache=True, inline="always")
+def _cohesion_spline(r, support):
+    # Akinci et al. 2013, eq. 2: C(r) = 32 / (pi H^9) {(H - r)^3 r^3 if 2r > H; 2 (H - r)^3 r^3 - H^6/64 if 0 < 2r <= H}
+    if r >= support or r <= 0.0:
+        return 0.0
+    c = 32.0 / (np.pi * support ** 9)
+    t = (support - r) ** 3 * r ** 3
+    if 2.0 * r > support:
+        return c * t
+    return c * (2.0 * t - support ** 6 / 64.0)
+
+
+@njit(cache=True, parallel=True)
+def nonpressure_accel(F, nf, nb, B, grid, n, mass, rho0, h, viscosity, wall_viscosity, tension, gravity):
+    """accel_i = gravity + viscosity + surface tension (non-pressure accelerations); the wall
+    viscous term only with wall_viscosity (off when the viscosity is solved implicitly).
+
+    Viscosity (laminar, Monaghan 2005 / Morris et al. 1997 form, as used by Weiler et al. 2018):
+        a_i = 2 (D + 2) nu sum_j (m / rho_ij) (v_ij . x_ij) / (|x_ij|^2 + 0.01 h^2) g_ij
+    with rho_ij = (rho_i + rho_j) / 2, so that the pair forces are equal and opposite (momentum)
+    and against no-slip boundary particles the same with (psi_b / rho0, B.noslip[b]) and the
+    mirrored velocity 2 v_b - v_i (Morris et al. 1997), which puts the no-slip condition on the wall.
+    Surface tension (Akinci, Akinci & Teschner 2013, eqs. 1-6), per unit mass:
+        a_i = sum_j 2 rho0 / (rho_i + rho_j) [-tension m C(|x_ij|) x_ij / |x_ij| - tension (n_i - n_j)]."""
+    F_accel = F.accel  # unpacked: Numba drops writes through a named tuple inside prange
+    F_k_dens = F.k_dens
+    F_normal = F.normal
+    F_rho = F.rho
+    F_v = F.v
+    F_x = F.x
+    dim = F_x.shape[1]
+    support = 2.0 * h
+    visc_scale = 2.0 * (dim + 2)
+    eps = 0.01 * h * h
+    for i in prange(n):
+        ax = gravity[0]
+        ay = gravity[1]
+        az = gravity[2] if dim == 3 else 0.0
+        x2 = F_x[i, 2] if dim == 3 else 0.0
+        for k in range(nf.start[i], nf.start[i + 1]):
+            j = nf.j[k]
+            rx = _min_image(F_x[i, 0] - F_x[j, 0], 0, grid)
+            ry = _min_image(F_x[i, 1] - F_x[j, 1], 1, grid)
+            rz = _min_image(x2 - F_x[j, 2], 2, grid) if dim == 3 else 0.0
+            r2 = rx * rx + ry * ry + rz * rz
+            if viscosity > 0.0:
+                vx = F_v[i, 0] - F_v[j, 0]
+                vy = F_v[i, 1] - F_v[j, 1]
+                vz = (F_v[i, 2] - F_v[j, 2]) if dim == 3 else 0.0
+                s = visc_scale * viscosity * 2.0 * mass / (F_rho[i] + F_rho[j]) * (vx * rx + vy * ry + vz * rz) / (r2 + eps)
+                ax += s * nf.g[k, 0]
+                ay += s * nf.g[k, 1]
+                if dim == 3:
+                    az += s * nf.g[k, 2]
+            if tension > 0.0:
+                kij = 2.0 * rho0 / (F_rho[i] + F_rho[j])
+                r = np.sqrt(r2)
+                coh = -tension * mass * _cohesion_spline(r, support) / r if r > 0.0 else 0.0
+                ax += kij * (coh * rx - tension * (F_normal[i, 0] - F_normal[j, 0]))
+                ay += kij * (coh * ry - tension * (F_normal[i, 1] - F_normal[j, 1]))
+                if dim == 3:
+                    az += kij * (coh * rz - tension * (F_normal[i, 2] - F_normal[j, 2]))
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            nu_b = B.noslip[b]
+            if nu_b <= 0.0 or not wall_viscosity:
+                continue
+            rx = F_x[i, 0] - B.x[b, 0]
+            ry = F_x[i, 1] - B.x[b, 1]
+            rz = (x2 - B.x[b, 2]) if dim == 3 else 0.0
+            vx = F_v[i, 0] - B.v[b, 0]
+            vy = F_v[i, 1] - B.v[b, 1]
+            vz = (F_v[i, 2] - B.v[b, 2]) if dim == 3 else 0.0
+            r2 = rx * rx + ry * ry + rz * rz
+            # mirrored no-slip velocity v_b* = 2 v_b - v_i (Morris et al. 1997): v_i - v_b* = 2 (v_i - v_b)
+            s = 2.0 * visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (r2 + eps)
+            ax += s * nb.g[k, 0]
+            ay += s * nb.g[k, 1]
+            if dim == 3:
+                az += s * nb.g[k, 2]
+        F_accel[i, 0] = ax
+        F_accel[i, 1] = ay
+        if dim == 3:
+            F_accel[i, 2] = az
+
+
+@njit(cache=True, parallel=True)
+def kick(F, n, dt):
+    """v_i += dt accel_i."""
+    F_accel = F.accel  # unpacked: Numba drops writes through a named tuple inside prange
+    F_v = F.v
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            F_v[i, d] += dt * F_accel[i, d]
+
+
+@njit(cache=True, parallel=True)
+def xsph(F, nf, n, mass, epsilon):
+    """XSPH velocity smoothing (Monaghan 1989, "On the problem of penetration in particle methods";
+    symmetric form): v_i += epsilon sum_j 2 m / (rho_i + rho_j) (v_j - v_i) W_ij. Conserves
+    momentum (antisymmetric exchange). Reads v, writes scratch, then copies back."""
+    F_rho = F.rho  # unpacked: Numba drops writes through a named tuple inside prange
+    F_scratch = F.scratch
+    F_v = F.v
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            F_scratch[i, d] = F_v[i, d]
+        for k in range(nf.start[i], nf.start[i + 1]):
+            j = nf.j[k]
+            s = epsilon * 2.0 * mass / (F_rho[i] + F_rho[j]) * nf.w[k]
+            for d in range(dim):
+                F_scratch[i, d] += s * (F_v[j, d] - F_v[i, d])
+    for i in prange(n):
+        for d in range(dim):
+            F_v[i, d] = F_scratch[i, d]
+
+
+@njit(cache=True, parallel=True)
+def advect(F, grid, n, dt):
+    """x_i += dt v_i (symplectic Euler: the new velocity), wrapped into the periodic axes."""
+    F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            xd = F_x[i, d] + dt * F_v[i, d]
+            if grid.periodic[d]:
+                L = grid.length[d]
+                xd = grid.lo[d] + (xd - grid.lo[d]) - L * np.floor((xd - grid.lo[d]) / L)
+            F_x[i, d] = xd
+
+
+@njit(cache=True)
+def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
+    """Force and torque of the fluid on each body (serial, fixed order: deterministic).
+
+    The reaction of the pressure acceleration on fluid particle i from boundary particle b
+    (Akinci et al. 2012, eq. 10): f_b = m (k_dens_i + k_div_i) psi_b g_ib, plus the reaction of
+    the no-slip viscous term; torque about com[body]: (x_b - com) x f_b. force, torque (nbody, 3)."""
+    dim = F.x.shape[1]
+    force[:] = 0.0
+    torque[:] = 0.0
+    visc_scale = 2.0 * (dim + 2)
+    eps = 0.01 * h * h
+    for i in range(n):
+        ki = F.k_dens[i] + F.k_div[i]
+        x2 = F.x[i, 2] if dim == 3 else 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            body = B.body[b]
+            if body < 0:
+                continue
+            s = mass * ki * B.psi[b]
+            nu_b = B.noslip[b]
+            if nu_b > 0.0:
+                rx = F.x[i, 0] - B.x[b, 0]
+                ry = F.x[i, 1] - B.x[b, 1]
+                rz = (x2 - B.x[b, 2]) if dim == 3 else 0.0
+                vx = F.v[i, 0] - B.v[b, 0]
+                vy = F.v[i, 1] - B.v[b, 1]
+                vz = (F.v[i, 2] - B.v[b, 2]) if dim == 3 else 0.0
+                s -= 2.0 * mass * visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (
+                    rx * rx + ry * ry + rz * rz + eps)
+            fx = s * nb.g[k, 0]
+            fy = s * nb.g[k, 1]
+            fz = s * nb.g[k, 2] if dim == 3 else 0.0
+            px = B.x[b, 0] - com[body, 0]
+            py = B.x[b, 1] - com[body, 1]
+            pz = (B.x[b, 2] - com[body, 2]) if dim == 3 else 0.0
+            force[body, 0] += fx
+            force[body, 1] += fy
+            force[body, 2] += fz
+            torque[body, 0] += py * fz - pz * fy
+            torque[body, 1] += pz * fx - px * fz
+            torque[body, 2] += px * fy - py * fx
+
+
+@njit(cache=True, parallel=True)
+def move_boundary(local, body, rest_x, body_x, body_rot, body_v, body_omega, x, v):
+    """Boundary particles of moving bodies: x_b = c + R r_b, v_b = v_c + omega x (x_b - c);
+    static particles (body -1) keep rest_x and zero velocity. body_rot (nbody, 3, 3),
+    body_omega (nbody, 3) (2D: only the z component is used)."""
+    nb, dim = x.shape
+    for b in prange(nb):
+        k = body[b]
+        if k < 0:
+            for d in range(dim):
+                x[b, d] = rest_x[b, d]
+                v[b, d] = 0.0
+            continue
+        r0 = body_rot[k, 0, 0] * local[b, 0] + body_rot[k, 0, 1] * local[b, 1]
+        r1 = body_rot[k, 1, 0] * local[b, 0] + body_rot[k, 1, 1] * local[b, 1]
+        r2 = 0.0
+        if dim == 3:
+            r0 += body_rot[k, 0, 2] * local[b, 2]
+            r1 += body_rot[k, 1, 2] * local[b, 2]
+            r2 = body_rot[k, 2, 0] * local[b, 0] + body_rot[k, 2, 1] * local[b, 1] + body_rot[k, 2, 2] * local[b, 2]
+        wx, wy, wz = body_omega[k, 0], body_omega[k, 1], body_omega[k, 2]
+        cx = wy * r2 - wz * r1
+        cy = wz * r0 - wx * r2
+        cz = wx * r1 - wy * r0
+        x[b, 0] = body_x[k, 0] + r0
+        x[b, 1] = body_x[k, 1] + r1
+        v[b, 0] = body_v[k, 0] + cx
+        v[b, 1] = body_v[k, 1] + cy
+        if dim == 3:
+            x[b, 2] = body_x[k, 2] + r2
+            v[b, 2] = body_v[k, 2] + cz
+
+
+# --------------------------------------------------------------------------- size dispatch
+_PARALLEL_KERNELS = ("chunk_sum_max", "speed_squared", "density_and_factor", "pressure_increment",
+                     "apply_pressure", "tait_pressure", "surface_normals", "nonpressure_accel", "kick",
+                     "xsph", "advect", "move_boundary")
+_SETS = {}
+
+
+def kernel_set(n: int):
+    """The kernels to run for n particles: the parallel ones, or their serial twins (same code,
+    compiled without ``parallel``; see ``inertia._jit``) below ``SERIAL_BELOW`` particles, where
+    launching a parallel region costs more than the work. Twins compile on first use."""
+    from types import SimpleNamespace
+
+    from ..._jit import SERIAL_BELOW, serial_twin
+    from . import neighbours as nb
+    serial = n < SERIAL_BELOW
+    if serial not in _SETS:
+        g = globals()
+        ns = {name: (serial_twin(g[name]) if serial else g[name]) for name in _PARALLEL_KERNELS}
+        for name in ("bin_cells", "count_neighbours", "fill_neighbours"):
+            kern = getattr(nb, name)
+            ns[name] = serial_twin(kern) if serial else kern
+        from ...collision import broadphase as bp
+        ns["gather"] = bp.gather_serial if serial else bp.gather
+        _SETS[serial] = SimpleNamespace(**ns)
+    return _SETS[serial]
+
+
+# --------------------------------------------------------------------------- implicit viscosity
+@njit(cache=True, parallel=True)
+def viscosity_operator(F, nf, nb, B, grid, n, mass, rho0, h, nu, dt, p, out, diag, rhs_wall):
+    """out_i = p_i - dt (L p)_i, the implicit viscosity matrix (Weiler, Koschier, Brand & Bender
+    2018, "A physically consistent implicit viscosity solver for SPH fluids", CGF 37(2), with the
+    laminar operator of ``nonpressure_accel``):
+        (L p)_i = 2 (D + 2) [nu sum_j (m / rho_ij) (p_ij . x_ij) / (r^2 + 0.01 h^2) g_ij
+                             + sum_b 2 nu_b (psi_b / rho0) (p_i . x_ib) / (r^2 + 0.01 h^2) g_ib].
+    The pair blocks g_ij x_ij^T are symmetric (g_ij is parallel to x_ij) and negative semi-
+    definite, so I - dt L is symmetric positive definite: conjugate gradients apply. Also
+    writes diag_i = 1 - dt trace(L_ii) / D (Jacobi preconditioner) and rhs_wall_i =
+    -dt sum_b 2 (D + 2) 2 nu_b (psi_b / rho0) (v_b . x_ib) / (r^2 + eps) g_ib (the known wall
+    velocities moved to the right-hand side)."""
+    F_rho = F.rho
+    F_x = F.x
+    dim = F_x.shape[1]
+    scale = 2.0 * (dim + 2)
+    eps = 0.01 * h * h
+    for i in prange(n):
+        x2 = F_x[i, 2] if dim == 3 else 0.0
+        lx = 0.0
+        ly = 0.0
+        lz = 0.0
+        tr = 0.0
+        for k in range(nf.start[i], nf.start[i + 1]):
+            j = nf.j[k]
+            rx = _min_image(F_x[i, 0] - F_x[j, 0], 0, grid)
+            ry = _min_image(F_x[i, 1] - F_x[j, 1], 1, grid)
+            rz = _min_image(x2 - F_x[j, 2], 2, grid) if dim == 3 else 0.0
+            c = scale * nu * 2.0 * mass / (F_rho[i] + F_rho[j]) / (rx * rx + ry * ry + rz * rz + eps)
+            px = p[i, 0] - p[j, 0]
+            py = p[i, 1] - p[j, 1]
+            pz = (p[i, 2] - p[j, 2]) if dim == 3 else 0.0
+            s = c * (px * rx + py * ry + pz * rz)
+            lx += s * nf.g[k, 0]
+            ly += s * nf.g[k, 1]
+            if dim == 3:
+                lz += s * nf.g[k, 2]
+            tr += c * (rx * nf.g[k, 0] + ry * nf.g[k, 1] + (rz * nf.g[k, 2] if dim == 3 else 0.0))
+        wx = 0.0
+        wy = 0.0
+        wz = 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            nu_b = B.noslip[b]
+            if nu_b <= 0.0:
+                continue
+            rx = F_x[i, 0] - B.x[b, 0]
+            ry = F_x[i, 1] - B.x[b, 1]
+            rz = (x2 - B.x[b, 2]) if dim == 3 else 0.0
+            c = scale * 2.0 * nu_b * B.psi[b] / rho0 / (rx * rx + ry * ry + rz * rz + eps)
+            s = c * (p[i, 0] * rx + p[i, 1] * ry + (p[i, 2] * rz if dim == 3 else 0.0))
+            sb = c * (B.v[b, 0] * rx + B.v[b, 1] * ry + (B.v[b, 2] * rz if dim == 3 else 0.0))
+            lx += s * nb.g[k, 0]
+            ly += s * nb.g[k, 1]
+            wx -= sb * nb.g[k, 0]
+            wy -= sb * nb.g[k, 1]
+            if dim == 3:
+                lz += s * nb.g[k, 2]
+                wz -= sb * nb.g[k, 2]
+            tr += c * (rx * nb.g[k, 0] + ry * nb.g[k, 1] + (rz * nb.g[k, 2] if dim == 3 else 0.0))
+        out[i, 0] = p[i, 0] - dt * lx
+        out[i, 1] = p[i, 1] - dt * ly
+        rhs_wall[i, 0] = dt * wx
+        rhs_wall[i, 1] = dt * wy
+        if dim == 3:
+            out[i, 2] = p[i, 2] - dt * lz
+            rhs_wall[i, 2] = dt * wz
+        diag[i] = 1.0 - dt * tr / dim
+
+
+@njit(cache=True, parallel=True)
+def dot_rows(a, b, n, partial):
+    """sum over rows < n and columns of a * b, in REDUCE_CHUNKS fixed chunks (same bits at any
+    thread count); partial (REDUCE_CHUNKS, 2) scratch."""
+    dim = a.shape[1]
+    chunk = (n + REDUCE_CHUNKS - 1) // REDUCE_CHUNKS
+    for c in prange(REDUCE_CHUNKS):
+        s = 0.0
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            for d in range(dim):
+                s += a[i, d] * b[i, d]
+        partial[c, 0] = s
+    s = 0.0
+    for c in range(REDUCE_CHUNKS):
+        s += partial[c, 0]
+    return s
+
+
+@njit(cache=True, parallel=True)
+def cg_update(n, alpha, p, ap, x, r, diag, z):
+    """x += alpha p; r -= alpha A p; z = r / diag."""
+    dim = x.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            x[i, d] += alpha * p[i, d]
+            r[i, d] -= alpha * ap[i, d]
+            z[i, d] = r[i, d] / diag[i]
+
+
+@njit(cache=True, parallel=True)
+def cg_direction(n, beta, z, p):
+    """p = z + beta p."""
+    dim = p.shape[1]
+    for i in prange(n):
+        for d in range(dim):
+            p[i, d] = z[i, d] + beta * p[i, d]
+
+
+_PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_update", "cg_direction")
