@@ -116,7 +116,9 @@ class MACGrid:
         return np.ascontiguousarray(pts[:, :self.dim])
 
     def vertex_positions(self):
-        idx = np.indices(tuple(self.n + 1), dtype=np.float64).reshape(3, -1).T
+        """(M, dim) grid-vertex (cell-corner) positions, C order of an (nx+1, ny+1[, nz+1]) array."""
+        shape = tuple(self.n + 1) if self.dim == 3 else (int(self.n[0]) + 1, int(self.n[1]) + 1, 1)
+        idx = np.indices(shape, dtype=np.float64).reshape(3, -1).T
         pts = self.origin3 + idx * self.cell_size
         return np.ascontiguousarray(pts[:, :self.dim])
 
