@@ -559,6 +559,14 @@ class GridFluid:
         self._enforce()
         return it
 
+    def measure_divergence(self):
+        """Weighted divergence of the current face velocities, (nx, ny[, nz]) 1/s (a new array;
+        zero up to the pressure tolerance right after a step)."""
+        out = np.zeros(tuple(self.grid.n))
+        u, v, w = self._vel
+        self._k.weighted_divergence(u, v, w, *self._frac, *self._solid, self.ctx, out)
+        return self._view(out).copy()
+
     def _dissipate(self, dt):
         for name, rate in self.dissipation.items():
             if rate > 0:
