@@ -46,7 +46,7 @@ class GridContext(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- sampling
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _resolve(m, size, ncell, kind_lo, kind_hi, val_lo, val_hi):
     """Index, multiplier and offset of node m along one axis: value = add + mult * a[index]."""
     if m < 0:
@@ -78,13 +78,13 @@ def fetch(a, slot, i, j, k, g):
     return ai + mi * (aj + mj * (ak + mk * a[ii, jj, kk]))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _offset(slot, axis):
     """Node offset (in cells) of a slot along an axis: 0 for a face along its own axis."""
     return 0.0 if slot == axis else 0.5
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _clamp_domain(p, axis, g):
     if g.periodic[axis]:
         return p
@@ -100,17 +100,24 @@ def _clamp_domain(p, axis, g):
 @njit(cache=True)
 def sample(a, slot, px, py, pz, g):
     """Linear interpolation of the slot's array at physical point (px, py, pz)."""
+    gk = g.ghost_kind
+    gv = g.ghost_value
     x = (_clamp_domain(px, 0, g) - g.origin[0]) / g.h - _offset(slot, 0)
     y = (_clamp_domain(py, 1, g) - g.origin[1]) / g.h - _offset(slot, 1)
     i0 = int(math.floor(x))
     j0 = int(math.floor(y))
     fx = x - i0
     fy = y - j0
+    # resolve the two nodes per axis once: value = add + mult * a[index]
+    ia, mia, aia = _resolve(i0, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
+    ib, mib, aib = _resolve(i0 + 1, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
+    ja, mja, aja = _resolve(j0, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
+    jb, mjb, ajb = _resolve(j0 + 1, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
     if g.dim == 2:
-        c00 = fetch(a, slot, i0, j0, 0, g)
-        c10 = fetch(a, slot, i0 + 1, j0, 0, g)
-        c01 = fetch(a, slot, i0, j0 + 1, 0, g)
-        c11 = fetch(a, slot, i0 + 1, j0 + 1, 0, g)
+        c00 = aia + mia * (aja + mja * a[ia, ja, 0])
+        c10 = aib + mib * (aja + mja * a[ib, ja, 0])
+        c01 = aia + mia * (ajb + mjb * a[ia, jb, 0])
+        c11 = aib + mib * (ajb + mjb * a[ib, jb, 0])
         return (1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11)
     z = (_clamp_domain(pz, 2, g) - g.origin[2]) / g.h - _offset(slot, 2)
     k0 = int(math.floor(z))
@@ -118,10 +125,11 @@ def sample(a, slot, px, py, pz, g):
     r = 0.0
     for dk in range(2):
         wz = fz if dk else 1.0 - fz
-        c00 = fetch(a, slot, i0, j0, k0 + dk, g)
-        c10 = fetch(a, slot, i0 + 1, j0, k0 + dk, g)
-        c01 = fetch(a, slot, i0, j0 + 1, k0 + dk, g)
-        c11 = fetch(a, slot, i0 + 1, j0 + 1, k0 + dk, g)
+        kk, mk, ak = _resolve(k0 + dk, a.shape[2], g.n[2], gk[slot, 2, 0], gk[slot, 2, 1], gv[slot, 2, 0], gv[slot, 2, 1])
+        c00 = aia + mia * (aja + mja * (ak + mk * a[ia, ja, kk]))
+        c10 = aib + mib * (aja + mja * (ak + mk * a[ib, ja, kk]))
+        c01 = aia + mia * (ajb + mjb * (ak + mk * a[ia, jb, kk]))
+        c11 = aib + mib * (ajb + mjb * (ak + mk * a[ib, jb, kk]))
         r += wz * ((1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11))
     return r
 
