@@ -1,0 +1,212 @@
+"""Grid fluids (inertia.fluids.grid) against the peers' stable-fluids and pressure references,
+measured in the same run.
+
+1. smoke256: the 256 x 256 plume of /work/shared/peers/bench_fluid_grid.py (unit square,
+   h = 1/256, dt = 1/60, no viscosity, density += 100 dt and v += 20 dt in a 16 x 16-cell box at
+   the bottom centre) stepped by the peers' NumPy and Numba stable-fluids references (float32,
+   20 Jacobi iterations, collocated grid) and by GridFluid (float64, MAC grid, semi-Lagrangian
+   RK2 or MacCormack, MGPCG). "Equal final divergence": the references' 20 Jacobi sweeps leave a
+   relative divergence r_ref = ||div after|| / ||div before|| (measured here on their own grid
+   after 30 steps); GridFluid is timed at tolerance = r_ref and at its default 1e-6.
+2. pressure: MGPCG iterations and time per solve at 64^2 .. 1024^2 (closed box, rhs = the
+   peers' bench_pressure.py make_rhs: divergence of a seeded random face field), next to the
+   peers' own Numba MGPCG on the same right-hand side.
+3. smoke3d: a 128^3 smoke step (buoyant plume from a source box, MacCormack and
+   semi-Lagrangian, MGPCG 1e-4 and 1e-6): seconds per step. Aim: < 0.5 s on 2 cores.
+
+Timings are medians of repeated steps after warm-up (JIT excluded); the foreign load (other
+processes' CPU use) during each measurement is printed, since the machine may be shared.
+
+Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d]
+     [--sizes 64 128 256 512 1024] [--reps 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+import time
+
+import numpy as np
+
+PEERS = os.environ.get("INERTIA_PEERS", "/work/shared/peers")
+
+
+def load_peer(name):
+    """Import a peers' script (it imports the peers' own _common)."""
+    if name in sys.modules:
+        return sys.modules[name], sys.modules["_peer_common"]
+    sys.path.insert(0, PEERS)
+    saved = sys.modules.pop("_common", None)
+    try:
+        mod = importlib.import_module(name)
+        sys.modules["_peer_common"] = sys.modules["_common"]
+        return mod, sys.modules["_common"]
+    finally:
+        sys.path.remove(PEERS)
+        if saved is not None:
+            sys.modules["_common"] = saved
+
+
+def median_time(fn, reps, warmup=2, load_cls=None):
+    for _ in range(warmup):
+        fn()
+    samples = []
+    foreign = float("nan")
+    ctx = load_cls() if load_cls else None
+    if ctx:
+        ctx.__enter__()
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        fn()
+        samples.append(time.perf_counter() - t0)
+    if ctx:
+        ctx.__exit__(None, None, None)
+        foreign = ctx.foreign_cores
+    return float(np.median(samples)), min(samples), foreign
+
+
+# ----------------------------------------------------------------------------- 1. smoke 256
+def ref_divergence_ratio(sim, n, steps=30):
+    """Run `steps` reference steps, then one more split by hand: ||div|| after / before its
+    projection, on the reference's own collocated grid."""
+    fg = sys.modules["bench_fluid_grid"]
+    for _ in range(steps):
+        sim.step()
+    si, sj = fg.source_slices(n)
+    sim.d[si, sj] += np.float32(100.0 * fg.DT)
+    sim.v[si, sj] += np.float32(20.0 * fg.DT)
+    sim.advect(1, sim.u1, sim.u, sim.u, sim.v)
+    sim.advect(2, sim.v1, sim.v, sim.u, sim.v)
+    u, v = sim.u1.astype(np.float64), sim.v1.astype(np.float64)
+
+    def div(u, v):
+        return 0.5 * n * (u[2:, 1:-1] - u[:-2, 1:-1] + v[1:-1, 2:] - v[1:-1, :-2])
+
+    before = np.linalg.norm(div(u, v))
+    sim.project(sim.u1, sim.v1)
+    after = np.linalg.norm(div(sim.u1.astype(np.float64), sim.v1.astype(np.float64)))
+    return after / before
+
+
+def our_plume(n, advection, tolerance):
+    from inertia.fluids.grid import GridFluid
+    fg = sys.modules["bench_fluid_grid"]
+    h = 1.0 / n
+    f = GridFluid((n, n), h, advection=advection, tolerance=tolerance, scalars=("density",),
+                  boundaries={s: "slip" for s in ("x-", "x+", "y-", "y+")})
+    c = n // 2
+    f.add_source(((c - 8) * h, 4 * h), ((c + 8) * h, 20 * h), density_rate=100.0,
+                 acceleration=(0.0, 20.0))
+    return f, fg.DT
+
+
+def bench_smoke256(reps, load_cls):
+    fg, _ = load_peer("bench_fluid_grid")
+    n = 256
+    print(f"\n== 1. smoke {n}^2, peers' plume scene (dt = 1/60) ==")
+    ratios = {}
+    rows = []
+    for impl in ("numpy", "numba"):
+        cls = fg.NumpyFluid if impl == "numpy" else fg.make_numba_fluid()
+        sim = cls(n)
+        sim.step()
+        med, mn, load = median_time(sim.step, reps, load_cls=load_cls)
+        ratios[impl] = ref_divergence_ratio(cls(n), n)
+        rows.append((f"peer {impl} stable fluids (float32, 20 Jacobi)", med, mn, load,
+                     f"||div|| after/before projection {ratios[impl]:.3f}"))
+        print(f"  {rows[-1][0]:58s} {med*1e3:9.2f} ms/step (min {mn*1e3:.2f}) "
+              f"[foreign {load:.2f}] {rows[-1][4]}", flush=True)
+    r_ref = ratios["numba"]
+    ref_numba = rows[1][1]
+    ref_numpy = rows[0][1]
+    for advection in ("semi-lagrangian", "maccormack"):
+        for tol in (r_ref, 1e-6):
+            f, dt = our_plume(n, advection, tol)
+            for _ in range(30):
+                f.step(dt)
+            med, mn, load = median_time(lambda: f.step(dt), reps, load_cls=load_cls)
+            it = f.last_pressure_iterations
+            print(f"  GridFluid {advection:15s} MGPCG tol {tol:8.2e} ({it} it)      "
+                  f"{med*1e3:9.2f} ms/step (min {mn*1e3:.2f}) [foreign {load:.2f}]  "
+                  f"x{med/ref_numba:.2f} of peer numba, x{med/ref_numpy:.3f} of peer numpy",
+                  flush=True)
+
+
+# ----------------------------------------------------------------------------- 2. pressure
+def bench_pressure(sizes, reps, load_cls):
+    from inertia.fluids.grid import PoissonSolver
+    bp, _ = load_peer("bench_pressure")
+    MG, _solve_mg, solve_mgpcg, _res = bp.make_mg()
+    print("\n== 2. pressure Poisson, closed box, rhs = peers' make_rhs, rel. residual 1e-6 ==")
+    for n in sizes:
+        b = bp.make_rhs(n)
+        solver = PoissonSolver((n, n, 1), (False, False, False), tolerance=1e-6)
+        ones = [np.ones((n + 1, n, 1)), np.ones((n, n + 1, 1)), np.zeros((n, n, 2))]
+        ones[0][0] = ones[0][-1] = 0.0
+        ones[1][:, 0] = ones[1][:, -1] = 0.0
+        solver.set_coefficients(*ones, 1.0 / n, 2)
+        rhs = np.zeros((n, n, 1))
+        phi = np.zeros((n, n, 1))
+
+        def ours():
+            rhs[:, :, 0] = b
+            phi[...] = 0.0
+            solver.solve(rhs, phi)
+
+        ours()
+        med, mn, load = median_time(ours, reps, warmup=1, load_cls=load_cls)
+        it = solver.last_iterations
+        mg = MG(n)
+        solve_mgpcg(mg, b)
+        box = {}
+
+        def peer():
+            box["r"] = solve_mgpcg(mg, b)
+
+        pmed, pmn, pload = median_time(peer, reps, warmup=1, load_cls=load_cls)
+        print(f"  {n:5d}^2: GridFluid MGPCG {it:2d} it, {med*1e3:9.2f} ms/solve (min {mn*1e3:.2f}) "
+              f"[foreign {load:.2f}] | peer Numba MGPCG {box['r'][1]:2d} it, {pmed*1e3:9.2f} ms "
+              f"[foreign {pload:.2f}] | ratio x{med/pmed:.2f}", flush=True)
+
+
+# ----------------------------------------------------------------------------- 3. smoke 3d
+def bench_smoke3d(reps, load_cls, n=128):
+    from inertia.fluids.grid import GridFluid
+    print(f"\n== 3. smoke {n}^3 (buoyant plume, closed box) ==")
+    for advection, tol in (("semi-lagrangian", 1e-4), ("maccormack", 1e-4), ("maccormack", 1e-6)):
+        h = 1.0 / n
+        f = GridFluid((n, n, n), h, advection=advection, tolerance=tol, buoyancy=(0.1, 2.0),
+                      boundaries={s: "slip" for s in ("x-", "x+", "y-", "y+", "z-", "z+")})
+        f.add_source((0.4, 0.4, 0.05), (0.6, 0.6, 0.15), density_rate=10.0, temperature_rate=10.0)
+        dt = 1.0 / 60.0
+        for _ in range(3):
+            f.step(dt)
+        med, mn, load = median_time(lambda: f.step(dt), reps, warmup=0, load_cls=load_cls)
+        print(f"  {advection:15s} tol {tol:.0e}: {med:7.3f} s/step (min {mn:.3f}) "
+              f"[foreign {load:.2f}], MGPCG {f.last_pressure_iterations} it", flush=True)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--parts", nargs="+", default=["smoke256", "pressure", "smoke3d"])
+    ap.add_argument("--sizes", nargs="+", type=int, default=[64, 128, 256, 512, 1024])
+    ap.add_argument("--reps", type=int, default=5)
+    a = ap.parse_args()
+    import numba
+    _, common = load_peer("bench_fluid_grid")
+    common.header()
+    print(f"numba {numba.__version__}, {numba.get_num_threads()} threads")
+    load_cls = getattr(common, "Load", None)
+    if "smoke256" in a.parts:
+        bench_smoke256(a.reps, load_cls)
+    if "pressure" in a.parts:
+        bench_pressure(a.sizes, a.reps, load_cls)
+    if "smoke3d" in a.parts:
+        bench_smoke3d(max(2, a.reps // 2), load_cls)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,659 @@
+"""Numba kernels of the MAC-grid fluid: sampling with boundary ghosts, advection, forces,
+divergence, gradient, diffusion operator.
+
+Every array is 3-D (a 2-D grid is a 3-D grid with one periodic cell in z and ``w = 0``), float64,
+C-contiguous. ``u`` is (nx+1, ny, nz) on x-faces, ``v`` (nx, ny+1, nz) on y-faces, ``w``
+(nx, ny, nz+1) on z-faces, scalars (nx, ny, nz) at cell centres. Index-space coordinates of an
+array's node (i, j, k) are its position divided by the cell size minus the node offset
+(0 along the face's own axis, 1/2 along the others; 1/2 along every axis for scalars).
+
+Each field that is sampled has a *slot* (0, 1, 2: the velocity components; 3 + s: scalar s) and,
+per slot, axis and side, a ghost rule for nodes outside the grid (``GhostRules``):
+``NEUMANN`` (mirror: zero normal derivative; also used to clamp a face component along its own
+axis), ``DIRICHLET`` (mirror about the boundary value: ``ghost = 2 * value - inside``, so the
+interpolated value on the wall is ``value``), ``PERIODIC`` (wrap). A sample position is first
+clamped to the domain box along non-periodic axes, so one ghost layer suffices.
+
+Kernels write each output element from one loop iteration (``prange`` over the first index);
+reductions (``dot``) sum fixed per-row partials in order, so results are identical at any
+thread count.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from ..._jit import serial_twin
+
+NEUMANN = 0
+DIRICHLET = 1
+PERIODIC = 2
+
+
+class GridContext(NamedTuple):
+    """What the kernels need to know about the grid (built once by `MACGrid`)."""
+    n: np.ndarray          # (3,) int64 cells per axis (nz = 1 in 2-D)
+    h: float               # cell size, m
+    origin: np.ndarray     # (3,) float64 position of the grid's lower corner, m
+    dim: int               # 2 or 3
+    periodic: np.ndarray   # (3,) bool, axis wraps around
+    ghost_kind: np.ndarray   # (slots, 3, 2) int64 NEUMANN / DIRICHLET / PERIODIC per axis, side
+    ghost_value: np.ndarray  # (slots, 3, 2) float64 boundary value of DIRICHLET ghosts
+
+
+# ----------------------------------------------------------------------------- sampling
+@njit(cache=True, inline="always")
+def _resolve(m, size, ncell, kind_lo, kind_hi, val_lo, val_hi):
+    """Index, multiplier and offset of node m along one axis: value = add + mult * a[index]."""
+    if m < 0:
+        if kind_lo == PERIODIC:
+            return m % ncell, 1.0, 0.0
+        if kind_lo == DIRICHLET:
+            return -1 - m, -1.0, 2.0 * val_lo
+        return -1 - m, 1.0, 0.0
+    if m >= size:
+        if kind_hi == PERIODIC:
+            return m % ncell, 1.0, 0.0
+        if kind_hi == DIRICHLET:
+            return 2 * size - 1 - m, -1.0, 2.0 * val_hi
+        return 2 * size - 1 - m, 1.0, 0.0
+    return m, 1.0, 0.0
+
+
+@njit(cache=True)
+def fetch(a, slot, i, j, k, g):
+    """a[i, j, k] with the slot's ghost rules for indices outside the array."""
+    gk = g.ghost_kind
+    gv = g.ghost_value
+    ii, mi, ai = _resolve(i, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1],
+                          gv[slot, 0, 0], gv[slot, 0, 1])
+    jj, mj, aj = _resolve(j, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1],
+                          gv[slot, 1, 0], gv[slot, 1, 1])
+    kk, mk, ak = _resolve(k, a.shape[2], g.n[2], gk[slot, 2, 0], gk[slot, 2, 1],
+                          gv[slot, 2, 0], gv[slot, 2, 1])
+    return ai + mi * (aj + mj * (ak + mk * a[ii, jj, kk]))
+
+
+@njit(cache=True, inline="always")
+def _offset(slot, axis):
+    """Node offset (in cells) of a slot along an axis: 0 for a face along its own axis."""
+    return 0.0 if slot == axis else 0.5
+
+
+@njit(cache=True, inline="always")
+def _clamp_domain(p, axis, g):
+    if g.periodic[axis]:
+        return p
+    lo = g.origin[axis]
+    hi = lo + g.n[axis] * g.h
+    if p < lo:
+        return lo
+    if p > hi:
+        return hi
+    return p
+
+
+@njit(cache=True)
+def sample(a, slot, px, py, pz, g):
+    """Linear interpolation of the slot's array at physical point (px, py, pz)."""
+    gk = g.ghost_kind
+    gv = g.ghost_value
+    x = (_clamp_domain(px, 0, g) - g.origin[0]) / g.h - _offset(slot, 0)
+    y = (_clamp_domain(py, 1, g) - g.origin[1]) / g.h - _offset(slot, 1)
+    i0 = int(math.floor(x))
+    j0 = int(math.floor(y))
+    fx = x - i0
+    fy = y - j0
+    # resolve the two nodes per axis once: value = add + mult * a[index]
+    ia, mia, aia = _resolve(i0, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
+    ib, mib, aib = _resolve(i0 + 1, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
+    ja, mja, aja = _resolve(j0, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
+    jb, mjb, ajb = _resolve(j0 + 1, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
+    if g.dim == 2:
+        c00 = aia + mia * (aja + mja * a[ia, ja, 0])
+        c10 = aib + mib * (aja + mja * a[ib, ja, 0])
+        c01 = aia + mia * (ajb + mjb * a[ia, jb, 0])
+        c11 = aib + mib * (ajb + mjb * a[ib, jb, 0])
+        return (1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11)
+    z = (_clamp_domain(pz, 2, g) - g.origin[2]) / g.h - _offset(slot, 2)
+    k0 = int(math.floor(z))
+    fz = z - k0
+    r = 0.0
+    for dk in range(2):
+        wz = fz if dk else 1.0 - fz
+        kk, mk, ak = _resolve(k0 + dk, a.shape[2], g.n[2], gk[slot, 2, 0], gk[slot, 2, 1], gv[slot, 2, 0], gv[slot, 2, 1])
+        c00 = aia + mia * (aja + mja * (ak + mk * a[ia, ja, kk]))
+        c10 = aib + mib * (aja + mja * (ak + mk * a[ib, ja, kk]))
+        c01 = aia + mia * (ajb + mjb * (ak + mk * a[ia, jb, kk]))
+        c11 = aib + mib * (ajb + mjb * (ak + mk * a[ib, jb, kk]))
+        r += wz * ((1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11))
+    return r
+
+
+@njit(cache=True)
+def sample_range(a, slot, px, py, pz, g):
+    """Minimum and maximum of the nodes that `sample` interpolates at the point."""
+    x = (_clamp_domain(px, 0, g) - g.origin[0]) / g.h - _offset(slot, 0)
+    y = (_clamp_domain(py, 1, g) - g.origin[1]) / g.h - _offset(slot, 1)
+    i0 = int(math.floor(x))
+    j0 = int(math.floor(y))
+    nk = 1
+    k0 = 0
+    if g.dim == 3:
+        z = (_clamp_domain(pz, 2, g) - g.origin[2]) / g.h - _offset(slot, 2)
+        k0 = int(math.floor(z))
+        nk = 2
+    lo = np.inf
+    hi = -np.inf
+    for dk in range(nk):
+        for dj in range(2):
+            for di in range(2):
+                c = fetch(a, slot, i0 + di, j0 + dj, k0 + dk, g)
+                lo = min(lo, c)
+                hi = max(hi, c)
+    return lo, hi
+
+
+@njit(cache=True)
+def velocity_at(u, v, w, px, py, pz, g):
+    vx = sample(u, 0, px, py, pz, g)
+    vy = sample(v, 1, px, py, pz, g)
+    vz = sample(w, 2, px, py, pz, g) if g.dim == 3 else 0.0
+    return vx, vy, vz
+
+
+@njit(cache=True)
+def _node_position(slot, i, j, k, g):
+    px = g.origin[0] + (i + _offset(slot, 0)) * g.h
+    py = g.origin[1] + (j + _offset(slot, 1)) * g.h
+    pz = g.origin[2] + (k + _offset(slot, 2)) * g.h
+    return px, py, pz
+
+
+@njit(cache=True)
+def _backtrace(px, py, pz, u, v, w, dt, g):
+    """Second-order Runge-Kutta (midpoint) back-trace x - dt u(x - dt/2 u(x))."""
+    vx, vy, vz = velocity_at(u, v, w, px, py, pz, g)
+    mx = px - 0.5 * dt * vx
+    my = py - 0.5 * dt * vy
+    mz = pz - 0.5 * dt * vz
+    vx, vy, vz = velocity_at(u, v, w, mx, my, mz, g)
+    return px - dt * vx, py - dt * vy, pz - dt * vz
+
+
+@njit(cache=True, parallel=True)
+def sample_points(u, v, w, points, g, out):
+    """Velocity at (M, D) points into out (M, D)."""
+    m = points.shape[0]
+    d = points.shape[1]
+    for p_ in prange(m):
+        p = np.int64(p_)
+        pz = points[p, 2] if d == 3 else g.origin[2] + 0.5 * g.h
+        vx, vy, vz = velocity_at(u, v, w, points[p, 0], points[p, 1], pz, g)
+        out[p, 0] = vx
+        out[p, 1] = vy
+        if d == 3:
+            out[p, 2] = vz
+
+
+@njit(cache=True, parallel=True)
+def sample_scalar_points(a, slot, points, g, out):
+    """Scalar (slot >= 3) at (M, D) points into out (M,)."""
+    m = points.shape[0]
+    d = points.shape[1]
+    for p_ in prange(m):
+        p = np.int64(p_)
+        pz = points[p, 2] if d == 3 else g.origin[2] + 0.5 * g.h
+        out[p] = sample(a, slot, points[p, 0], points[p, 1], pz, g)
+
+
+# ----------------------------------------------------------------------------- advection
+@njit(cache=True, parallel=True)
+def advect(src, u, v, w, dt, slot, g, dst):
+    """Semi-Lagrangian advection (Stam 1999) with an RK2 back-trace: dst(x) = src(x_back)."""
+    nx, ny, nz = src.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                px, py, pz = _node_position(slot, i, j, k, g)
+                bx, by, bz = _backtrace(px, py, pz, u, v, w, dt, g)
+                dst[i, j, k] = sample(src, slot, bx, by, bz, g)
+
+
+@njit(cache=True, parallel=True)
+def maccormack_correct(src, forward, backward, u, v, w, dt, slot, g, dst):
+    """MacCormack step (Selle et al. 2008): dst = forward + (src - backward) / 2, clamped to the
+    range of the src nodes the forward step interpolated (keeps the scheme bounded)."""
+    nx, ny, nz = src.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                val = forward[i, j, k] + 0.5 * (src[i, j, k] - backward[i, j, k])
+                px, py, pz = _node_position(slot, i, j, k, g)
+                bx, by, bz = _backtrace(px, py, pz, u, v, w, dt, g)
+                lo, hi = sample_range(src, slot, bx, by, bz, g)
+                if val < lo:
+                    val = lo
+                elif val > hi:
+                    val = hi
+                dst[i, j, k] = val
+
+
+# ----------------------------------------------------------------------------- boundaries
+@njit(cache=True, parallel=True)
+def enforce_faces(vel, open_frac, solid_vel, axis, periodic):
+    """Faces closed to the fluid (open fraction 0: inside obstacles, walls, inflow) take the
+    solid's (or inflow's) velocity; a periodic axis copies face 0 to face n."""
+    nx, ny, nz = vel.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                if open_frac[i, j, k] == 0.0:
+                    vel[i, j, k] = solid_vel[i, j, k]
+    if periodic:
+        if axis == 0:
+            vel[nx - 1, :, :] = vel[0, :, :]
+        elif axis == 1:
+            vel[:, ny - 1, :] = vel[:, 0, :]
+        else:
+            vel[:, :, nz - 1] = vel[:, :, 0]
+
+
+# ----------------------------------------------------------------------------- projection
+@njit(cache=True, parallel=True)
+def weighted_divergence(u, v, w, fu, fv, fw, su, sv, sw, g, out):
+    """Divergence of the face velocities blended with the solid's: on each face the flux is
+    A u + (1 - A) u_solid (Batty, Bertails and Bridson 2007), divided by h. out (nx, ny, nz), 1/s."""
+    nx, ny, nz = out.shape
+    inv_h = 1.0 / g.h
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                d = (fu[i + 1, j, k] * u[i + 1, j, k] + (1 - fu[i + 1, j, k]) * su[i + 1, j, k]
+                     - fu[i, j, k] * u[i, j, k] - (1 - fu[i, j, k]) * su[i, j, k]
+                     + fv[i, j + 1, k] * v[i, j + 1, k] + (1 - fv[i, j + 1, k]) * sv[i, j + 1, k]
+                     - fv[i, j, k] * v[i, j, k] - (1 - fv[i, j, k]) * sv[i, j, k])
+                if g.dim == 3:
+                    d += (fw[i, j, k + 1] * w[i, j, k + 1] + (1 - fw[i, j, k + 1]) * sw[i, j, k + 1]
+                          - fw[i, j, k] * w[i, j, k] - (1 - fw[i, j, k]) * sw[i, j, k])
+                out[i, j, k] = d * inv_h
+
+
+@njit(cache=True)
+def _cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz):
+    """phi at a cell index that may be one outside: wrapped if periodic, else 0 (outflow)."""
+    if i < 0 or i >= nx:
+        if not px:
+            return 0.0
+        i = i % nx
+    if j < 0 or j >= ny:
+        if not py:
+            return 0.0
+        j = j % ny
+    if k < 0 or k >= nz:
+        if not pz:
+            return 0.0
+        k = k % nz
+    return phi[i, j, k]
+
+
+@njit(cache=True, parallel=True)
+def subtract_gradient(phi, fu, fv, fw, g, u, v, w):
+    """u -= grad(phi) on faces open to the fluid (phi = p dt / rho, m^2/s; outside an outflow
+    face phi = 0)."""
+    nx, ny, nz = phi.shape
+    px, py, pz = g.periodic[0], g.periodic[1], g.periodic[2]
+    inv_h = 1.0 / g.h
+    for i_ in prange(nx + 1):
+        i = np.int64(i_)
+        for j in range(ny + 1):
+            for k in range(nz + 1):
+                if j < ny and k < nz and fu[i, j, k] > 0.0:
+                    u[i, j, k] -= (_cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz)
+                                   - _cell_or_ghost(phi, i - 1, j, k, nx, ny, nz, px, py, pz)) * inv_h
+                if i < nx and k < nz and fv[i, j, k] > 0.0:
+                    v[i, j, k] -= (_cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz)
+                                   - _cell_or_ghost(phi, i, j - 1, k, nx, ny, nz, px, py, pz)) * inv_h
+                if g.dim == 3 and i < nx and j < ny and fw[i, j, k] > 0.0:
+                    w[i, j, k] -= (_cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz)
+                                   - _cell_or_ghost(phi, i, j, k - 1, nx, ny, nz, px, py, pz)) * inv_h
+
+
+# ----------------------------------------------------------------------------- forces
+@njit(cache=True, parallel=True)
+def cell_velocity_and_vorticity(u, v, w, g, vort):
+    """Vorticity at cell centres from central differences of the cell-averaged velocity.
+    vort (nx, ny, nz, 3), 1/s (2-D: only component 2 is used)."""
+    nx, ny, nz = vort.shape[0], vort.shape[1], vort.shape[2]
+    inv2h = 0.5 / g.h
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                # cell-centred velocities of neighbours via sample (ghost rules apply)
+                px, py, pz = _node_position(3, i, j, k, g)
+                h = g.h
+                vyp = sample(v, 1, px + h, py, pz, g)
+                vym = sample(v, 1, px - h, py, pz, g)
+                uxp = sample(u, 0, px, py + h, pz, g)
+                uxm = sample(u, 0, px, py - h, pz, g)
+                wz = (vyp - vym - uxp + uxm) * inv2h
+                wx = 0.0
+                wy = 0.0
+                if g.dim == 3:
+                    wyp = sample(w, 2, px, py + h, pz, g)
+                    wym = sample(w, 2, px, py - h, pz, g)
+                    vzp = sample(v, 1, px, py, pz + h, g)
+                    vzm = sample(v, 1, px, py, pz - h, g)
+                    uzp = sample(u, 0, px, py, pz + h, g)
+                    uzm = sample(u, 0, px, py, pz - h, g)
+                    wxp = sample(w, 2, px + h, py, pz, g)
+                    wxm = sample(w, 2, px - h, py, pz, g)
+                    wx = (wyp - wym - vzp + vzm) * inv2h
+                    wy = (uzp - uzm - wxp + wxm) * inv2h
+                vort[i, j, k, 0] = wx
+                vort[i, j, k, 1] = wy
+                vort[i, j, k, 2] = wz
+
+
+@njit(cache=True, parallel=True)
+def confinement_force(vort, epsilon, g, force):
+    """Vorticity confinement (Fedkiw, Stam and Jensen 2001): f = epsilon h (N x omega) with
+    N = grad|omega| / |grad|omega||, at cell centres. force (nx, ny, nz, 3), m/s^2."""
+    nx, ny, nz = vort.shape[0], vort.shape[1], vort.shape[2]
+    inv2h = 0.5 / g.h
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                ip = min(i + 1, nx - 1)
+                im = max(i - 1, 0)
+                jp = min(j + 1, ny - 1)
+                jm = max(j - 1, 0)
+                if g.periodic[0]:
+                    ip = (i + 1) % nx
+                    im = (i - 1) % nx
+                if g.periodic[1]:
+                    jp = (j + 1) % ny
+                    jm = (j - 1) % ny
+                gx = (_mag(vort, ip, j, k) - _mag(vort, im, j, k)) * inv2h
+                gy = (_mag(vort, i, jp, k) - _mag(vort, i, jm, k)) * inv2h
+                gz = 0.0
+                if g.dim == 3:
+                    kp = min(k + 1, nz - 1)
+                    km = max(k - 1, 0)
+                    if g.periodic[2]:
+                        kp = (k + 1) % nz
+                        km = (k - 1) % nz
+                    gz = (_mag(vort, i, j, kp) - _mag(vort, i, j, km)) * inv2h
+                norm = math.sqrt(gx * gx + gy * gy + gz * gz) + 1e-12 / g.h
+                nxv = gx / norm
+                nyv = gy / norm
+                nzv = gz / norm
+                ox = vort[i, j, k, 0]
+                oy = vort[i, j, k, 1]
+                oz = vort[i, j, k, 2]
+                s = epsilon * g.h
+                force[i, j, k, 0] = s * (nyv * oz - nzv * oy)
+                force[i, j, k, 1] = s * (nzv * ox - nxv * oz)
+                force[i, j, k, 2] = s * (nxv * oy - nyv * ox)
+
+
+@njit(cache=True)
+def _mag(vort, i, j, k):
+    return math.sqrt(vort[i, j, k, 0] ** 2 + vort[i, j, k, 1] ** 2 + vort[i, j, k, 2] ** 2)
+
+
+@njit(cache=True, parallel=True)
+def add_cell_force(force, dt, axis, open_frac, g, vel):
+    """vel += dt * (average of the two cells' force component `axis`) on open faces."""
+    nx, ny, nz = force.shape[0], force.shape[1], force.shape[2]
+    fx, fy, fz = vel.shape
+    for i_ in prange(fx):
+        i = np.int64(i_)
+        for j in range(fy):
+            for k in range(fz):
+                if open_frac[i, j, k] == 0.0:
+                    continue
+                i0, j0, k0 = i, j, k
+                i1, j1, k1 = i, j, k
+                if axis == 0:
+                    i0 = i - 1
+                elif axis == 1:
+                    j0 = j - 1
+                else:
+                    k0 = k - 1
+                a = _cell_force(force, i0, j0, k0, axis, nx, ny, nz, g)
+                b = _cell_force(force, i1, j1, k1, axis, nx, ny, nz, g)
+                vel[i, j, k] += dt * 0.5 * (a + b)
+
+
+@njit(cache=True)
+def _cell_force(force, i, j, k, axis, nx, ny, nz, g):
+    # one cell outside: periodic wrap, else the inside cell's force
+    if i < 0 or i >= nx:
+        i = i % nx if g.periodic[0] else min(max(i, 0), nx - 1)
+    if j < 0 or j >= ny:
+        j = j % ny if g.periodic[1] else min(max(j, 0), ny - 1)
+    if k < 0 or k >= nz:
+        k = k % nz if g.periodic[2] else min(max(k, 0), nz - 1)
+    return force[i, j, k, axis]
+
+
+@njit(cache=True, parallel=True)
+def buoyancy_force(density, temperature, alpha, beta, ambient, up, force):
+    """Boussinesq buoyancy (Fedkiw, Stam and Jensen 2001): f = (-alpha d + beta (T - T_amb)) up,
+    added to force (nx, ny, nz, 3), m/s^2."""
+    nx, ny, nz = density.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                b = -alpha * density[i, j, k] + beta * (temperature[i, j, k] - ambient)
+                force[i, j, k, 0] += b * up[0]
+                force[i, j, k, 1] += b * up[1]
+                force[i, j, k, 2] += b * up[2]
+
+
+# ----------------------------------------------------------------------------- diffusion
+@njit(cache=True, parallel=True)
+def helmholtz_apply(x, fixed, slot, coef, g, out):
+    """out = x - coef * Lap(x) on free nodes (fixed nodes: out = x), with the slot's ghost rules
+    made homogeneous (a Dirichlet ghost contributes -x_inside: boundary values go to the rhs).
+    coef = nu dt / h^2. The operator is symmetric positive definite on the free nodes."""
+    nx, ny, nz = x.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                if fixed[i, j, k]:
+                    out[i, j, k] = x[i, j, k]
+                    continue
+                c = x[i, j, k]
+                s = 0.0
+                nax = 3 if g.dim == 3 else 2
+                for ax in range(nax):
+                    for sd in range(2):
+                        ii, jj, kk = i, j, k
+                        if ax == 0:
+                            ii = i + (2 * sd - 1)
+                        elif ax == 1:
+                            jj = j + (2 * sd - 1)
+                        else:
+                            kk = k + (2 * sd - 1)
+                        s += _homog_neighbor(x, fixed, slot, ii, jj, kk, ax, sd, c, g)
+                out[i, j, k] = c - coef * s
+
+
+@njit(cache=True)
+def _homog_neighbor(x, fixed, slot, ii, jj, kk, ax, sd, c, g):
+    """(neighbour - centre) with homogeneous boundary data; fixed neighbours count as 0 - c."""
+    m = ii if ax == 0 else (jj if ax == 1 else kk)
+    kind = g.ghost_kind[slot, ax, sd]
+    # a periodic axis has n distinct nodes (a face array's node n duplicates node 0)
+    size = g.n[ax] if kind == PERIODIC else x.shape[ax]
+    if m < 0 or m >= size:
+        if kind == PERIODIC:
+            m2 = m % g.n[ax]
+            if ax == 0:
+                ii = m2
+            elif ax == 1:
+                jj = m2
+            else:
+                kk = m2
+        elif kind == DIRICHLET:
+            return -2.0 * c
+        else:
+            return 0.0
+    if fixed[ii, jj, kk]:
+        return -c
+    return x[ii, jj, kk] - c
+
+
+@njit(cache=True, parallel=True)
+def helmholtz_rhs(x0, fixed, slot, coef, g, out):
+    """Right-hand side of (I - coef Lap) x = x0: x0 plus the boundary data of Dirichlet ghosts
+    and of fixed neighbours; fixed nodes keep their value."""
+    nx, ny, nz = x0.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                if fixed[i, j, k]:
+                    out[i, j, k] = x0[i, j, k]
+                    continue
+                s = 0.0
+                nax = 3 if g.dim == 3 else 2
+                for ax in range(nax):
+                    for sd in range(2):
+                        ii, jj, kk = i, j, k
+                        if ax == 0:
+                            ii = i + (2 * sd - 1)
+                        elif ax == 1:
+                            jj = j + (2 * sd - 1)
+                        else:
+                            kk = k + (2 * sd - 1)
+                        m = ii if ax == 0 else (jj if ax == 1 else kk)
+                        kind = g.ghost_kind[slot, ax, sd]
+                        size = g.n[ax] if kind == PERIODIC else x0.shape[ax]
+                        if m < 0 or m >= size:
+                            if kind == DIRICHLET:
+                                s += 2.0 * g.ghost_value[slot, ax, sd]
+                            if kind != PERIODIC:
+                                continue
+                            m2 = m % g.n[ax]
+                            if ax == 0:
+                                ii = m2
+                            elif ax == 1:
+                                jj = m2
+                            else:
+                                kk = m2
+                        if fixed[ii, jj, kk]:
+                            s += x0[ii, jj, kk]
+                out[i, j, k] = x0[i, j, k] + coef * s
+
+
+# ----------------------------------------------------------------------------- vector algebra
+@njit(cache=True, parallel=True)
+def dot(a, b, partial):
+    """Sum of a * b with fixed per-row partial sums (deterministic at any thread count)."""
+    nx, ny, nz = a.shape
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        s = 0.0
+        for j in range(ny):
+            for k in range(nz):
+                s += a[i, j, k] * b[i, j, k]
+        partial[i] = s
+    t = 0.0
+    for i in range(nx):
+        t += partial[i]
+    return t
+
+
+@njit(cache=True, parallel=True)
+def axpy(alpha, x, y):
+    """y += alpha * x."""
+    nx = x.shape[0]
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        y[i] += alpha * x[i]
+
+
+@njit(cache=True, parallel=True)
+def xpby(x, beta, y):
+    """y = x + beta * y."""
+    nx = x.shape[0]
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        y[i] = x[i] + beta * y[i]
+
+
+@njit(cache=True, parallel=True)
+def scale_decay(a, factor):
+    """a *= factor (scalar dissipation)."""
+    nx = a.shape[0]
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        a[i] *= factor
+
+
+@njit(cache=True, parallel=True)
+def max_abs(a, partial):
+    """Largest |a| (inf if any entry is NaN), deterministic."""
+    nx = a.shape[0]
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        m = 0.0
+        for j in range(a.shape[1]):
+            for k in range(a.shape[2]):
+                x = abs(a[i, j, k])
+                if x > m:
+                    m = x
+                elif not x <= m:  # NaN
+                    m = np.inf
+        partial[i] = m
+    r = 0.0
+    for i in range(nx):
+        r = max(r, partial[i])
+    return r
+
+
+# ----------------------------------------------------------------------------- dispatch
+_TWINS = {}
+
+# Grids with at least this many cells run the parallel kernels by default; below it the
+# serial twins (same code, prange as range) win: a parallel launch costs microseconds on an
+# idle machine and milliseconds on a loaded one.
+PARALLEL_CELLS = 65536
+
+
+def version(kernel, parallel: bool):
+    """The parallel kernel or its (lazily compiled) serial twin."""
+    if parallel:
+        return kernel
+    twin = _TWINS.get(kernel)
+    if twin is None:
+        twin = _TWINS[kernel] = serial_twin(kernel)
+    return twin
+
+
+class KernelSet:
+    """Attribute access to a module's kernels in one flavour (parallel or serial)."""
+
+    def __init__(self, module, parallel: bool):
+        self._module = module
+        self.parallel = bool(parallel)
+
+    def __getattr__(self, name):
+        kernel = version(getattr(self._module, name), self.parallel)
+        setattr(self, name, kernel)
+        return kernel

@@ -1,0 +1,673 @@
+"""Incompressible Navier-Stokes on a staggered MAC grid, 2-D and 3-D: smoke and viscous flow.
+
+One step (``GridFluid.step(dt)``) runs these stages; each reads the arrays named and writes
+the ones after the arrow:
+
+1. ``obstacles``  moving obstacles' signed distance and velocity -> face fractions, solid face
+   velocities, pressure coefficients (skipped when every obstacle is static).
+2. ``advect``     u, v, w and every scalar along the velocity of the step start: semi-Lagrangian
+   with an RK2 back-trace (Stam 1999) or MacCormack with clamping (Selle et al. 2008).
+3. ``forces``     body acceleration, buoyancy from density and temperature, vorticity
+   confinement, sources -> u, v, w, scalars.
+4. ``diffuse``    implicit (backward Euler) viscosity: (I - nu dt Lap) u = u* per component,
+   conjugate gradients; unconditionally stable.
+5. ``project``    weighted divergence -> pressure Poisson solve (MGPCG) -> u -= grad(p dt / rho).
+6. ``dissipate``  scalar decay s *= exp(-rate dt).
+
+``advance(frame_dt)`` takes substeps of dt = cfl h / max|u| (capped by ``max_dt``) until the
+frame is done.
+
+References
+----------
+- J. Stam, "Stable fluids", SIGGRAPH 1999 (semi-Lagrangian advection, projection).
+- A. Selle, R. Fedkiw, B. Kim, Y. Liu and J. Rossignac, "An unconditionally stable MacCormack
+  method", J. Sci. Comput. 35, 2008 (MacCormack with limiter).
+- R. Fedkiw, J. Stam and H. W. Jensen, "Visual simulation of smoke", SIGGRAPH 2001 (buoyancy,
+  vorticity confinement).
+- C. Batty, F. Bertails and R. Bridson, "A fast variational framework for accurate solid-fluid
+  coupling", SIGGRAPH 2007 (face-fraction weights).
+- A. McAdams, E. Sifakis and J. Teran, "A parallel multigrid Poisson solver for fluids
+  simulation on large grids", SCA 2010 (MGPCG).
+- F. H. Harlow and J. E. Welch, "Numerical calculation of time-dependent viscous
+  incompressible flow of fluid with free surface", Phys. Fluids 8, 1965 (the MAC grid).
+
+Limitations
+-----------
+- Constant density (Boussinesq smoke); no free surface (liquids are not implemented yet).
+- First-order splitting in time; semi-Lagrangian advection adds numerical viscosity
+  (measured in tests/fluids/grid/test_solver.py), MacCormack much less.
+- Viscosity does not impose no-slip on obstacle surfaces inside the grid (only on domain
+  walls); obstacles are no-penetration (the solid's normal velocity) with free slip.
+- Obstacles see the field at the step start: a moving obstacle's fractions are rebuilt once
+  per step from its signed distance at the step's end time.
+- The velocity field handed out (``velocity_field()``) is the current grid state; its ``t``
+  argument is ignored.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+
+import numpy as np
+
+from ..._validate import as_vector, positive_scalar
+from ...errors import SimulationDiverged
+from . import kernels as K
+from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
+from .obstacles import face_fractions
+from .pressure import SOLVERS, PoissonSolver
+
+ADVECTION = ("semi-lagrangian", "maccormack")
+MAX_CFL = 5.0
+
+
+class MACGrid:
+    """Geometry of a staggered (MAC) grid.
+
+    Parameters
+    ----------
+    shape : (nx, ny) or (nx, ny, nz) cell counts, each >= 4 (the stencils and the multigrid
+        need that many).
+    cell_size : h, metres (> 0); cells are cubes.
+    origin : position of the grid's lower corner, metres (default zeros).
+
+    Node positions (metres): u[i, j, k] at origin + (i, j + 1/2, k + 1/2) h, v at
+    (i + 1/2, j, k + 1/2) h, w at (i + 1/2, j + 1/2, k) h, scalars at (i + 1/2, j + 1/2, k + 1/2) h.
+    """
+
+    def __init__(self, shape, cell_size, origin=None):
+        try:
+            shp = tuple(int(s) for s in shape)
+        except TypeError:
+            raise ValueError(f"shape must be a tuple of 2 or 3 cell counts; got {shape!r}") from None
+        if len(shp) not in (2, 3) or any(s != t for s, t in zip(shp, shape)):
+            raise ValueError(f"shape must be 2 or 3 integer cell counts; got {shape!r}")
+        if min(shp) < 4:
+            raise ValueError(f"shape must have at least 4 cells per axis (the stencil and "
+                             f"multigrid minimum); got {shp}")
+        self.dim = len(shp)
+        self.shape = shp
+        self.cell_size = positive_scalar(cell_size, "cell_size")
+        self.origin = (np.zeros(self.dim) if origin is None
+                       else as_vector(origin, "origin", self.dim))
+        self.n = np.array(shp + (1,) * (3 - self.dim), dtype=np.int64)
+        self.origin3 = np.zeros(3)
+        self.origin3[:self.dim] = self.origin
+        if self.dim == 2:
+            self.origin3[2] = -0.5 * self.cell_size  # cell centres at z = 0
+        self.size = self.n * self.cell_size
+
+    def face_positions(self, axis):
+        """(M, dim) positions of the faces normal to `axis` (C order of the face array)."""
+        nx, ny, nz = self.n
+        shape = [nx, ny, nz]
+        shape[axis] += 1
+        idx = np.indices(shape, dtype=np.float64).reshape(3, -1).T
+        off = np.full(3, 0.5)
+        off[axis] = 0.0
+        pts = self.origin3 + (idx + off) * self.cell_size
+        return np.ascontiguousarray(pts[:, :self.dim])
+
+    def cell_positions(self):
+        """(M, dim) cell-centre positions (C order of a scalar array)."""
+        idx = np.indices(tuple(self.n), dtype=np.float64).reshape(3, -1).T
+        pts = self.origin3 + (idx + 0.5) * self.cell_size
+        return np.ascontiguousarray(pts[:, :self.dim])
+
+    def vertex_positions(self):
+        """(M, dim) grid-vertex (cell-corner) positions, C order of an (nx+1, ny+1[, nz+1]) array."""
+        shape = tuple(self.n + 1) if self.dim == 3 else (int(self.n[0]) + 1, int(self.n[1]) + 1, 1)
+        idx = np.indices(shape, dtype=np.float64).reshape(3, -1).T
+        pts = self.origin3 + idx * self.cell_size
+        return np.ascontiguousarray(pts[:, :self.dim])
+
+
+class GridFluid:
+    """A MAC-grid fluid (see the module docstring for the stages and references).
+
+    Parameters
+    ----------
+    shape, cell_size, origin : the grid (`MACGrid`).
+    boundaries : dict side -> boundary (see `inertia.fluids.grid.boundaries`); default no-slip
+        walls everywhere.
+    viscosity : kinematic viscosity nu, m^2/s, >= 0 (default 0: inviscid smoke).
+    advection : "maccormack" (default) or "semi-lagrangian".
+    pressure_solver : "mgpcg" (default), "cg" or "jacobi".
+    tolerance : relative residual of the pressure solve, default 1e-6 (1e-4 for visuals).
+    max_iterations : pressure-solver iteration cap (default 200 for the CG methods).
+    scalars : names of the advected cell scalars; default ("density", "temperature").
+    ambient_temperature : T_amb for buoyancy and the default inflow temperature (default 0).
+    buoyancy : (alpha, beta), f = (-alpha density + beta (T - T_amb)) up, m/s^2 per unit; default (0, 0).
+    up : the buoyancy direction (default +y in 2-D, +z in 3-D).
+    body_acceleration : uniform acceleration on the fluid (gravity or a pressure gradient
+        driving a channel), m/s^2; default zeros.
+    dissipation : dict scalar name -> decay rate (1/s, >= 0).
+    vorticity_confinement : epsilon >= 0 (default 0; 1-5 for visible swirls at 64-256 cells).
+    cfl : CFL number for ``advance`` (default 1; at most 5).
+    max_dt : largest substep in ``advance``, s (default inf).
+    obstacles : list of colliders (``inertia.colliders``) of the grid's dimension.
+    parallel : None (default: parallel kernels from 65536 cells up), True or False.
+    """
+
+    def __init__(self, shape, cell_size, *, origin=None, boundaries=None, viscosity=0.0,
+                 advection="maccormack", pressure_solver="mgpcg", tolerance=1e-6,
+                 max_iterations=None, scalars=("density", "temperature"), ambient_temperature=0.0,
+                 buoyancy=(0.0, 0.0), up=None, body_acceleration=None, dissipation=None,
+                 vorticity_confinement=0.0, cfl=1.0, max_dt=np.inf, obstacles=(), parallel=None):
+        self.grid = g = MACGrid(shape, cell_size, origin)
+        if parallel not in (None, True, False):
+            raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
+        if parallel is None:
+            parallel = int(np.prod(g.n)) >= K.PARALLEL_CELLS
+        self.parallel = bool(parallel)
+        self._k = K.KernelSet(K, self.parallel)
+        dim = self.dim = g.dim
+        self.viscosity = positive_scalar(viscosity, "viscosity", allow_zero=True)
+        if advection not in ADVECTION:
+            raise ValueError(f"advection must be one of {ADVECTION}; got {advection!r}")
+        self.advection = advection
+        if pressure_solver not in SOLVERS:
+            raise ValueError(f"pressure_solver must be one of {SOLVERS}; got {pressure_solver!r}")
+        tol = positive_scalar(tolerance, "tolerance")
+        if tol >= 1:
+            raise ValueError(f"tolerance must be in (0, 1); got {tolerance!r}")
+        self.cfl = positive_scalar(cfl, "cfl")
+        if self.cfl > MAX_CFL:
+            raise ValueError(f"cfl must be in (0, {MAX_CFL}] (the back-trace uses one ghost layer "
+                             f"and MacCormack's limiter needs the trace inside its stencil); got {cfl!r}")
+        self.max_dt = positive_scalar(max_dt, "max_dt") if np.isfinite(max_dt) else np.inf
+        self.vorticity_confinement = positive_scalar(vorticity_confinement, "vorticity_confinement",
+                                                     allow_zero=True)
+        self.ambient_temperature = float(ambient_temperature)
+        b = np.asarray(buoyancy, dtype=np.float64).reshape(-1)
+        if b.shape != (2,) or not np.all(np.isfinite(b)):
+            raise ValueError(f"buoyancy must be (alpha, beta), two finite numbers; got {buoyancy!r}")
+        self.buoyancy = (float(b[0]), float(b[1]))
+        self.up = np.zeros(3)
+        if up is None:
+            self.up[dim - 1] = 1.0
+        else:
+            uv = as_vector(up, "up", dim)
+            if np.linalg.norm(uv) == 0:
+                raise ValueError("up must be a nonzero vector")
+            self.up[:dim] = uv / np.linalg.norm(uv)
+        self.body_acceleration = np.zeros(3)
+        if body_acceleration is not None:
+            self.body_acceleration[:dim] = as_vector(body_acceleration, "body_acceleration", dim)
+        names = tuple(scalars)
+        if len(set(names)) != len(names) or not all(isinstance(s, str) for s in names):
+            raise ValueError(f"scalars must be distinct names; got {scalars!r}")
+        self.scalar_names = names
+        self.dissipation = {}
+        for key, rate in (dissipation or {}).items():
+            if key not in names:
+                raise ValueError(f"dissipation has an unknown scalar {key!r}; scalars are {names}")
+            self.dissipation[key] = positive_scalar(rate, f"dissipation[{key!r}]", allow_zero=True)
+        self.sides = parse_boundaries(boundaries, dim)
+        periodic = np.array([isinstance(self.sides[2 * a], Periodic) for a in range(3)])
+        for a in range(dim):
+            if periodic[a] and g.n[a] % 2:
+                raise ValueError(f"shape[{a}] must be even on a periodic axis (red-black "
+                                 f"smoothing); got {g.n[a]}")
+        self.periodic = periodic
+        self.ctx = K.GridContext(g.n, g.cell_size, g.origin3, dim, periodic,
+                                 *self._ghost_rules())
+
+        # -- state arrays (written by the stages named) -----------------------------------
+        nx, ny, nz = (int(x) for x in g.n)
+        fs = [(nx + 1, ny, nz), (nx, ny + 1, nz), (nx, ny, nz + 1)]
+        self._face_shapes = fs
+        # face velocities, m/s: advect, forces, diffuse, project
+        self._vel = [np.zeros(s) for s in fs]
+        self._vel_tmp = [np.zeros(s) for s in fs]   # advect output
+        self._vel_fwd = [np.zeros(s) for s in fs]   # MacCormack scratch
+        self._vel_bwd = [np.zeros(s) for s in fs]
+        # cell scalars: advect, forces (sources), dissipate
+        self._scal = [np.zeros((nx, ny, nz)) for _ in names]
+        self._scal_tmp = [np.zeros((nx, ny, nz)) for _ in names]
+        self._cell_fwd = np.zeros((nx, ny, nz))
+        self._cell_bwd = np.zeros((nx, ny, nz))
+        # open fractions and solid velocities of faces: obstacles stage
+        self._frac = [np.ones(s) for s in fs]
+        self._solid = [np.zeros(s) for s in fs]
+        # projection: weighted divergence (1/s), phi = p dt / rho (m^2/s)
+        self.divergence = np.zeros((nx, ny, nz))
+        self.phi = np.zeros((nx, ny, nz))
+        self._rhs = np.zeros((nx, ny, nz))
+        self._force = np.zeros((nx, ny, nz, 3))
+        self._vort = np.zeros((nx, ny, nz, 3))
+        self._partial = np.zeros(max(nx, ny, nz) + 2)
+        self.pressure = PoissonSolver((nx, ny, nz), periodic, method=pressure_solver,
+                                      tolerance=tol, max_iterations=max_iterations,
+                                      parallel=self.parallel)
+        # diffusion scratch per component
+        self._fixed = [np.zeros(s, dtype=np.bool_) for s in fs]
+        self._cg = [[np.zeros(s) for _ in range(4)] for s in fs]
+        self.sources = []
+        self.time = 0.0
+        self.step_index = 0
+        self.profile = {}
+
+        # -- obstacles ---------------------------------------------------------------------
+        self.obstacles = list(obstacles)
+        for o in self.obstacles:
+            if getattr(o, "dim", None) != dim or not hasattr(o, "signed_distance"):
+                raise ValueError(f"obstacles must be colliders with dim {dim} "
+                                 f"(signed_distance, velocity); got {o!r}")
+        self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
+        self._vertex_pts = g.vertex_positions() if self.obstacles else None
+        self._face_pts = [g.face_positions(a) for a in range(dim)] if self.obstacles else None
+        self._cell_solid = np.zeros((nx, ny, nz), dtype=np.bool_)
+        self._update_solids(0.0, check_domain=True)
+
+    # ------------------------------------------------------------------------ boundary data
+    def _ghost_rules(self):
+        nsl = 3 + len(self.scalar_names)
+        kind = np.zeros((nsl, 3, 2), dtype=np.int64)
+        value = np.zeros((nsl, 3, 2))
+        for axis in range(3):
+            for sd in range(2):
+                b = self.sides[2 * axis + sd]
+                if isinstance(b, Periodic):
+                    kind[:, axis, sd] = K.PERIODIC
+                    continue
+                v = side_velocity(b, self.dim)
+                for c in range(3):
+                    if c == axis:
+                        kind[c, axis, sd] = K.NEUMANN  # clamp along the face's own axis
+                    elif isinstance(b, Inflow) or (isinstance(b, Wall) and not b.slip):
+                        kind[c, axis, sd] = K.DIRICHLET
+                        value[c, axis, sd] = v[c]
+                    else:
+                        kind[c, axis, sd] = K.NEUMANN
+                for s, name in enumerate(self.scalar_names):
+                    if isinstance(b, Inflow):
+                        kind[3 + s, axis, sd] = K.DIRICHLET
+                        value[3 + s, axis, sd] = self._inflow_scalar(b, name)
+                    else:
+                        kind[3 + s, axis, sd] = K.NEUMANN
+        return kind, value
+
+    def _inflow_scalar(self, b, name):
+        if name in b.scalars:
+            return float(b.scalars[name])
+        if name == "density":
+            return float(b.density)
+        if name == "temperature":
+            return self.ambient_temperature if b.temperature is None else float(b.temperature)
+        return 0.0
+
+    def _update_solids(self, t, check_domain=False):
+        """Face fractions and solid velocities from the domain sides and the obstacles."""
+        g = self.grid
+        dim = self.dim
+        if self.obstacles:
+            sdf = None
+            for o in self.obstacles:
+                d = np.asarray(o.signed_distance(self._vertex_pts, t), dtype=np.float64)
+                sdf = d if sdf is None else np.minimum(sdf, d)
+            if check_domain and np.all(sdf < 0):
+                raise ValueError("obstacles cover the whole domain")
+            vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
+            vs = sdf.reshape(vshape)
+            if dim == 2:
+                vs = np.concatenate([vs, vs], axis=2)
+            fr = face_fractions(vs, dim)
+            if check_domain:
+                for i, o in enumerate(self.obstacles):
+                    d = o.signed_distance(self._vertex_pts, t)
+                    if np.all(d > 0) and not self._inside_domain(o, t):
+                        raise ValueError(f"obstacles[{i}] lies outside the domain "
+                                         f"{g.origin3[:dim].tolist()} + {g.size[:dim].tolist()}")
+            for a in range(3):
+                self._frac[a][...] = fr[a]
+                self._solid[a][...] = 0.0
+            for a in range(dim):
+                pts = self._face_pts[a]
+                closed = np.flatnonzero(self._frac[a].reshape(-1) < 1.0)
+                if closed.size:
+                    p = pts[closed]
+                    best = None
+                    vel = np.zeros(closed.size)
+                    for o in self.obstacles:
+                        d = np.asarray(o.signed_distance(p, t))
+                        vo = np.asarray(o.velocity(p, t))[:, a]
+                        if best is None:
+                            best, vel = d, vo
+                        else:
+                            take = d < best
+                            best = np.where(take, d, best)
+                            vel = np.where(take, vo, vel)
+                    self._solid[a].reshape(-1)[closed] = vel
+            cells = g.cell_positions()
+            inside = np.full(cells.shape[0], False)
+            for o in self.obstacles:
+                inside |= np.asarray(o.signed_distance(cells, t)) < 0
+            self._cell_solid[...] = inside.reshape(self._cell_solid.shape)
+        else:
+            for a in range(3):
+                self._frac[a][...] = 1.0
+                self._solid[a][...] = 0.0
+        if dim == 2:
+            self._frac[2][...] = 0.0
+        # domain sides: walls and inflows close their boundary faces and impose the velocity
+        for axis in range(dim):
+            for sd in range(2):
+                b = self.sides[2 * axis + sd]
+                if isinstance(b, (Periodic, Outflow)):
+                    continue
+                idx = [slice(None)] * 3
+                idx[axis] = 0 if sd == 0 else -1
+                self._frac[axis][tuple(idx)] = 0.0
+                self._solid[axis][tuple(idx)] = side_velocity(b, dim)[axis]
+        self.pressure.set_coefficients(*self._frac, g.cell_size, dim)
+        # faces whose velocity is prescribed (for the implicit diffusion)
+        for a in range(3):
+            np.equal(self._frac[a], 0.0, out=self._fixed[a])
+            if self.periodic[a]:
+                idx = [slice(None)] * 3
+                idx[a] = -1
+                self._fixed[a][tuple(idx)] = True  # the duplicate of face 0
+        self._enforce()
+
+    def _inside_domain(self, o, t):
+        pts = self.grid.cell_positions()
+        return bool(np.any(np.asarray(o.signed_distance(pts, t)) < self.grid.cell_size))
+
+    # ------------------------------------------------------------------------ public arrays
+    def _view(self, a):
+        return a[:, :, 0] if self.dim == 2 else a
+
+    @property
+    def u(self):
+        """x-velocity on x-faces, m/s: (nx+1, ny) in 2-D, (nx+1, ny, nz) in 3-D (a view)."""
+        return self._view(self._vel[0])
+
+    @property
+    def v(self):
+        """y-velocity on y-faces, m/s: (nx, ny+1) / (nx, ny+1, nz) (a view)."""
+        return self._view(self._vel[1])
+
+    @property
+    def w(self):
+        """z-velocity on z-faces, m/s: (nx, ny, nz+1), 3-D only (a view)."""
+        if self.dim == 2:
+            raise AttributeError("w exists only on 3-D grids")
+        return self._vel[2]
+
+    def scalar(self, name):
+        """Cell-centred scalar `name`: (nx, ny) / (nx, ny, nz) view."""
+        if name not in self.scalar_names:
+            raise ValueError(f"name must be one of the scalars {self.scalar_names}; got {name!r}")
+        return self._view(self._scal[self.scalar_names.index(name)])
+
+    @property
+    def face_fractions(self):
+        """Open fractions (u faces, v faces[, w faces]) in [0, 1] (views; written by the
+        obstacles stage)."""
+        return tuple(self._view(f) for f in self._frac[:self.dim])
+
+    def set_velocity(self, function):
+        """Set every face velocity from ``function(points (M, dim)) -> (M, dim)`` sampled at
+        the face centres, then re-impose the boundary values."""
+        for a in range(self.dim):
+            pts = self.grid.face_positions(a)
+            val = np.asarray(function(pts), dtype=np.float64)
+            if val.shape != pts.shape:
+                raise ValueError(f"function must return an array of shape {pts.shape}; got {val.shape}")
+            self._vel[a][...] = val[:, a].reshape(self._face_shapes[a])
+        self._enforce()
+
+    def add_source(self, lower, upper, *, density_rate=0.0, temperature_rate=0.0,
+                   acceleration=None, scalar_rates=None):
+        """A box [lower, upper] (metres) that adds scalar per second (density_rate,
+        temperature_rate, or scalar_rates {name: rate}) to its cells and `acceleration`
+        (m/s^2) to the velocity on its faces, every step."""
+        lo = as_vector(lower, "lower", self.dim)
+        hi = as_vector(upper, "upper", self.dim)
+        if np.any(hi <= lo):
+            raise ValueError(f"upper must exceed lower on every axis; got {lower!r}, {upper!r}")
+        rates = dict(scalar_rates or {})
+        if density_rate:
+            rates["density"] = density_rate
+        if temperature_rate:
+            rates["temperature"] = temperature_rate
+        for k in rates:
+            if k not in self.scalar_names:
+                raise ValueError(f"scalar_rates has an unknown scalar {k!r}; scalars are {self.scalar_names}")
+        cells = self.grid.cell_positions()
+        inside = np.all((cells >= lo) & (cells <= hi), axis=1)
+        cell_idx = np.flatnonzero(inside)
+        faces = []
+        if acceleration is not None:
+            acc = as_vector(acceleration, "acceleration", self.dim)
+            for a in range(self.dim):
+                pts = self.grid.face_positions(a)
+                idx = np.flatnonzero(np.all((pts >= lo) & (pts <= hi), axis=1))
+                faces.append((a, idx, float(acc[a])))
+        if cell_idx.size == 0:
+            raise ValueError(f"the source box {lo.tolist()}..{hi.tolist()} contains no cell centre")
+        self.sources.append((cell_idx, [(self.scalar_names.index(k), float(r)) for k, r in rates.items()],
+                             faces))
+
+    # ------------------------------------------------------------------------ stages
+    def _enforce(self):
+        for a in range(3):
+            self._k.enforce_faces(self._vel[a], self._frac[a], self._solid[a], a, bool(self.periodic[a]))
+
+    def _advect(self, dt):
+        g = self.ctx
+        u, v, w = self._vel
+        for a in range(self.dim):
+            self._advect_one(self._vel[a], a, u, v, w, dt, self._vel_tmp[a], self._vel_fwd[a],
+                             self._vel_bwd[a])
+        for s in range(len(self._scal)):
+            self._advect_one(self._scal[s], 3 + s, u, v, w, dt, self._scal_tmp[s],
+                             self._cell_fwd, self._cell_bwd)
+        for a in range(self.dim):
+            self._vel[a], self._vel_tmp[a] = self._vel_tmp[a], self._vel[a]
+        for s in range(len(self._scal)):
+            self._scal[s], self._scal_tmp[s] = self._scal_tmp[s], self._scal[s]
+        self._enforce()
+
+    def _advect_one(self, src, slot, u, v, w, dt, dst, fwd, bwd):
+        g = self.ctx
+        if self.advection == "semi-lagrangian":
+            self._k.advect(src, u, v, w, dt, slot, g, dst)
+            return
+        self._k.advect(src, u, v, w, dt, slot, g, fwd)
+        self._k.advect(fwd, u, v, w, -dt, slot, g, bwd)
+        self._k.maccormack_correct(src, fwd, bwd, u, v, w, dt, slot, g, dst)
+
+    def _forces(self, dt):
+        f = self._force
+        need = False
+        f[...] = 0.0
+        if np.any(self.body_acceleration):
+            f[...] += self.body_acceleration
+            need = True
+        alpha, beta = self.buoyancy
+        if (alpha or beta) and "density" in self.scalar_names and "temperature" in self.scalar_names:
+            self._k.buoyancy_force(self._scal[self.scalar_names.index("density")],
+                             self._scal[self.scalar_names.index("temperature")], alpha, beta,
+                             self.ambient_temperature, self.up, f)
+            need = True
+        if self.vorticity_confinement > 0:
+            u, v, w = self._vel
+            self._k.cell_velocity_and_vorticity(u, v, w, self.ctx, self._vort)
+            vf = self._vort  # reuse: confinement writes into a separate buffer below
+            conf = self._conf if hasattr(self, "_conf") else None
+            if conf is None:
+                conf = self._conf = np.zeros_like(f)
+            self._k.confinement_force(vf, self.vorticity_confinement, self.ctx, conf)
+            f += conf
+            need = True
+        if need:
+            for a in range(self.dim):
+                self._k.add_cell_force(f, dt, a, self._frac[a], self.ctx, self._vel[a])
+        for cell_idx, rates, faces in self.sources:
+            for s, r in rates:
+                self._scal[s].reshape(-1)[cell_idx] += r * dt
+            for a, idx, acc in faces:
+                self._vel[a].reshape(-1)[idx] += acc * dt
+        self._enforce()
+
+    def _diffuse(self, dt):
+        if self.viscosity == 0.0:
+            return
+        g = self.ctx
+        coef = self.viscosity * dt / (self.grid.cell_size ** 2)
+        for a in range(self.dim):
+            x = self._vel[a]
+            r, p, q, b = self._cg[a]
+            fixed = self._fixed[a]
+            self._k.helmholtz_rhs(x, fixed, a, coef, g, b)
+            # CG on (I - coef Lap) x = b, from the current x
+            self._k.helmholtz_apply(x, fixed, a, coef, g, q)
+            np.subtract(b, q, out=r)
+            p[...] = r
+            rr = self._k.dot(r, r, self._partial_for(r))
+            bnorm = math.sqrt(self._k.dot(b, b, self._partial_for(b)))
+            tol = 1e-10 * max(bnorm, 1e-300)
+            xf, rf, pf, qf = x.reshape(-1), r.reshape(-1), p.reshape(-1), q.reshape(-1)
+            for _ in range(1000):
+                if math.sqrt(rr) <= tol:
+                    break
+                self._k.helmholtz_apply(p, fixed, a, coef, g, q)
+                alpha = rr / self._k.dot(p, q, self._partial_for(p))
+                self._k.axpy(alpha, pf, xf)
+                self._k.axpy(-alpha, qf, rf)
+                rr_new = self._k.dot(r, r, self._partial_for(r))
+                self._k.xpby(rf, rr_new / rr, pf)
+                rr = rr_new
+        self._enforce()
+
+    def _partial_for(self, a):
+        return self._partial
+
+    def project(self, dt=None):
+        """Make the velocity divergence-free (weighted by the face fractions); returns the
+        pressure-solver iteration count. dt only scales the stored pressure."""
+        u, v, w = self._vel
+        fu, fv, fw = self._frac
+        su, sv, sw = self._solid
+        self._k.weighted_divergence(u, v, w, fu, fv, fw, su, sv, sw, self.ctx, self.divergence)
+        np.negative(self.divergence, out=self._rhs)
+        it = self.pressure.solve(self._rhs, self.phi)
+        self._k.subtract_gradient(self.phi, fu, fv, fw, self.ctx, u, v, w)
+        self._enforce()
+        return it
+
+    def measure_divergence(self):
+        """Weighted divergence of the current face velocities, (nx, ny[, nz]) 1/s (a new array;
+        zero up to the pressure tolerance right after a step)."""
+        out = np.zeros(tuple(self.grid.n))
+        u, v, w = self._vel
+        self._k.weighted_divergence(u, v, w, *self._frac, *self._solid, self.ctx, out)
+        return self._view(out).copy()
+
+    def _dissipate(self, dt):
+        for name, rate in self.dissipation.items():
+            if rate > 0:
+                a = self._scal[self.scalar_names.index(name)]
+                self._k.scale_decay(a.reshape(-1), math.exp(-rate * dt))
+        if self.obstacles:
+            for a in self._scal:
+                np.copyto(a, 0.0, where=self._cell_solid)
+
+    # ------------------------------------------------------------------------ stepping
+    def step(self, dt):
+        """Advance by dt seconds (one step, no CFL check)."""
+        dt = positive_scalar(dt, "dt")
+        if self._moving:
+            self._update_solids(self.time + dt)
+        self._advect(dt)
+        self._forces(dt)
+        self._diffuse(dt)
+        self.last_pressure_iterations = self.project(dt)
+        self._dissipate(dt)
+        self._check_finite()
+        self.time += dt
+        self.step_index += 1
+
+    def max_speed(self):
+        return max(self._k.max_abs(self._vel[a], self._partial) for a in range(self.dim))
+
+    def stable_dt(self):
+        """dt = cfl h / max|u| (max_dt when the fluid is at rest)."""
+        vmax = self.max_speed()
+        if vmax == 0.0:
+            return self.max_dt if np.isfinite(self.max_dt) else self.grid.cell_size
+        return min(self.cfl * self.grid.cell_size / vmax, self.max_dt)
+
+    def advance(self, frame_dt):
+        """Advance by frame_dt seconds in CFL-limited substeps; returns the substep count."""
+        frame_dt = positive_scalar(frame_dt, "frame_dt")
+        done = 0.0
+        n = 0
+        while done < frame_dt * (1 - 1e-12):
+            dt = min(self.stable_dt(), frame_dt - done)
+            remaining = frame_dt - done - dt
+            if 0 < remaining < 0.1 * dt:  # avoid a sliver of a last substep
+                dt = 0.5 * (frame_dt - done)
+            self.step(dt)
+            done += dt
+            n += 1
+        return n
+
+    def _check_finite(self):
+        for a in range(self.dim):
+            if not np.isfinite(self._k.max_abs(self._vel[a], self._partial)):
+                bad = np.argwhere(~np.isfinite(self._vel[a]))[:10]
+                raise SimulationDiverged(
+                    f"grid fluid step {self.step_index} (t = {self.time:.6g} s): non-finite "
+                    f"{'uvw'[a]} velocity on faces {bad.tolist()}; likely cause: a source or body "
+                    f"force too strong for dt, or a pressure solve that did not converge",
+                    step=self.step_index, time=self.time, indices=bad)
+
+    # ------------------------------------------------------------------------ outputs
+    def velocity_field(self):
+        """The current velocity as an ``inertia.fields`` field (see `FluidVelocityField`)."""
+        from .field import FluidVelocityField
+        return FluidVelocityField(self)
+
+    def sample_velocity(self, points):
+        """Velocity at (M, dim) points, (M, dim) m/s (linear interpolation with boundary ghosts)."""
+        return self.velocity_field()(points)
+
+    def sample_scalar(self, name, points):
+        if name not in self.scalar_names:
+            raise ValueError(f"name must be one of the scalars {self.scalar_names}; got {name!r}")
+        pts = np.ascontiguousarray(np.asarray(points, dtype=np.float64))
+        out = np.empty(pts.shape[0])
+        self._k.sample_scalar_points(self._scal[self.scalar_names.index(name)],
+                               3 + self.scalar_names.index(name), pts, self.ctx, out)
+        return out
+
+    def vorticity(self):
+        """Cell-centred vorticity: (nx, ny) z-component in 2-D, (nx, ny, nz, 3) in 3-D, 1/s."""
+        u, v, w = self._vel
+        self._k.cell_velocity_and_vorticity(u, v, w, self.ctx, self._vort)
+        return self._vort[:, :, 0, 2].copy() if self.dim == 2 else self._vort.copy()
+
+    def kinetic_energy(self):
+        """(1/2) sum of u^2 over faces times cell volume (per unit density), J/(kg/m^3)."""
+        h = self.grid.cell_size
+        vol = h ** self.dim
+        e = 0.0
+        for a in range(self.dim):
+            x = self._vel[a]
+            if self.periodic[a]:
+                idx = [slice(None)] * 3
+                idx[a] = slice(0, -1)
+                x = x[tuple(idx)]
+            e += float(np.sum(x * x))
+        return 0.5 * e * vol
+
+    def state_hash(self):
+        """SHA-256 of the velocity and scalar arrays (determinism checks)."""
+        hsh = hashlib.sha256()
+        for a in self._vel[:self.dim] + self._scal:
+            hsh.update(np.ascontiguousarray(a).tobytes())
+        return hsh.hexdigest()
