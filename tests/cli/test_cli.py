@@ -428,10 +428,15 @@ def test_the_readme_command_works_twice(tmp_path, monkeypatch, write_scene):
     command = ("run", "fountain", "--out", "out/fountain", "--duration", 0.1, "-q", "--no-render")
     first = invoke(*command)
     assert first.exit_code == 0, first.output
-    created = read_manifest(tmp_path / "out/fountain/manifest.json")["created"]
+    manifest_path = tmp_path / "out/fountain/manifest.json"
+    # the manifest's `created` has whole seconds, so two quick runs can share it: the second run's
+    # manifest is a new file (written atomically beside the old one, then renamed over it)
+    first_file = manifest_path.stat()
     second = invoke(*command)
     assert second.exit_code == 0, second.output
-    assert read_manifest(tmp_path / "out/fountain/manifest.json")["created"] != created
+    second_file = manifest_path.stat()
+    assert (second_file.st_ino, second_file.st_mtime_ns) != (first_file.st_ino, first_file.st_mtime_ns)
+    assert read_manifest(manifest_path)["extra"]["status"] == "completed"
     # another scene's finished run in that directory is kept
     other = invoke("run", write_scene(TINY), "--out", "out/fountain", "-q", "--no-render")
     assert other.exit_code == 2 and "already holds a run of another scene" in other.output
