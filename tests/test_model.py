@@ -5,8 +5,14 @@ import math
 import numpy as np
 import pytest
 
-from inertia.model import ModelBuilder, primitive_mass_properties
+from inertia.geometry.mass import shape_mass_properties
+from inertia.model import ModelBuilder
 from inertia.geometry import shapes as S
+
+
+def primitive_mass_properties(shape_type, params, density):
+    props = shape_mass_properties(shape_type, params, density)
+    return props.mass, props.inertia
 
 
 def test_primitive_mass_properties_closed_forms():
@@ -94,3 +100,19 @@ def test_materials_combine_by_geometric_mean_and_max():
     s = b.add_sphere(b.add_body(), 0.1, material="rubber")
     m = b.finalize()
     assert (m.shape_friction[s], m.shape_restitution[s], m.shape_density[s]) == (0.9, 0.8, 1100.0)
+
+
+def test_hull_body_takes_the_polyhedral_mass_properties():
+    # a cube given as hull points, off-centre in its shape frame: m = rho a^3, I = m a^2 / 6 about the
+    # centre of mass (geometry.mass integrates the polyhedron exactly), the body frame at the centroid
+    a, rho = 0.2, 750.0
+    corners = np.array([[x, y, z] for x in (0, a) for y in (0, a) for z in (0, a)], dtype=float)
+    b = ModelBuilder()
+    body = b.add_body(position=(0.0, 0.0, 1.0))
+    b.add_convex_hull(body, corners, density=rho)
+    model = b.finalize()
+    m = rho * a ** 3
+    assert model.body_mass[0] == pytest.approx(m, rel=1e-12)
+    assert model.body_inertia[0] == pytest.approx([m * a * a / 6] * 3, rel=1e-9)
+    state = model.state()
+    assert state.body_q[0, :3] == pytest.approx([a / 2, a / 2, 1.0 + a / 2], abs=1e-12)

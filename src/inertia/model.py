@@ -33,6 +33,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .geometry import shapes as S
+from .geometry.mass import shape_mass_properties
+from .math import mat3_to_quat, quat_to_mat3, transform_inv, transform_mul
 
 __all__ = ["ModelBuilder", "Model", "State", "Control", "Material", "BodyArrays", "ShapeArrays"]
 
@@ -115,79 +117,6 @@ def _nonneg(value, name, upper=None):
         rng = f"in [0, {upper}]" if upper is not None else ">= 0"
         raise ValueError(f"{name} must be a finite number {rng}; got {value!r}")
     return x
-
-
-def _quat_to_mat(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _mat_to_quat(m):
-    # Shepperd's method: pick the largest of 4 w^2, 4 x^2, ... for a well-conditioned square root
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q)
-    if q[0] < 0:
-        q = -q
-    return q / np.linalg.norm(q)
-
-
-def _pose_mul(a, b):
-    """a * b for poses (p, q)."""
-    ra = _quat_to_mat(a[3:])
-    p = a[:3] + ra @ b[:3]
-    w1, x1, y1, z1 = a[3:]
-    w2, x2, y2, z2 = b[3:]
-    q = np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                  w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-    return np.concatenate([p, q / np.linalg.norm(q)])
-
-
-def _pose_inv(a):
-    r = _quat_to_mat(a[3:])
-    return np.concatenate([-(r.T @ a[:3]), [a[3], -a[4], -a[5], -a[6]]])
-
-
-def primitive_mass_properties(shape_type: int, params, density: float):
-    """(mass kg, inertia tensor about the shape's centroid in its local frame (3, 3) kg m^2)."""
-    p = params
-    if shape_type == S.SPHERE:
-        r = p[0]
-        m = density * 4.0 / 3.0 * math.pi * r ** 3
-        return m, np.eye(3) * 0.4 * m * r * r
-    if shape_type == S.BOX:
-        a, b, c = 2 * p[0], 2 * p[1], 2 * p[2]
-        m = density * a * b * c
-        return m, np.diag([m * (b * b + c * c), m * (a * a + c * c), m * (a * a + b * b)]) / 12.0
-    if shape_type == S.CYLINDER:
-        r, h = p[0], 2 * p[1]
-        m = density * math.pi * r * r * h
-        ixx = m * (3 * r * r + h * h) / 12.0
-        return m, np.diag([ixx, ixx, 0.5 * m * r * r])
-    if shape_type == S.CAPSULE:
-        r, h = p[0], 2 * p[1]
-        mc = density * math.pi * r * r * h
-        mh = density * 2.0 / 3.0 * math.pi * r ** 3          # one hemisphere
-        izz = 0.5 * mc * r * r + 2 * (0.4 * mh * r * r)
-        # hemisphere about its own centroid (3r/8 from the flat face): 83/320 m r^2, shifted to the
-        # capsule centre at distance h/2 + 3r/8
-        d = 0.5 * h + 3.0 * r / 8.0
-        ixx = mc * (3 * r * r + h * h) / 12.0 + 2 * (83.0 / 320.0 * mh * r * r + mh * d * d)
-        return mc + 2 * mh, np.diag([ixx, ixx, izz])
-    raise ValueError(f"shape type {shape_type} has no closed-form mass; give the body mass= and inertia=")
 
 
 class Model:
@@ -484,16 +413,11 @@ class ModelBuilder:
             parts = []
             for si in body_shapes[bi]:
                 sh = self._shapes[si]
-                if sh["sensor"] or sh["type"] in (S.PLANE, S.TRIANGLE_MESH, S.HEIGHTFIELD):
+                if sh["sensor"] or sh["type"] in (S.PLANE, S.TRIANGLE_MESH, S.HEIGHTFIELD) or sh["density"] <= 0:
                     continue
-                if sh["type"] == S.CONVEX_HULL:
-                    if bd["type"] == S.DYNAMIC and (bd["mass"] is None or bd["inertia"] is None):
-                        raise ValueError(f"body {bd['name']!r}: a convex hull needs explicit mass= and "
-                                         "inertia= on add_body (polyhedral mass properties not wired yet)")
-                    continue
-                m, ilocal = primitive_mass_properties(sh["type"], sh["params"], sh["density"])
-                r = _quat_to_mat(sh["pose"][3:])
-                parts.append((m, sh["pose"][:3], r @ ilocal @ r.T))
+                props = shape_mass_properties(sh["type"], sh["params"], sh["density"], vertices=sh["verts"])
+                r = quat_to_mat3(np.ascontiguousarray(sh["pose"][3:], dtype=np.float64))
+                parts.append((props.mass, sh["pose"][:3] + r @ props.com, r @ props.inertia @ r.T))
             for m, c, _ in parts:
                 m_tot += m
                 com += m * c
@@ -518,21 +442,21 @@ class ModelBuilder:
                     evals, evecs = np.diag(itensor).copy(), np.eye(3)
                 if np.linalg.det(evecs) < 0:
                     evecs[:, 2] *= -1
-                rq = _mat_to_quat(evecs)
+                rq = mat3_to_quat(np.ascontiguousarray(evecs))
             else:
                 evals, rq = np.zeros(3), np.array([1.0, 0, 0, 0])
             body_com_pose[bi] = np.concatenate([com, rq])
             body_mass[bi] = m_tot
             body_inertia[bi] = evals
             user = np.concatenate([bd["position"], bd["orientation"]])
-            q0[bi] = _pose_mul(user, body_com_pose[bi])
+            q0[bi] = transform_mul(user, body_com_pose[bi])
             qd0[bi, :3] = bd["angular_velocity"]
             # the velocity given is that of the user-frame origin; move it to the centre of mass
             r_com = q0[bi, :3] - bd["position"]
             qd0[bi, 3:] = bd["linear_velocity"] + np.cross(bd["angular_velocity"], r_com)
-            inv_com = _pose_inv(body_com_pose[bi])
+            inv_com = transform_inv(body_com_pose[bi])
             for si in body_shapes[bi]:
-                shape_pose[si] = _pose_mul(inv_com, self._shapes[si]["pose"])
+                shape_pose[si] = transform_mul(inv_com, np.ascontiguousarray(self._shapes[si]["pose"], dtype=np.float64))
 
         dyn = body_type == S.DYNAMIC
         inv_mass = np.where(dyn, 1.0 / np.where(body_mass > 0, body_mass, 1.0), 0.0)

@@ -241,8 +241,9 @@ def _pile_hash_script(threads):
     """)
 
 
-# measured at NUMBA_NUM_THREADS=1 (and reproduced at 2) on the x86-64 reference machine
-GOLDEN_PILE_HASH = "8b9a603f2d110f323e60a174abd0b80b7c5d99ba0feb8aea79e450f420201824"
+# measured at NUMBA_NUM_THREADS=1 (and reproduced at 2) on the x86-64 reference machine; re-measured when
+# the builder moved onto geometry.mass and inertia.math (mass properties and poses differ in the last bit)
+GOLDEN_PILE_HASH = "a3b9d009efa897ef8c36b45229b928f71ecb84e2c30130d7b2a6a6806a79ee0c"
 
 
 def test_deterministic_at_1_and_2_threads():

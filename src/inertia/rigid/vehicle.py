@@ -44,6 +44,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..math import quat_to_mat3
+
 from .queries import WorldQueries
 
 __all__ = ["Wheel", "RaycastVehicle"]
@@ -79,13 +81,6 @@ def _clip(f_long, f_lat, limit):
     if mag > limit:
         return f_long * limit / mag, f_lat * limit / mag
     return f_long, f_lat
-
-
-def _quat_to_mat(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
 class RaycastVehicle:
@@ -143,7 +138,7 @@ class RaycastVehicle:
         dt = w_.dt
         b = self.chassis
         q = st.body_q[b]
-        x, R = q[:3], _quat_to_mat(q[3:])
+        x, R = q[:3], quat_to_mat3(np.ascontiguousarray(q[3:]))
         omega, v = st.body_qd[b, :3], st.body_qd[b, 3:]
         up, fwd0 = R[:, 2], R[:, 0]
         m_q = self.world.model.body_mass[b] / len(self.wheels)
