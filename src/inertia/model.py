@@ -32,6 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ._validate import positive_scalar
 from .geometry import shapes as S
 from .geometry.mass import shape_mass_properties
 from .math import mat3_to_quat, quat_to_mat3, transform_inv, transform_mul
@@ -96,16 +97,6 @@ def _vec3(value, name):
     if v.shape != (3,) or not np.all(np.isfinite(v)):
         raise ValueError(f"{name} must be 3 finite numbers; got {value!r}")
     return v
-
-
-def _positive(value, name):
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number > 0; got {value!r}") from None
-    if not math.isfinite(x) or x <= 0:
-        raise ValueError(f"{name} must be a finite number > 0; got {value!r}")
-    return x
 
 
 def _nonneg(value, name, upper=None):
@@ -250,7 +241,7 @@ class ModelBuilder:
         self.materials[str(name)] = Material(_nonneg(friction, "friction"),
                                              _nonneg(restitution, "restitution", 1.0),
                                              _nonneg(rolling_friction, "rolling_friction"),
-                                             _positive(density, "density"))
+                                             positive_scalar(density, "density"))
         return str(name)
 
     # ------------------------------------------------------------------ bodies
@@ -264,7 +255,7 @@ class ModelBuilder:
         if body_type not in S.BODY_TYPE_NAMES:
             raise ValueError(f"body_type must be one of {sorted(S.BODY_TYPE_NAMES)}; got {body_type!r}")
         if mass is not None:
-            mass = _positive(mass, "mass")
+            mass = positive_scalar(mass, "mass")
         if inertia is not None:
             inertia = np.asarray(inertia, dtype=np.float64)
             if inertia.shape == (3,):
@@ -314,7 +305,7 @@ class ModelBuilder:
         names = {S.SPHERE: ("radius",), S.BOX: ("hx", "hy", "hz"), S.CAPSULE: ("radius", "half_length"),
                  S.CYLINDER: ("radius", "half_height")}.get(code, ())
         for i in range(need):
-            _positive(p[i], f"{shape_type} {names[i]}")
+            positive_scalar(p[i], f"{shape_type} {names[i]}")
         verts = None
         if code == S.CONVEX_HULL:
             verts = np.asarray(vertices, dtype=np.float64)
@@ -327,7 +318,7 @@ class ModelBuilder:
             type=code, body=int(body), pose=np.concatenate([_vec3(position, "position"),
                                                             _unit_quat(orientation, "orientation")]),
             params=p, margin=self.default_margin if margin is None else _nonneg(margin, "margin"),
-            density=mat.density if density is None else _positive(density, "density"),
+            density=mat.density if density is None else positive_scalar(density, "density"),
             friction=mat.friction if friction is None else _nonneg(friction, "friction"),
             restitution=mat.restitution if restitution is None else _nonneg(restitution, "restitution", 1.0),
             rolling_friction=(mat.rolling_friction if rolling_friction is None
@@ -355,19 +346,19 @@ class ModelBuilder:
         return self.add_shape(body, "heightfield", params, vertices=verts, **kw)
 
     def add_sphere(self, body, radius, **kw):
-        return self.add_shape(body, "sphere", (_positive(radius, "radius"),), **kw)
+        return self.add_shape(body, "sphere", (positive_scalar(radius, "radius"),), **kw)
 
     def add_box(self, body, half_extents, **kw):
         h = _vec3(half_extents, "half_extents")
         return self.add_shape(body, "box", h, **kw)
 
     def add_capsule(self, body, radius, half_length, **kw):
-        return self.add_shape(body, "capsule", (_positive(radius, "radius"),
-                                                _positive(half_length, "half_length")), **kw)
+        return self.add_shape(body, "capsule", (positive_scalar(radius, "radius"),
+                                                positive_scalar(half_length, "half_length")), **kw)
 
     def add_cylinder(self, body, radius, half_height, **kw):
-        return self.add_shape(body, "cylinder", (_positive(radius, "radius"),
-                                                 _positive(half_height, "half_height")), **kw)
+        return self.add_shape(body, "cylinder", (positive_scalar(radius, "radius"),
+                                                 positive_scalar(half_height, "half_height")), **kw)
 
     def add_convex_hull(self, body, vertices, **kw):
         return self.add_shape(body, "convex_hull", vertices=vertices, **kw)

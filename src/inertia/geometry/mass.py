@@ -48,6 +48,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 
 from inertia import math as im
+from inertia._validate import positive_scalar
 
 __all__ = [
     "MassProperties", "PrincipalFrame", "box_mass_properties", "sphere_mass_properties",
@@ -75,7 +76,7 @@ class MassProperties(NamedTuple):
 
     def scaled_to_mass(self, mass: float) -> "MassProperties":
         """The same shape with its density chosen to give ``mass`` (inertia scales linearly)."""
-        mass = _positive(mass, "mass")
+        mass = positive_scalar(mass, "mass")
         return MassProperties(mass, self.com.copy(), self.inertia * (mass / self.mass))
 
 
@@ -100,16 +101,6 @@ class PrincipalFrame(NamedTuple):
 
 
 # ----------------------------------------------------------------------------------------- validation
-def _positive(value, name: str) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number > 0; got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ValueError(f"{name} must be a finite number > 0; got {value!r}")
-    return x
-
-
 def _positive_vector(value, name: str) -> np.ndarray:
     arr = np.asarray(value, dtype=np.float64).reshape(-1)
     if arr.shape != (3,) or not np.all(np.isfinite(arr)) or np.any(arr <= 0.0):
@@ -125,15 +116,15 @@ def _diag(mass: float, ixx: float, iyy: float, izz: float) -> MassProperties:
 def box_mass_properties(half_extents, density: float) -> MassProperties:
     """Solid box with half extents (a, b, c) (m) and density (kg/m^3), centred at the origin."""
     a, b, c = _positive_vector(half_extents, "half_extents")
-    rho = _positive(density, "density")
+    rho = positive_scalar(density, "density")
     m = 8.0 * rho * a * b * c
     return _diag(m, m * (b * b + c * c) / 3.0, m * (a * a + c * c) / 3.0, m * (a * a + b * b) / 3.0)
 
 
 def sphere_mass_properties(radius: float, density: float, *, inner_radius: float = 0.0) -> MassProperties:
     """Solid sphere, or a thick spherical shell when ``0 < inner_radius < radius`` (m)."""
-    r = _positive(radius, "radius")
-    rho = _positive(density, "density")
+    r = positive_scalar(radius, "radius")
+    rho = positive_scalar(density, "density")
     ri = float(inner_radius)
     if not math.isfinite(ri) or ri < 0.0 or ri >= r:
         raise ValueError(f"inner_radius must satisfy 0 <= inner_radius < radius = {r}; got {inner_radius!r}")
@@ -145,8 +136,8 @@ def sphere_mass_properties(radius: float, density: float, *, inner_radius: float
 
 def thin_spherical_shell_mass_properties(radius: float, surface_density: float) -> MassProperties:
     """Infinitely thin spherical shell of surface density (kg/m^2): I = 2/3 m r^2."""
-    r = _positive(radius, "radius")
-    sigma = _positive(surface_density, "surface_density")
+    r = positive_scalar(radius, "radius")
+    sigma = positive_scalar(surface_density, "surface_density")
     m = 4.0 * math.pi * r * r * sigma
     i = 2.0 / 3.0 * m * r * r
     return _diag(m, i, i, i)
@@ -154,9 +145,9 @@ def thin_spherical_shell_mass_properties(radius: float, surface_density: float) 
 
 def cylinder_mass_properties(radius: float, half_height: float, density: float) -> MassProperties:
     """Solid cylinder along local z, centred at the origin."""
-    r = _positive(radius, "radius")
-    h = _positive(half_height, "half_height")
-    rho = _positive(density, "density")
+    r = positive_scalar(radius, "radius")
+    h = positive_scalar(half_height, "half_height")
+    rho = positive_scalar(density, "density")
     m = 2.0 * math.pi * r * r * h * rho
     perp = m * (r * r / 4.0 + h * h / 3.0)
     return _diag(m, perp, perp, 0.5 * m * r * r)
@@ -166,11 +157,11 @@ def capsule_mass_properties(radius: float, half_length: float, density: float) -
     """Capsule: the points within ``radius`` of the segment from (0, 0, -half_length) to (0, 0, half_length).
 
     ``half_length = 0`` is a sphere."""
-    r = _positive(radius, "radius")
+    r = positive_scalar(radius, "radius")
     h = float(half_length)
     if not math.isfinite(h) or h < 0.0:
         raise ValueError(f"half_length must be a finite number >= 0; got {half_length!r}")
-    rho = _positive(density, "density")
+    rho = positive_scalar(density, "density")
     m_cyl = 2.0 * math.pi * r * r * h * rho
     m_sph = 4.0 / 3.0 * math.pi * r ** 3 * rho
     izz = 0.5 * m_cyl * r * r + 0.4 * m_sph * r * r
@@ -181,9 +172,9 @@ def capsule_mass_properties(radius: float, half_length: float, density: float) -
 def cone_mass_properties(radius: float, height: float, density: float) -> MassProperties:
     """Solid right circular cone along local z, frame at its centroid: base disc at z = -height/4, apex at
     z = 3 height / 4."""
-    r = _positive(radius, "radius")
-    hh = _positive(height, "height")
-    rho = _positive(density, "density")
+    r = positive_scalar(radius, "radius")
+    hh = positive_scalar(height, "height")
+    rho = positive_scalar(density, "density")
     m = math.pi * r * r * hh * rho / 3.0
     perp = 3.0 / 20.0 * m * r * r + 3.0 / 80.0 * m * hh * hh
     return _diag(m, perp, perp, 0.3 * m * r * r)
@@ -192,7 +183,7 @@ def cone_mass_properties(radius: float, height: float, density: float) -> MassPr
 def ellipsoid_mass_properties(semi_axes, density: float) -> MassProperties:
     """Solid ellipsoid with semi-axes (a, b, c) along local x, y, z, centred at the origin."""
     a, b, c = _positive_vector(semi_axes, "semi_axes")
-    rho = _positive(density, "density")
+    rho = positive_scalar(density, "density")
     m = 4.0 / 3.0 * math.pi * a * b * c * rho
     return _diag(m, m * (b * b + c * c) / 5.0, m * (a * a + c * c) / 5.0, m * (a * a + b * b) / 5.0)
 
@@ -239,7 +230,7 @@ def mesh_mass_properties(vertices, triangles, density: float, *, name: str = "me
     """Solid bounded by a closed triangle mesh wound counter-clockwise seen from outside (outward normals).
 
     Raises ValueError for open, inconsistently wound or inside-out meshes and for zero volume."""
-    rho = _positive(density, "density")
+    rho = positive_scalar(density, "density")
     v = np.asarray(vertices, dtype=np.float64)
     if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 4 or not np.all(np.isfinite(v)):
         raise ValueError(f"{name} vertices must be a finite (V, 3) array with V >= 4; got shape {v.shape}")
@@ -270,7 +261,7 @@ def convex_hull_mass_properties(points, density: float) -> MassProperties:
     """Solid convex hull of a point cloud (N, 3); ValueError for fewer than 4 points or a flat cloud."""
     from inertia.geometry.convex import build_convex_hull
 
-    rho = _positive(density, "density")
+    rho = positive_scalar(density, "density")
     hull = build_convex_hull(points, name="points")
     return mesh_mass_properties(hull.vertices, hull.triangles, rho, name="convex hull")
 

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._validate import positive_scalar
 from ..math import quat_to_mat3
 
 from .queries import WorldQueries
@@ -66,13 +67,6 @@ class Wheel:
     inertia: float = 1.2
     steered: bool = False
     driven: bool = False
-
-
-def _positive(v, name):
-    v = float(v)
-    if not math.isfinite(v) or v <= 0:
-        raise ValueError(f"{name} must be a positive finite number; got {v!r}")
-    return v
 
 
 def _clip(f_long, f_lat, limit):
@@ -107,7 +101,7 @@ class RaycastVehicle:
             if hp.shape != (3,) or not np.all(np.isfinite(hp)):
                 raise ValueError(f"wheels[{k}].hardpoint must be 3 finite numbers; got {w.hardpoint!r}")
             for name in ("rest_length", "radius", "stiffness", "inertia"):
-                _positive(getattr(w, name), f"wheels[{k}].{name}")
+                positive_scalar(getattr(w, name), f"wheels[{k}].{name}")
             for name in ("damping", "friction"):
                 v = float(getattr(w, name))
                 if not math.isfinite(v) or v < 0:

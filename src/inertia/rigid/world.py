@@ -91,7 +91,8 @@ class RigidWorld:
                  enable_sleep=True, linear_sleep_tolerance=0.05, angular_sleep_tolerance=math.radians(2.0),
                  time_to_sleep=0.5, max_speed=1e4, match_distance=0.01, parallel="auto",
                  state: State | None = None):
-        from ..model import _nonneg, _positive
+        from .._validate import positive_scalar as _positive
+        from ..model import _nonneg
         self.model = model
         self.dt = _positive(dt, "dt")
         if not isinstance(substeps, (int, np.integer)) or substeps < 1:
