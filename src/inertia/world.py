@@ -58,13 +58,18 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from numba import njit
 
 from .errors import SimulationDiverged
+from .math import quat_to_mat3
 from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
            "CHECKPOINT_NAME", "STATES_NAME", "frame_steps", "CheckpointError",
            "read_checkpoint_info"]
+
+#: the world step's stages (``world.profile`` keys, besides one per group and ``fluid/<name>``)
+STAGES = ("kinematics", "rigid", "fluids", "coupling")
 
 CHECKPOINT_NAME = "checkpoint.npz"
 STATES_NAME = "states"
@@ -98,10 +103,14 @@ class Group:
 
 @dataclass
 class WorldState:
-    """A checkpoint of a world: its step count and every group's `SimulationState`."""
+    """A checkpoint of a world: its step count, every group's `SimulationState`, the rigid state
+    (``rigid``: a dict of arrays, see `World.save_state`; None without bodies) and each fluid's
+    ``save_state()`` dict by name."""
 
     step_count: int
     groups: list[SimulationState]
+    rigid: dict | None = None
+    fluids: dict = field(default_factory=dict)
 
 
 class World:
@@ -116,19 +125,25 @@ class World:
     colliders : the collider objects of the scene (for drawing; attach them to systems yourself).
     """
 
-    def __init__(self, *, dt: float, substeps: int = 1, colliders=(), name: str = "world"):
+    def __init__(self, *, dt: float, substeps: int = 1, colliders=(), model=None, rigid_options=None,
+                 name: str = "world"):
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"dt must be a finite number > 0; got {dt!r}")
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1; got {substeps!r}")
+        if rigid_options is not None and not isinstance(rigid_options, dict):
+            raise ValueError(f"rigid_options must be a dict of RigidWorld options (e.g. {{'substeps': 4}}); "
+                             f"got {type(rigid_options).__name__}")
         self.name = name
         self.dt = float(dt)
         self.substeps = int(substeps)
         self.groups: list[Group] = []
         self.colliders = list(colliders)
+        self.fluids: dict[str, Any] = {}
         self.step_count = 0
         self.t = 0.0
-        self.profile: dict[str, float] = {}
+        self.profile: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self._setup_model(model, rigid_options)
         self.metadata: dict[str, Any] = {}
         # run settings of a loaded scene (None for a world built by hand)
         self.duration: float | None = None
@@ -136,20 +151,107 @@ class World:
         self.seed: int | None = None
 
     # ---- building ----------------------------------------------------------------------------
+    def _setup_model(self, model, rigid_options) -> None:
+        """One shape table: the model's rows plus the rows the 3-D colliders become (see
+        `inertia.model.with_colliders`); a RigidWorld when the model has bodies."""
+        from .model import Model, with_colliders
+        if model is not None and not isinstance(model, Model):
+            raise ValueError(f"model must be an inertia.model.Model (ModelBuilder(...).finalize()) or None; "
+                             f"got {type(model).__name__}")
+        self._user_bodies = 0 if model is None else model.body_count
+        colliders3 = [c for c in self.colliders if getattr(c, "dim", 3) == 3]
+        self.model = with_colliders(model, self.colliders) if (model is not None or colliders3) else None
+        self.rigid = None
+        self._rigid_options = dict(rigid_options or {})
+        if self.model is not None and self._user_bodies > 0:
+            from .rigid.world import RigidWorld
+            options = dict(self._rigid_options)
+            if "dt" in options:
+                raise ValueError("rigid_options must not set 'dt': the rigid world steps the world's dt")
+            self.rigid = RigidWorld(self.model, dt=self.dt, **options)
+            nb = self.model.body_count
+            self._q_start = np.zeros((nb, 7))
+            self._impulse_linear = np.zeros((nb, 3))
+            self._impulse_angular = np.zeros((nb, 3))
+            # colliders with a Motion: kinematic bodies driven by the collider's pose(t)
+            self._driven = [(int(b), self.colliders[int(src)]) for b, src in enumerate(self.model.body_source)
+                            if src >= 0]
+            self._kinematics(0.0)
+
     def add(self, name: str, system, *, integrator: str = "rk4", color: str | None = None,
-            kind: str | None = None, **integrator_options) -> Group:
-        """Add a system (ParticleSystem or Tracers) stepped by its own integrator; returns its group."""
+            kind: str | None = None, triangles=None, **integrator_options) -> Group:
+        """Add a system (ParticleSystem or Tracers) stepped by its own integrator; returns its group.
+
+        ``triangles``: optional (T, 3) int, group-local particle indices of a surface drawn over the
+        particles (cloth); recorded as ``surface_triangles`` in the state file's model.
+        In a world with a shape table, a 3-D particle system collides with the table's body and world
+        rows (the rows the particle colliders became are attached by ``system.add_collider`` as before).
+        """
         if any(g.name == name for g in self.groups):
             raise ValueError(f"a group named {name!r} already exists; names must be unique")
         if self.groups and system.dim != self.dim:
             raise ValueError(f"group {name!r} is {system.dim}-D but the world is {self.dim}-D")
+        if name in STAGES or name in self.fluids:
+            raise ValueError(f"group name {name!r} is taken (stages {STAGES}, fluids {sorted(self.fluids)})")
+        tri = None
+        if triangles is not None:
+            tri = np.asarray(triangles)
+            if (tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer)
+                    or (tri.size and (tri.min() < 0 or tri.max() >= system.particle_count))):
+                raise ValueError(f"triangles must be a (T, 3) integer array of particle indices in "
+                                 f"[0, {system.particle_count - 1}]; got shape {tri.shape}")
+            tri = tri.astype(np.int64)
         sim = Simulation(system, integrator=integrator, dt=self.dt / self.substeps, **integrator_options)
         kind = kind or ("particles" if getattr(system, "second_order", False) else "tracers")
         start = self.particle_count
         group = Group(name, kind, system, sim, color, start, start + system.particle_count)
+        group.triangles = tri
+        group.body_entries = None
         self.groups.append(group)
         self.profile[name] = 0.0
+        self._attach_shape_table(group)
         return group
+
+    def _attach_shape_table(self, group) -> None:
+        """Give a 3-D particle group the shape table's rows that are not particle colliders (the
+        builder's world geometry and every body's shapes), and couple it to the dynamic bodies."""
+        system, model = group.system, self.model
+        if model is None or system.dim != 3 or group.kind != "particles":
+            return
+        rows = np.flatnonzero(model.shape_source < 0)
+        if rows.size == 0:
+            return
+        from .collision.particle_stage import _data
+        from .dynamics.particle_coupling import ParticleBodyCoupling
+        data = _data(system)
+        state = self.rigid.state if self.rigid is not None else model.state()
+        entries = data.add_body_shapes(model, rows, state)
+        moving = np.array([i for i in entries if data.colliders[i].moving], np.int64)
+        group.body_entries = moving
+        group.entry_body_all = np.array([data.colliders[i].body for i in moving], np.int64)
+        if self.rigid is not None:
+            entry_body = data.entry_bodies(model)
+            if np.any(entry_body >= 0):
+                data.coupling = ParticleBodyCoupling(system, entry_body, self.rigid.state.body_q,
+                                                     self._impulse_linear, self._impulse_angular,
+                                                     data.distance_tolerance)
+
+    def add_fluid(self, name: str, fluid) -> Any:
+        """Add a fluid (an object with ``advance(dt, rigid)``, ``save_state()``, ``restore_state(d)``,
+        ``frame_arrays()``, ``static_arrays()``; see the contract in the module docstring). The fluids
+        stage calls ``fluid.advance(dt, world.rigid)`` after the rigid stage, before the particle groups."""
+        if not isinstance(name, str) or not name or "/" in name:
+            raise ValueError(f"fluid name must be a non-empty string without '/'; got {name!r}")
+        if name in self.fluids or any(g.name == name for g in self.groups) or name in STAGES:
+            raise ValueError(f"a group, fluid or stage named {name!r} already exists; names must be unique")
+        missing = [m for m in ("advance", "save_state", "restore_state", "frame_arrays", "static_arrays")
+                   if not callable(getattr(fluid, m, None))]
+        if missing:
+            raise ValueError(f"fluid {name!r} lacks the methods {missing} (the fluid protocol: advance(dt, rigid), "
+                             "save_state(), restore_state(dict), frame_arrays(), static_arrays())")
+        self.fluids[name] = fluid
+        self.profile[f"fluid/{name}"] = 0.0
+        return fluid
 
     # ---- sizes and lookup --------------------------------------------------------------------
     @property
@@ -175,16 +277,69 @@ class World:
 
     # ---- stepping ----------------------------------------------------------------------------
     def step(self) -> None:
-        """Advance every group by dt (``substeps`` integrator steps each)."""
+        """Advance everything by dt: the stages of the module docstring, each timed in ``profile``."""
         clock = _time.perf_counter
+        rigid = self.rigid
+        t0 = clock()
+        if rigid is not None:
+            self._kinematics(self.t)
+            self._q_start[:] = rigid.state.body_q
+        t1 = clock()
+        self.profile["kinematics"] += t1 - t0
+        if rigid is not None:
+            rigid.step()
+            if self._driven:
+                self._kinematics_end(self.t + self.dt)
+        t2 = clock()
+        self.profile["rigid"] += t2 - t1
+        for name, fluid in self.fluids.items():
+            tf = clock()
+            fluid.advance(self.dt, rigid)
+            self.profile[f"fluid/{name}"] += clock() - tf
+        t3 = clock()
+        self.profile["fluids"] += t3 - t2
+        if rigid is not None:
+            self._impulse_linear[:] = 0.0
+            self._impulse_angular[:] = 0.0
         for g in self.groups:
             t0 = clock()
             sim = g.simulation
-            for _ in range(self.substeps):
+            entries = g.body_entries if rigid is not None else None
+            for j in range(self.substeps):
+                if entries is not None and entries.size:
+                    data = g.system._collision
+                    _interpolated_poses(entries, g.entry_body_all, self._q_start, rigid.state.body_q,
+                                        j / self.substeps, (j + 1) / self.substeps, data.pose0, data.pose1)
                 sim.step()
             self.profile[g.name] += clock() - t0
+        t4 = clock()
+        if rigid is not None:
+            from .dynamics.particle_coupling import apply_body_impulses
+            apply_body_impulses(self.model, rigid.state, self._impulse_linear, self._impulse_angular)
+        self.profile["coupling"] += clock() - t4
         self.step_count += 1
         self.t = self.step_count * self.dt
+
+    def _kinematics(self, t: float) -> None:
+        """Bodies of moving colliders: pose at t, velocity from the pose at t and t + dt."""
+        from .collision.motion import rotation_log
+        from .math import mat3_to_quat
+        st = self.rigid.state
+        for b, col in self._driven:
+            p0, r0 = col.pose(t)
+            p1, r1 = col.pose(t + self.dt)
+            st.body_q[b, :3] = p0
+            st.body_q[b, 3:] = mat3_to_quat(np.ascontiguousarray(r0))
+            st.body_qd[b, :3] = rotation_log(r1 @ r0.T) / self.dt
+            st.body_qd[b, 3:] = (p1 - p0) / self.dt
+
+    def _kinematics_end(self, t: float) -> None:
+        from .math import mat3_to_quat
+        st = self.rigid.state
+        for b, col in self._driven:
+            p, r = col.pose(t)
+            st.body_q[b, :3] = p
+            st.body_q[b, 3:] = mat3_to_quat(np.ascontiguousarray(r))
 
     def run(self, duration: float | None = None, callback: Callable[["World"], None] | None = None) -> None:
         """Advance by `duration` seconds (rounded up to whole steps); default the scene's duration."""
@@ -238,20 +393,88 @@ class World:
 
     # ---- checkpoints -------------------------------------------------------------------------
     def save_state(self) -> WorldState:
-        """Everything that changes; `restore_state` continues bit for bit."""
-        return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups])
+        """Everything that changes; `restore_state` continues bit for bit.
+
+        ``rigid`` holds the rigid State's arrays (``body_q``, ``body_qd``, ``body_sleep_time``,
+        ``body_awake``, ``body_sleep_island``, ``clock``, ``step_index``) and the warm-start contact
+        cache (``contacts/<array>`` and ``contacts_count``, ``contacts_active_count``)."""
+        rigid = None
+        if self.rigid is not None:
+            saved = self.rigid.save()
+            rigid = {f: np.array(getattr(saved["state"], f)) for f in saved["state"]._FIELDS}
+            contacts = saved["contacts"]
+            from .dynamics.contacts import _SPEC
+            for name in _SPEC:
+                rigid[f"contacts/{name}"] = np.array(getattr(contacts, name))
+            rigid["contacts_count"] = int(contacts.count)
+            rigid["contacts_active_count"] = int(contacts.active_count)
+        fluids = {name: dict(f.save_state()) for name, f in self.fluids.items()}
+        return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups], rigid, fluids)
 
     def restore_state(self, state: WorldState) -> None:
         if len(state.groups) != len(self.groups):
             raise ValueError(f"the saved state has {len(state.groups)} groups; this world has {len(self.groups)}")
+        if (state.rigid is None) != (self.rigid is None):
+            raise ValueError("the saved state and this world differ in having rigid bodies")
+        if sorted(state.fluids) != sorted(self.fluids):
+            raise ValueError(f"the saved state has fluids {sorted(state.fluids)}; this world has {sorted(self.fluids)}")
         for g, s in zip(self.groups, state.groups):
             g.simulation.restore_state(s)
+        if self.rigid is not None:
+            from .dynamics.contacts import _SPEC, Contacts
+            from .model import State
+            r = state.rigid
+            saved_state = State.__new__(State)
+            for f in State._FIELDS:
+                setattr(saved_state, f, np.asarray(r[f]))
+            contacts = Contacts.__new__(Contacts)
+            contacts.capacity = int(r["contacts/" + next(iter(_SPEC))].shape[0])
+            contacts.count, contacts.active_count = int(r["contacts_count"]), int(r["contacts_active_count"])
+            for name in _SPEC:
+                setattr(contacts, name, np.asarray(r[f"contacts/{name}"]))
+            self.rigid.restore({"state": saved_state, "contacts": contacts})
+        for name, f in self.fluids.items():
+            f.restore_state(state.fluids[name])
         self.step_count = int(state.step_count)
         self.t = self.step_count * self.dt
 
     def __repr__(self):
         groups = ", ".join(f"{g.name}: {g.particle_count} {g.kind} ({g.integrator})" for g in self.groups)
         return f"World({self.name!r}, dt={self.dt:g}, substeps={self.substeps}, t={self.t:g}, groups=[{groups}])"
+
+
+@njit(cache=True)
+def _interpolated_poses(entries, entry_body, q_start, q_end, s0, s1, pose0, pose1):
+    """pose0/pose1 rows [p, R row-major] of the body-shape colliders `entries` at fractions s0, s1 of
+    the step (positions linear, orientations normalised-linear between the step's two poses)."""
+    for e in range(entries.shape[0]):
+        k, b = entries[e], entry_body[e]
+        for out, s in ((pose0, s0), (pose1, s1)):
+            q = np.empty(4)
+            dot = 0.0
+            for c in range(4):
+                dot += q_start[b, 3 + c] * q_end[b, 3 + c]
+            sign = 1.0 if dot >= 0.0 else -1.0
+            norm = 0.0
+            for c in range(4):
+                q[c] = (1.0 - s) * q_start[b, 3 + c] + s * sign * q_end[b, 3 + c]
+                norm += q[c] * q[c]
+            norm = np.sqrt(norm)
+            for c in range(4):
+                q[c] /= norm
+            if s == 1.0:
+                for c in range(4):
+                    q[c] = q_end[b, 3 + c]
+            elif s == 0.0:
+                for c in range(4):
+                    q[c] = q_start[b, 3 + c]
+            for c in range(3):
+                out[k, c] = (1.0 - s) * q_start[b, c] + s * q_end[b, c] if 0.0 < s < 1.0 else (
+                    q_start[b, c] if s == 0.0 else q_end[b, c])
+            r = quat_to_mat3(q)
+            for i in range(3):
+                for j in range(3):
+                    out[k, 3 + 3 * i + j] = r[i, j]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -345,7 +568,8 @@ def save_checkpoint(path, state: WorldState, info: dict) -> Path:
                "extra": _encode(s.extra, arrays, f"groups[{i}].extra")}
               for i, s in enumerate(state.groups)]
     tree = {"checkpoint_version": CHECKPOINT_VERSION, "info": info, "step_count": state.step_count,
-            "groups": groups}
+            "groups": groups, "rigid": _encode(state.rigid, arrays, "rigid"),
+            "fluids": _encode(state.fluids, arrays, "fluids")}
     arrays["tree"] = np.array(json.dumps(tree))
     with atomic_write(path, "wb") as handle:
         np.savez(handle, **arrays)
@@ -417,7 +641,9 @@ def load_checkpoint(path, *, fingerprint: str | None = None) -> tuple[WorldState
         groups = [SimulationState(g["time"], g["step_count"], _decode(g["system"], arrays, path),
                                   _decode(g["integrator"], arrays, path), _decode(g["extra"], arrays, path))
                   for g in tree["groups"]]
-        return WorldState(tree["step_count"], groups), info
+        rigid = _decode(tree.get("rigid"), arrays, path)
+        fluids = _decode(tree.get("fluids") or {}, arrays, path)
+        return WorldState(tree["step_count"], groups, rigid, fluids), info
     except (KeyError, TypeError) as exc:
         raise CheckpointError(f"{path}: the checkpoint is damaged (missing or malformed entry {exc})") from None
 

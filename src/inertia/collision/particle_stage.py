@@ -109,7 +109,7 @@ import numpy as np
 from . import broadphase as bp
 from . import distance as _d
 from . import particle_kernels as pk
-from .shapes import Collider
+from .shapes import BodyShape, Collider
 
 __all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "get_collision_mode",
            "get_self_collisions", "configure_contacts", "ParticleCollisionData",
@@ -189,6 +189,9 @@ class ParticleCollisionData:
         self.fused_step = None
         self.fused_armed = False  # between that begin_step and the integrator's kernel
         self.fused_result = None
+        # two-way coupling with bodies (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``,
+        # set by the world): particle momentum changes go back into the bodies
+        self.coupling = None
         self._pack()
 
     # --- model -------------------------------------------------------------------------------
@@ -234,7 +237,8 @@ class ParticleCollisionData:
     def can_fuse(self) -> bool:
         """True when the collision pass can run inside the integrator's fused kernel: only
         static compiled colliders (no moving ones, no unbaked SDFs) and no self-collisions."""
-        return self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
+        return (self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
+                and self.coupling is None)
 
     def run_fused(self, system, affine, rk4, dt):
         """The integrator's fused step with the collision pass (``particle_kernels.step_and_collide``)."""
@@ -250,13 +254,41 @@ class ParticleCollisionData:
         self.profile["collide"] += time.perf_counter() - tic
 
     def update_poses(self, t, dt):
-        """pose0 / pose1 of the moving colliders at t and t + dt."""
+        """pose0 / pose1 of the moving colliders at t and t + dt (rows of body shapes are written by
+        the world from the bodies' poses, see ``set_body_poses``)."""
         if not self.any_moving:
             return
         for i, c in enumerate(self.colliders):
-            if c.moving:
+            if c.moving and not getattr(c, "from_body", False):
                 self.pose0[i] = c._packed_pose(t)
                 self.pose1[i] = c._packed_pose(t + dt)
+
+    # --- shape-table rows on bodies ----------------------------------------------------------
+    def add_body_shapes(self, model, shapes, state=None):
+        """Append rows ``shapes`` of ``model``'s shape table as colliders (``BodyShape``), with the
+        rows' restitution and friction. Returns their entry indices (rows of cint, pose0, pose1)."""
+        first = len(self.colliders)
+        body_q = None if state is None else state.body_q
+        for s in shapes:
+            b = int(model.shape_body[s])
+            shape = BodyShape(model, int(s), None if (body_q is None or b < 0) else body_q[b])
+            if getattr(shape, "unsupported", False):
+                continue
+            self.colliders.append(shape)
+            self.restitution.append(float(min(max(model.shape_restitution[s], 0.0), 1.0)))
+            self.friction.append(float(model.shape_friction[s]))
+        self.check_start = True
+        self._valid_revision = None
+        self._pack()
+        return np.arange(first, len(self.colliders))
+
+    def entry_bodies(self, model) -> np.ndarray:
+        """(K,) int64: the dynamic body each packed collider row belongs to, -1 for the others."""
+        out = np.full(self.cint.shape[0], -1, np.int64)
+        for i, c in enumerate(self.colliders):
+            if getattr(c, "from_body", False) and c.body >= 0 and int(model.body_type[c.body]) == 0:
+                out[i] = c.body
+        return out
 
     # --- buffers -----------------------------------------------------------------------------
     def ensure_buffers(self, system):
@@ -374,8 +406,12 @@ class RestingContactFilter:
         if d.resting_count == 0 or d._shape is None:
             return
         kernel = pick(pk.resting_filter, pk.resting_filter_serial, f.shape[0])
+        if d.coupling is not None:
+            d.coupling.before_filter(f)
         kernel(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
                d.static_ok)
+        if d.coupling is not None:
+            d.coupling.after_filter(x, f, d)
 
 
 class ParticleCollisionStage:
@@ -437,6 +473,9 @@ class ParticleCollisionStage:
         changed = 0
         finite = True
         tic = time.perf_counter()
+        coupling = d.coupling
+        if coupling is not None:
+            coupling.before_collisions(system)
         # x0, v0 can be refreshed by the kernel itself when nothing runs after it
         save_next = not d.self_collisions and not d.callables
         if d.any_kernel or d.self_collisions:
@@ -458,6 +497,8 @@ class ParticleCollisionStage:
         if d.self_collisions:
             changed += self._self_collide(system, dt)
             finite = False  # not tracked by the pair solver: the simulation checks the state
+        if coupling is not None:
+            coupling.after_collisions(system, d, dt)
         if changed:
             # the compiled pass reports whether what it wrote is finite (callables: not tracked)
             system.state_modified(finite=finite and not d.callables)
