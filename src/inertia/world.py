@@ -66,7 +66,7 @@ from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
            "CHECKPOINT_NAME", "STATES_NAME", "frame_steps", "CheckpointError",
-           "read_checkpoint_info"]
+           "read_checkpoint_info", "model_file_arrays", "STAGES"]
 
 #: the world step's stages (``world.profile`` keys, besides one per group and ``fluid/<name>``)
 STAGES = ("kinematics", "rigid", "fluids", "coupling")
@@ -738,7 +738,8 @@ class Run:
         w = self.world
         return {"fingerprint": self.fingerprint, "fps": self.fps, "dt": w.dt, "substeps": w.substeps,
                 "frame_count": frames, "time": w.t, "particle_count": w.particle_count,
-                "groups": [g.name for g in w.groups], "duration": self.duration, "seed": w.seed}
+                "groups": [g.name for g in w.groups], "duration": self.duration, "seed": w.seed,
+                "body_count": 0 if w.rigid is None else int(w.model.body_count), "fluids": sorted(w.fluids)}
 
     def _static(self) -> dict[str, np.ndarray]:
         w = self.world
@@ -750,6 +751,10 @@ class Run:
             radius[g.start:g.stop] = g.system.radius
             mass[g.start:g.stop] = getattr(g.system, "mass", 0.0)
         return {"group": group, "radius": radius, "mass": mass}
+
+    def _model_arrays(self) -> dict[str, np.ndarray]:
+        """``States.model``: the shape table, spring_pairs, surface_triangles, fluids' static arrays."""
+        return model_file_arrays(self.world)
 
     def _header(self) -> dict:
         w = self.world
@@ -777,6 +782,11 @@ class Run:
         }
         if w.has_emitters:
             fields["active"] = w.active(self._active)
+        if w.rigid is not None:
+            fields["body_q"] = w.rigid.state.body_q
+        for name, fluid in w.fluids.items():
+            for key, value in fluid.frame_arrays().items():
+                fields[f"fluid/{name}/{key}"] = value
         writer.append(w.t, self._x, self._v, **fields)
 
     def _checkpoint(self, writer, frames: int) -> None:
@@ -812,7 +822,8 @@ class Run:
         else:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             writer = StateWriter(self.states_path, dim=w.dim, particle_count=w.particle_count, fps=self.fps,
-                                 static=self._static(), metadata=self._header(), overwrite=True)
+                                 static=self._static(), metadata=self._header(), model=self._model_arrays(),
+                                 overwrite=True)
             frame = 0
         status, error = "completed", None
         first_frame = None
@@ -885,6 +896,10 @@ class Run:
                 problems.append("dt or substeps changed")
             if int(info["particle_count"]) != w.particle_count:
                 problems.append("the particle count changed")
+            if int(info.get("body_count", 0)) != (0 if w.rigid is None else int(w.model.body_count)):
+                problems.append("the body count changed")
+            if list(info.get("fluids", [])) != sorted(w.fluids):
+                problems.append("the fluids changed")
             int(info["frame_count"])
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointError(f"{self.checkpoint_path}: the checkpoint's run facts are damaged ({exc!r})") from None
@@ -924,6 +939,80 @@ class Run:
     def stop_requested(self) -> bool:
         """True once Ctrl-C (or `request_stop`) asked the run to stop."""
         return self._stop_requested
+
+
+def model_file_arrays(world: World) -> dict[str, np.ndarray]:
+    """What `Run` writes to the state directory's ``model.npz`` (``States.model``).
+
+    - the shape table (when the world has one): ``shape_type``, ``shape_body``, ``shape_source``
+      (S,) int32, ``shape_local_pose (S, 7)``, ``shape_params (S, 4)``, ``shape_vert_start`` /
+      ``shape_vert_count (S,) int32`` into ``geom_vertices (V, 3)``, ``shape_tri_start`` /
+      ``shape_tri_count (S,) int32`` into ``geom_triangles (T, 3) int32`` (rows of geom_vertices:
+      the outward hull of a convex hull, a mesh's triangles, a heightfield's grid cells), and
+      ``body_type``, ``body_source (B,) int32``, ``body_com_pose (B, 7)``;
+    - ``spring_pairs (P, 2) int64``: global particle indices of every Springs force's pairs;
+    - ``surface_triangles (T, 3) int64``: global particle indices of the groups' ``triangles=``;
+    - ``fluid/<name>/<key>``: each fluid's ``static_arrays()``.
+    """
+    from .geometry import shapes as S
+    out: dict[str, np.ndarray] = {}
+    m = world.model
+    if m is not None:
+        ns = m.shape_count
+        out["shape_type"] = np.asarray(m.shape_type, np.int32)
+        out["shape_body"] = np.asarray(m.shape_body, np.int32)
+        out["shape_source"] = np.asarray(getattr(m, "shape_source", np.full(ns, -1)), np.int32)
+        out["shape_local_pose"] = np.asarray(m.shape_local_pose, np.float64)
+        out["shape_params"] = np.asarray(m.shape_params, np.float64)
+        out["shape_vert_start"] = np.asarray(m.shape_vert_start, np.int32)
+        out["shape_vert_count"] = np.asarray(m.shape_vert_count, np.int32)
+        out["geom_vertices"] = np.asarray(m.geom_vertices, np.float64).reshape(-1, 3)
+        out["body_type"] = np.asarray(m.body_type, np.int32)
+        out["body_source"] = np.asarray(getattr(m, "body_source", np.full(m.body_count, -1)), np.int32)
+        out["body_com_pose"] = np.asarray(m.body_com_pose, np.float64).reshape(-1, 7)
+        tri_start, tri_count, tris = np.zeros(ns, np.int32), np.zeros(ns, np.int32), []
+        total = 0
+        for si in range(ns):
+            t, v0, nv = int(m.shape_type[si]), int(m.shape_vert_start[si]), int(m.shape_vert_count[si])
+            if t == S.CONVEX_HULL:
+                from scipy.spatial import ConvexHull
+                pts = m.geom_vertices[v0:v0 + nv]
+                faces = ConvexHull(pts).simplices.astype(np.int64)
+                a, b, c = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
+                flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - pts.mean(axis=0)) < 0
+                faces[flip] = faces[flip][:, ::-1]
+                local = faces
+            elif t == S.TRIANGLE_MESH:
+                local = np.arange(nv, dtype=np.int64).reshape(-1, 3)
+            elif t == S.HEIGHTFIELD:
+                nx, ny = int(m.shape_params[si, 0]), int(m.shape_params[si, 1])
+                i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+                p00 = (i * ny + j).ravel()
+                p10, p01, p11 = p00 + ny, p00 + 1, p00 + ny + 1
+                local = np.concatenate([np.stack([p00, p10, p11], 1), np.stack([p00, p11, p01], 1)])
+            else:
+                continue
+            tri_start[si], tri_count[si] = total, len(local)
+            tris.append(local + v0)
+            total += len(local)
+        out["shape_tri_start"], out["shape_tri_count"] = tri_start, tri_count
+        out["geom_triangles"] = (np.concatenate(tris) if tris else np.zeros((0, 3))).astype(np.int32)
+    pairs, surfaces = [], []
+    for g in world.groups:
+        for force in getattr(g.system, "forces", ()):
+            p = getattr(force, "pairs", None)
+            if type(force).__name__ == "Springs" and p is not None:
+                pairs.append(np.asarray(p, np.int64) + g.start)
+        if getattr(g, "triangles", None) is not None:
+            surfaces.append(g.triangles + g.start)
+    if pairs:
+        out["spring_pairs"] = np.concatenate(pairs).reshape(-1, 2)
+    if surfaces:
+        out["surface_triangles"] = np.concatenate(surfaces).reshape(-1, 3)
+    for name, fluid in world.fluids.items():
+        for key, value in fluid.static_arrays().items():
+            out[f"fluid/{name}/{key}"] = np.asarray(value)
+    return out
 
 
 def fingerprint(text: str) -> str:
