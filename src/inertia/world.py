@@ -143,6 +143,7 @@ class World:
         self.step_count = 0
         self.t = 0.0
         self.profile: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self._in_particle_stage = False
         self._setup_model(model, rigid_options)
         self.metadata: dict[str, Any] = {}
         # run settings of a loaded scene (None for a world built by hand)
@@ -236,6 +237,34 @@ class World:
                                                      self._impulse_linear, self._impulse_angular,
                                                      data.distance_tolerance)
 
+    def shape_collider(self, shape: int):
+        """Row ``shape`` of the shape table as a collider object that follows its body (a bound
+        `inertia.collision.shapes.BodyShape`): use it where a collider is expected outside the
+        particle stage, e.g. as a curl-noise boundary (``CurlNoise(boundaries=[...])``). During
+        the particle stage its pose is interpolated over the step like the stage's own rows."""
+        from .collision.shapes import BodyShape
+        m = self.model
+        if m is None or not isinstance(shape, (int, np.integer)) or not 0 <= shape < m.shape_count:
+            count = 0 if m is None else m.shape_count
+            raise ValueError(f"shape must be a row index of the world's shape table in [0, {count - 1}]; got {shape!r}")
+        body = int(m.shape_body[shape])
+        col = BodyShape(m, int(shape), None if (body < 0 or self.rigid is None) else self.rigid.state.body_q[body])
+        if body >= 0 and self.rigid is not None:
+            col.bind(lambda t, b=body: self._body_pose_at(b, t), lambda t, b=body: self.rigid.state.body_qd[b])
+        return col
+
+    def _body_pose_at(self, body: int, t: float) -> np.ndarray:
+        q1 = self.rigid.state.body_q[body]
+        if not self._in_particle_stage:
+            return q1.copy()
+        s = min(max((t - self.t) / self.dt, 0.0), 1.0)
+        q0 = self._q_start[body]
+        q = np.empty(7)
+        q[:3] = (1.0 - s) * q0[:3] + s * q1[:3]
+        r = (1.0 - s) * q0[3:] + s * np.copysign(1.0, float(q0[3:] @ q1[3:])) * q1[3:]
+        q[3:] = r / np.linalg.norm(r)
+        return q
+
     def add_fluid(self, name: str, fluid) -> Any:
         """Add a fluid (an object with ``advance(dt, rigid)``, ``save_state()``, ``restore_state(d)``,
         ``frame_arrays()``, ``static_arrays()``; see the contract in the module docstring). The fluids
@@ -301,17 +330,21 @@ class World:
         if rigid is not None:
             self._impulse_linear[:] = 0.0
             self._impulse_angular[:] = 0.0
-        for g in self.groups:
-            t0 = clock()
-            sim = g.simulation
-            entries = g.body_entries if rigid is not None else None
-            for j in range(self.substeps):
-                if entries is not None and entries.size:
-                    data = g.system._collision
-                    _interpolated_poses(entries, g.entry_body_all, self._q_start, rigid.state.body_q,
-                                        j / self.substeps, (j + 1) / self.substeps, data.pose0, data.pose1)
-                sim.step()
-            self.profile[g.name] += clock() - t0
+        self._in_particle_stage = True
+        try:
+            for g in self.groups:
+                t0 = clock()
+                sim = g.simulation
+                entries = g.body_entries if rigid is not None else None
+                for j in range(self.substeps):
+                    if entries is not None and entries.size:
+                        data = g.system._collision
+                        _interpolated_poses(entries, g.entry_body_all, self._q_start, rigid.state.body_q,
+                                            j / self.substeps, (j + 1) / self.substeps, data.pose0, data.pose1)
+                    sim.step()
+                self.profile[g.name] += clock() - t0
+        finally:
+            self._in_particle_stage = False
         t4 = clock()
         if rigid is not None:
             from .dynamics.particle_coupling import apply_body_impulses

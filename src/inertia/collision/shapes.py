@@ -513,6 +513,29 @@ class BodyShape(Collider):
     def moving(self) -> bool:
         return self._moves
 
+    def bind(self, body_pose, body_velocity) -> "BodyShape":
+        """Follow a live body: ``body_pose(t) -> (7,)`` pose and ``body_velocity(t) -> (6,)`` (angular,
+        linear) at time t (the world's `World.shape_collider` binds its rigid state). Then ``pose``,
+        ``query``, ``signed_distance``, ``normal`` and ``velocity`` (surface velocity v + w x r) answer
+        for the body where it is, so the shape serves as a boundary of curl-noise fields and the like."""
+        self._live = (body_pose, body_velocity)
+        return self
+
+    def pose(self, t: float = 0.0):
+        live = getattr(self, "_live", None)
+        if live is None or not self._moves:
+            return Collider.pose(self, t)
+        from ..math import quat_to_mat3
+        q = np.asarray(live[0](t), dtype=np.float64)
+        return q[:3].copy(), quat_to_mat3(np.ascontiguousarray(q[3:]))
+
+    def _rigid_velocity(self, t):
+        live = getattr(self, "_live", None)
+        if live is None or not self._moves:
+            return np.zeros(3), np.zeros(3)
+        qd = np.asarray(live[1](t), dtype=np.float64)
+        return qd[3:].copy(), qd[:3].copy()
+
     def shape_rows(self):
         raise ValueError("a BodyShape already is a shape-table row")
 
