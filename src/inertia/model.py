@@ -561,7 +561,10 @@ def with_colliders(model: Model | None, colliders, *, margin: float = 0.02, fric
                 pose[:3] += col._ref
             verts, bvh = None, None
             if row["type"] == S.TRIANGLE_MESH:
-                verts, bvh = mesh_soup(row["vertices"], row["triangles"])
+                try:
+                    verts, bvh = mesh_soup(row["vertices"], row["triangles"])
+                except ValueError:     # e.g. zero-area triangles: particles only (an SDF-type row)
+                    row = dict(row, type=S.SDF)
             shapes.append(dict(type=int(row["type"]), body=body, pose=pose, params=np.asarray(row["params"], float),
                                verts=verts, bvh=bvh, source=ci))
     nb, ns = nb0 + len(bodies), ns0 + len(shapes)

@@ -1,13 +1,36 @@
-"""The world: several systems stepped together, and the run loop that records and checkpoints them.
+"""The world: every system stepped together, and the run loop that records and checkpoints them.
 
-`World` composes groups (each a `ParticleSystem` or `Tracers` with its own `Simulation` and
-integrator) that advance in lockstep at one fixed step ``dt``, each step split into
-``substeps`` integrator steps of ``dt / substeps``. Colliders are attached to the particle
-systems (``system.add_collider``); the world keeps the list for drawing.
+A `World` holds one shape table (``world.model``, an `inertia.model.Model`): the rows of the model
+given to it (bodies and their shapes, static world geometry) followed by the rows its 3-D
+``colliders`` become (`inertia.model.with_colliders`: static colliders on body -1, a collider with a
+``Motion`` on a kinematic body that follows the motion). With bodies, ``world.rigid`` is a
+`inertia.rigid.RigidWorld` stepping that table (``rigid_options``: its keyword options, e.g.
+``{"substeps": 4}``), so rigid bodies land on the scene's collider planes and meshes too. Particle
+and tracer groups (each a `ParticleSystem` or `Tracers` with its own `Simulation` and integrator)
+advance in lockstep at one fixed step ``dt``, each step split into ``substeps`` integrator steps of
+``dt / substeps``; fluids (``add_fluid``) advance once per step.
 
-One `World.step` runs, for every group in order, ``substeps`` calls of ``Simulation.step``
-(whose own stages are begin -> integrate -> end -> check, see `inertia.simulation`); the time
-spent per group is added to ``world.profile``.
+One `World.step` runs these stages in order, each timed in ``world.profile`` (seconds, summed):
+
+1. ``kinematics`` -- kinematic bodies of moving colliders are posed at t with the velocity that
+                     takes them to their pose at t + dt; the bodies' start-of-step poses are kept;
+2. ``rigid``      -- ``RigidWorld.step`` (its own stages broad phase, narrow phase, islands,
+                     solve, finalize are timed in ``world.rigid.profile``);
+3. ``fluids``     -- ``fluid.advance(dt, world.rigid)`` per fluid, in insertion order (each also
+                     timed as ``fluid/<name>``); fluids read the moved bodies and push them back;
+4. groups         -- per group (timed under its name), ``substeps`` calls of ``Simulation.step``
+                     (begin -> integrate -> end -> check, see `inertia.simulation`). 3-D particle
+                     groups collide with the shape table's body and world rows
+                     (``collision.shapes.BodyShape``, packed into the particle stage's kernel
+                     format); a body row's pose over each substep is interpolated between the
+                     body's poses before and after the rigid stage. The momentum the particles
+                     gain from body rows is gathered per body (`inertia.dynamics.particle_coupling`);
+5. ``coupling``   -- those impulses are applied to the bodies (``apply_body_impulses``):
+                     linear and angular momentum of particles plus bodies are conserved.
+
+Rows the particle colliders became are *not* added to the particle groups a second time: a
+particle system sees a collider through ``system.add_collider`` (with its own restitution and
+friction) exactly as before; the table's rows make them visible to the rigid bodies.
 
 `Run` drives a world over a duration and records it:
 
@@ -39,8 +62,17 @@ Arrays (N = total particles over the groups in order, D = dim): ``World.position
 ``World.velocities()`` are (N, D) float64 copies gathered from the groups, ``World.active()``
 (N,) bool; group ``g`` owns rows ``group.start : group.stop``.
 
+``Run`` also writes ``model.npz`` (``States.model``, see `model_file_arrays`) and, per frame,
+``body_q`` (B, 7) when the world has bodies and ``fluid/<name>/<key>`` for each fluid's
+``frame_arrays()``; checkpoints hold the rigid state and contact cache and each fluid's
+``save_state()``.
+
 Limitations: all groups share dim and dt; groups do not interact with each other (springs,
-self-collisions and forces act within a group); the particle count is fixed for a run.
+self-collisions and forces act within a group); the particle count is fixed for a run. The
+coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
+particles see a body's surface velocity as the average over the (sub)step of its rows' motion.
+Heightfield rows are not seen by particles. Rigid bodies do not collide with ``SDF`` colliders,
+and a ``Container``'s walls are infinite planes for them.
 """
 
 from __future__ import annotations
