@@ -223,3 +223,38 @@ def test_tracers_in_curl_noise_stay_outside_a_moving_body():
         d = boundary.signed_distance(tracers.x)
         assert d.min() > -2e-3
     assert world.rigid.state.body_q[body, 0] == pytest.approx(0.0, abs=1e-9)   # it moved 0.5 m
+
+
+def test_a_world_of_bodies_only_runs_and_records(tmp_path):
+    b = ModelBuilder()
+    b.add_plane()
+    body = b.add_body(position=(0.0, 0.0, 0.5))
+    b.add_sphere(body, 0.1)
+    world = World(dt=1 / 60, model=b.finalize())
+    assert world.dim == 3 and world.particle_count == 0
+    Run(world, tmp_path, duration=0.5, fps=10, handle_sigint=False).execute()
+    states = load_states(tmp_path / "states")
+    assert states.positions.shape == (6, 0, 3)
+    z = states.fields["body_q"][:, 0, 2]
+    # free fall from 0.5 m: z = 0.5 - g t^2 / 2 until the ball lands (first two frames, within the
+    # one-step lag of the semi-implicit integration, g dt t), then rest on the plane at its radius
+    np.testing.assert_allclose(z[:2], 0.5 - 0.5 * 9.81 * states.times[:2] ** 2, atol=9.81 / 60 * 0.1 + 1e-12)
+    assert z[-1] == pytest.approx(0.1, abs=2e-3)
+
+
+def test_bad_world_arguments_name_the_argument():
+    b = ModelBuilder()
+    body = b.add_body()
+    b.add_sphere(body, 0.1)
+    model = b.finalize()
+    with pytest.raises(ValueError, match="model must be"):
+        World(dt=0.01, model="scene.toml")
+    with pytest.raises(ValueError, match="rigid_options must be a dict"):
+        World(dt=0.01, model=model, rigid_options=4)
+    with pytest.raises(ValueError, match="must not set 'dt'"):
+        World(dt=0.01, model=model, rigid_options={"dt": 0.1})
+    world = World(dt=0.01, model=model)
+    with pytest.raises(ValueError, match="shape must be a row index"):
+        world.shape_collider(3)
+    with pytest.raises(ValueError, match="triangles must be"):
+        world.add("cloth", ia.ParticleSystem(np.zeros((3, 3))), triangles=[[0, 1, 5]])
