@@ -6,6 +6,20 @@
 system delegates to ``attach_collider``, ``set_collision_mode`` and ``set_self_collisions``
 here; the per-system data lives on ``system._collision`` (a ``ParticleCollisionData``).
 
+Shape-table rows
+----------------
+In a ``World`` with a Model, the table's body and world rows are packed into the same kernel
+arrays after the system's own colliders (``ParticleCollisionData.add_body_shapes``: each row a
+``collision.shapes.BodyShape``, its geometry in its body's frame). Rows of dynamic and kinematic
+bodies are moving colliders whose ``pose0``/``pose1`` the world writes from the bodies' poses
+before and after the rigid stage (``update_poses`` leaves them alone); rows on body -1 and on
+static bodies are static colliders in world coordinates. With dynamic bodies the world sets
+``data.coupling`` (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``): the force filter
+and ``end_step`` then hand it the forces the filter cancelled and the state before and after the
+collision pass, from which it gathers the impulses that go back into the bodies. A lone system's
+colliders stay packed from the collider objects themselves (2-D colliders, unbaked SDFs and the
+bit-exact packing of existing scenes have no 3-D table row to come from).
+
 One step (``Simulation.step``), with what each part reads and writes
 -------------------------------------------------------------------
 begin_step (before the integrator)
@@ -111,9 +125,8 @@ from . import distance as _d
 from . import particle_kernels as pk
 from .shapes import BodyShape, Collider
 
-__all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "get_collision_mode",
-           "get_self_collisions", "configure_contacts", "ParticleCollisionData",
-           "ParticleCollisionStage", "RestingContactFilter", "COLLISION_MODES"]
+__all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "configure_contacts",
+           "ParticleCollisionData", "ParticleCollisionStage", "RestingContactFilter", "COLLISION_MODES"]
 
 COLLISION_MODES = ("a_priori", "a_posteriori")
 # Below these sizes the serial twins of the kernels run: a parallel launch costs ~10 us on an
@@ -795,11 +808,6 @@ def set_collision_mode(system, mode):
     _data(system).mode = mode
 
 
-def get_collision_mode(system) -> str:
-    data = getattr(system, "_collision", None)
-    return "a_priori" if data is None else data.mode
-
-
 def set_self_collisions(system, flag):
     """Switch particle-particle collisions on or off (particles need radius > 0)."""
     if not isinstance(flag, (bool, np.bool_)):
@@ -810,11 +818,6 @@ def set_self_collisions(system, flag):
         warnings.warn("self_collisions is on but every particle has radius 0, so none can touch; "
                       "give the particles a radius (ParticleSystem(..., radius=...))",
                       stacklevel=_user_stacklevel())
-
-
-def get_self_collisions(system) -> bool:
-    data = getattr(system, "_collision", None)
-    return False if data is None else data.self_collisions
 
 
 def configure_contacts(system, *, distance_tolerance=None, rest_speed=None, self_restitution=None,
