@@ -93,6 +93,9 @@ import numpy as np
 from numba import njit
 
 from .errors import SimulationDiverged
+from .collision.particle_kernels import NEAR_ALWAYS as _NEAR_ALWAYS
+from .collision.particle_kernels import NEAR_BALL as _NEAR_BALL
+from .geometry import shapes as _S
 from .math import quat_to_mat3
 from .simulation import Simulation, SimulationState
 
@@ -262,6 +265,10 @@ class World:
         moving = np.array([i for i in entries if data.colliders[i].moving], np.int64)
         group.body_entries = moving
         group.entry_body_all = np.array([data.colliders[i].body for i in moving], np.int64)
+        # bounding radius about the centre of mass of each moving row (-1: unbounded, a plane)
+        group.entry_bound = np.array([-1.0 if model.shape_type[data.colliders[i].shape] == _S.PLANE
+                                      else float(model.body_bound_radius[data.colliders[i].body])
+                                      for i in moving], np.float64)
         if self.rigid is not None:
             entry_body = data.entry_bodies(model)
             if np.any(entry_body >= 0):
@@ -371,8 +378,9 @@ class World:
                 for j in range(self.substeps):
                     if entries is not None and entries.size:
                         data = g.system._collision
-                        _interpolated_poses(entries, g.entry_body_all, self._q_start, rigid.state.body_q,
-                                            j / self.substeps, (j + 1) / self.substeps, data.pose0, data.pose1)
+                        _interpolated_poses(entries, g.entry_body_all, g.entry_bound, self._q_start,
+                                            rigid.state.body_q, j / self.substeps, (j + 1) / self.substeps,
+                                            data.pose0, data.pose1, data.cnear)
                     sim.step()
                 self.profile[g.name] += clock() - t0
         finally:
@@ -509,11 +517,24 @@ class World:
 
 
 @njit(cache=True)
-def _interpolated_poses(entries, entry_body, q_start, q_end, s0, s1, pose0, pose1):
+def _interpolated_poses(entries, entry_body, entry_bound, q_start, q_end, s0, s1, pose0, pose1, cnear):
     """pose0/pose1 rows [p, R row-major] of the body-shape colliders `entries` at fractions s0, s1 of
-    the step (positions linear, orientations normalised-linear between the step's two poses)."""
+    the step (positions linear, orientations normalised-linear between the step's two poses), and
+    their ``cnear`` rows: a ball about the centre of mass swept over the substep (radius
+    ``entry_bound`` + half the displacement) for bounded shapes, "always near" for planes (< 0)."""
     for e in range(entries.shape[0]):
         k, b = entries[e], entry_body[e]
+        if entry_bound[e] >= 0.0:
+            half = 0.0
+            cnear[k, 0] = _NEAR_BALL
+            for c in range(3):
+                a = (1.0 - s0) * q_start[b, c] + s0 * q_end[b, c]
+                z = (1.0 - s1) * q_start[b, c] + s1 * q_end[b, c]
+                cnear[k, 1 + c] = 0.5 * (a + z)
+                half += (z - a) * (z - a)
+            cnear[k, 4] = entry_bound[e] + 0.5 * np.sqrt(half) + 1e-9
+        else:
+            cnear[k, 0] = _NEAR_ALWAYS
         for out, s in ((pose0, s0), (pose1, s1)):
             q = np.empty(4)
             dot = 0.0
