@@ -244,6 +244,8 @@ class ParticleCollisionData:
         self.cf = np.concatenate(cfs) if cfs else np.zeros(1)
         self.ci = np.concatenate(cis) if cis else np.zeros(1, np.int64)
         self.callables = [(i, c) for i, c in enumerate(self.colliders) if c.kind == _d.CALLABLE]
+        if getattr(self, "coupling", None) is not None:     # rows added later: re-map them to bodies
+            self.coupling.entry_body = self.entry_bodies(self._model)
         self.any_moving = any(c.moving for c in self.colliders)
         self.any_kernel = any(c.kind != _d.CALLABLE for c in self.colliders)
 
@@ -281,6 +283,7 @@ class ParticleCollisionData:
         """Append rows ``shapes`` of ``model``'s shape table as colliders (``BodyShape``), with the
         rows' restitution and friction. Returns their entry indices (rows of cint, pose0, pose1)."""
         first = len(self.colliders)
+        self._model = model
         body_q = None if state is None else state.body_q
         for s in shapes:
             b = int(model.shape_body[s])
