@@ -198,6 +198,7 @@ class World:
         colliders3 = [c for c in self.colliders if getattr(c, "dim", 3) == 3]
         self.model = with_colliders(model, self.colliders) if (model is not None or colliders3) else None
         self.rigid = None
+        self._body_shape_cache: dict = {}
         self._rigid_options = dict(rigid_options or {})
         if self.model is not None and self._user_bodies > 0:
             from .rigid.world import RigidWorld
@@ -261,7 +262,7 @@ class World:
         from .dynamics.particle_coupling import ParticleBodyCoupling
         data = _data(system)
         state = self.rigid.state if self.rigid is not None else model.state()
-        entries = data.add_body_shapes(model, rows, state)
+        entries = data.add_body_shapes(model, rows, state, self._body_shape_cache)
         moving = np.array([i for i in entries if data.colliders[i].moving], np.int64)
         group.body_entries = moving
         group.entry_body_all = np.array([data.colliders[i].body for i in moving], np.int64)

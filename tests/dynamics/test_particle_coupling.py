@@ -120,3 +120,37 @@ def test_a_collider_added_after_the_world_keeps_the_coupling_consistent():
     p_particle_x = 0.1 * ps.v[0, 0]
     assert qd[3] * world.model.body_mass[box] + p_particle_x == pytest.approx(0.2, rel=1e-9)
     assert ps.v[1, 2] < 0.0 and qd[5] == 0.0
+
+
+@pytest.mark.parametrize("rest_speed", [1e-6, 0.05])
+def test_a_free_box_pushed_by_its_load_accelerates_at_the_total_force_over_the_total_mass(rest_speed):
+    # no gravity on the body, a downward force on the 9 particles resting on its top face only: box
+    # and load accelerate together at a = 9 m g / (M + 9 m) (Newton's second law for the pair). With
+    # the default rest_speed the load acts through the collision pass; with rest_speed = 5 cm/s and a
+    # (force-free) spring between two particles, which makes the integrator evaluate the forces through
+    # the resting-contact filter, the particles act through the filter's cancelled force.
+    g = 9.81
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    box = b.add_body(position=(0.0, 0.0, 0.0))
+    b.add_box(box, half_extents=(0.1, 0.1, 0.1), density=500.0, friction=0.8)
+    world = World(dt=1 / 240, model=b.finalize(), rigid_options={"substeps": 2, "enable_sleep": False})
+    gx, gy = np.meshgrid([-0.05, 0.0, 0.05], [-0.05, 0.0, 0.05])
+    m = 0.2
+    ps = ia.ParticleSystem(np.column_stack([gx.ravel(), gy.ravel(), np.full(9, 0.11)]), masses=m, radius=0.01)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -g)))
+    ia.colliders.configure_contacts(ps, rest_speed=rest_speed)
+    if rest_speed > 1e-3:
+        ps.add_force(ia.forces.Springs([[0, 8]], stiffness=1.0))      # at rest length: no force
+    world.add("load", ps)
+    steps = 120
+    for _ in range(steps):
+        world.step()
+    M = world.model.body_mass[box]
+    a = 9 * m * g / (M + 9 * m)
+    t = steps * world.dt
+    # the load's momentum enters the box one step late (explicit coupling): v(t) = a (t - dt) to O(dt)
+    vz = world.rigid.state.body_qd[box, 5]
+    assert -vz == pytest.approx(a * t, rel=2 * world.dt / t)
+    assert np.all(np.abs(ps.v[:, 2] - vz) < 0.05 * a * t)        # the load moves with the box
+    counts = world["load"]._collision.coupling.counts
+    assert counts["resting" if rest_speed > 1e-3 else "pass"] > 0

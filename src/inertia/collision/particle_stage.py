@@ -279,15 +279,19 @@ class ParticleCollisionData:
                 self.pose1[i] = c._packed_pose(t + dt)
 
     # --- shape-table rows on bodies ----------------------------------------------------------
-    def add_body_shapes(self, model, shapes, state=None):
+    def add_body_shapes(self, model, shapes, state=None, cache=None):
         """Append rows ``shapes`` of ``model``'s shape table as colliders (``BodyShape``), with the
-        rows' restitution and friction. Returns their entry indices (rows of cint, pose0, pose1)."""
+        rows' restitution and friction. Returns their entry indices (rows of cint, pose0, pose1).
+        ``cache``: a dict shared by the groups of one world (a hull or mesh row is baked once)."""
         first = len(self.colliders)
         self._model = model
         body_q = None if state is None else state.body_q
+        cache = {} if cache is None else cache
         for s in shapes:
             b = int(model.shape_body[s])
-            shape = BodyShape(model, int(s), None if (body_q is None or b < 0) else body_q[b])
+            if int(s) not in cache:
+                cache[int(s)] = BodyShape(model, int(s), None if (body_q is None or b < 0) else body_q[b])
+            shape = cache[int(s)]
             if getattr(shape, "unsupported", False):
                 continue
             self.colliders.append(shape)

@@ -174,11 +174,13 @@ def gather_pass_impulses(x_pre, v_pre, x, v, inv_mass, active, radius, cint, cf,
 def gather_resting_impulses(x, reaction, reaction_body, body_q, h, linear_out, angular_out):
     """Add, per body, the force the resting-contact filter cancelled for particles resting on its
     shapes, times the substep h, applied at the particles' positions. reaction (N, 3) N;
-    reaction_body (N,) int64 (-1 none)."""
+    reaction_body (N,) int64 (-1 none). Returns the number of particles that pushed a body."""
+    count = 0
     for i in range(x.shape[0]):
         b = reaction_body[i]
         if b < 0:
             continue
+        count += 1
         jx, jy, jz = reaction[i, 0] * h, reaction[i, 1] * h, reaction[i, 2] * h
         rx, ry, rz = x[i, 0] - body_q[b, 0], x[i, 1] - body_q[b, 1], x[i, 2] - body_q[b, 2]
         linear_out[b, 0] += jx
@@ -187,6 +189,7 @@ def gather_resting_impulses(x, reaction, reaction_body, body_q, h, linear_out, a
         angular_out[b, 0] += ry * jz - rz * jy
         angular_out[b, 1] += rz * jx - rx * jz
         angular_out[b, 2] += rx * jy - ry * jx
+    return count
 
 
 @njit(cache=True)
@@ -226,6 +229,8 @@ class ParticleBodyCoupling:
         self.linear, self.angular = linear, angular
         self.tol = tol
         self.filter_ran = False
+        # diagnostics: particle-substeps that pushed a body through the collision pass / resting contact
+        self.counts = {"pass": 0, "resting": 0}
 
     def before_filter(self, f):
         self.f_before[:] = f
@@ -241,9 +246,9 @@ class ParticleBodyCoupling:
 
     def after_collisions(self, system, data, h):
         if self.filter_ran:
-            gather_resting_impulses(self.x_pre, self.reaction, self.reaction_body, self.body_q, h,
-                                    self.linear, self.angular)
+            self.counts["resting"] += gather_resting_impulses(self.x_pre, self.reaction, self.reaction_body,
+                                                              self.body_q, h, self.linear, self.angular)
             self.filter_ran = False
-        gather_pass_impulses(self.x_pre, self.v_pre, system.x, system.v, system.inv_mass, system.active,
+        self.counts["pass"] += gather_pass_impulses(self.x_pre, self.v_pre, system.x, system.v, system.inv_mass, system.active,
                              system.radius, data.cint, data.cf, data.ci, data.pose1, data.ref, self.entry_body,
                              self.body_q, max(self.tol, data.distance_tolerance), self.linear, self.angular)
