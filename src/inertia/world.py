@@ -126,6 +126,13 @@ class Group:
     start: int = 0
     stop: int = 0
     colliders: list = field(default_factory=list)
+    # (T, 3) int64 group-local particle indices of a drawn surface (``World.add(triangles=)``)
+    triangles: np.ndarray | None = None
+    # the shape-table rows on moving bodies this group collides with: their rows in the group's
+    # packed collider arrays, their bodies, and bounding radii about the centre of mass (-1: plane)
+    body_entries: np.ndarray | None = None
+    entry_body_all: np.ndarray | None = None
+    entry_bound: np.ndarray | None = None
 
     @property
     def integrator(self) -> str:
@@ -241,9 +248,7 @@ class World:
         sim = Simulation(system, integrator=integrator, dt=self.dt / self.substeps, **integrator_options)
         kind = kind or ("particles" if getattr(system, "second_order", False) else "tracers")
         start = self.particle_count
-        group = Group(name, kind, system, sim, color, start, start + system.particle_count)
-        group.triangles = tri
-        group.body_entries = None
+        group = Group(name, kind, system, sim, color, start, start + system.particle_count, triangles=tri)
         self.groups.append(group)
         self.profile[name] = 0.0
         self._attach_shape_table(group)

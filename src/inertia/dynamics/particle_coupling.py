@@ -39,6 +39,7 @@ Limitations
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -47,7 +48,8 @@ from ..collision import distance as _d
 from ..geometry import shapes as S
 from ..math import world_inertia_inv
 
-__all__ = ["apply_body_impulses", "ParticleBodyCoupling", "gather_pass_impulses", "gather_resting_impulses"]
+__all__ = ["apply_body_impulses", "ParticleBodyCoupling", "gather_pass_impulses", "gather_resting_impulses",
+           "PassParticles", "PackedRows", "BodyImpulses"]
 
 
 @njit(cache=True)
@@ -116,13 +118,43 @@ def _signed_distance(cint, cf, ci, pose, ref, k, x, y, z):
     return d
 
 
+class PassParticles(NamedTuple):
+    """Kernel bundle: the particles around the collision pass (N particles, 3-D)."""
+    x_pre: np.ndarray      # (N, 3) m, before the pass
+    v_pre: np.ndarray      # (N, 3) m/s, before the pass
+    x: np.ndarray          # (N, 3) m, after the pass
+    v: np.ndarray          # (N, 3) m/s, after the pass
+    inv_mass: np.ndarray   # (N,) 1/kg
+    active: np.ndarray     # (N,) bool
+    radius: np.ndarray     # (N,) m
+
+
+class PackedRows(NamedTuple):
+    """Kernel bundle: the particle stage's packed collider rows (``particle_kernels`` layout) at the
+    end of the (sub)step, and the dynamic body of each row (-1 none)."""
+    cint: np.ndarray
+    cf: np.ndarray
+    ci: np.ndarray
+    pose: np.ndarray
+    ref: np.ndarray
+    entry_body: np.ndarray
+
+
+class BodyImpulses(NamedTuple):
+    """Kernel bundle: body poses (read) and the impulse accumulators (added to)."""
+    body_q: np.ndarray     # (B, 7)
+    linear: np.ndarray     # (B, 3) N s
+    angular: np.ndarray    # (B, 3) N m s about the centre of mass
+
+
 @njit(cache=True)
-def gather_pass_impulses(x_pre, v_pre, x, v, inv_mass, active, radius, cint, cf, ci, pose1, ref,
-                         entry_body, body_q, tol, linear_out, angular_out):
+def gather_pass_impulses(P, R, out, tol):
     """Add, per body, minus the momentum the collision pass gave the particles near its shapes
-    (see the module docstring). x_pre, v_pre (N, 3): before the pass; x, v: after. entry_body (K,)
-    int64: the dynamic body of each packed collider row (-1 none). linear_out, angular_out (B, 3):
-    accumulated (serial, in particle order). Returns the number of particles attributed to a body."""
+    (see the module docstring). P: `PassParticles`; R: `PackedRows`; out: `BodyImpulses`
+    (accumulated serially, in particle order). Returns the number of particles attributed to a body."""
+    x_pre, v_pre, x, v, inv_mass, active, radius = P.x_pre, P.v_pre, P.x, P.v, P.inv_mass, P.active, P.radius
+    cint, cf, ci, pose1, ref, entry_body = R.cint, R.cf, R.ci, R.pose, R.ref, R.entry_body
+    body_q, linear_out, angular_out = out.body_q, out.linear, out.angular
     n = x.shape[0]
     count = 0
     for i in range(n):
@@ -171,10 +203,12 @@ def gather_pass_impulses(x_pre, v_pre, x, v, inv_mass, active, radius, cint, cf,
 
 
 @njit(cache=True)
-def gather_resting_impulses(x, reaction, reaction_body, body_q, h, linear_out, angular_out):
+def gather_resting_impulses(x, reaction, reaction_body, out, h):
     """Add, per body, the force the resting-contact filter cancelled for particles resting on its
-    shapes, times the substep h, applied at the particles' positions. reaction (N, 3) N;
-    reaction_body (N,) int64 (-1 none). Returns the number of particles that pushed a body."""
+    shapes, times the substep h, applied at the particles' positions x (N, 3). reaction (N, 3) N;
+    reaction_body (N,) int64 (-1 none); out: `BodyImpulses`. Returns the number of particles that
+    pushed a body."""
+    body_q, linear_out, angular_out = out.body_q, out.linear, out.angular
     count = 0
     for i in range(x.shape[0]):
         b = reaction_body[i]
@@ -245,10 +279,13 @@ class ParticleBodyCoupling:
         self.v_pre[:] = system.v
 
     def after_collisions(self, system, data, h):
+        out = BodyImpulses(self.body_q, self.linear, self.angular)
         if self.filter_ran:
             self.counts["resting"] += gather_resting_impulses(self.x_pre, self.reaction, self.reaction_body,
-                                                              self.body_q, h, self.linear, self.angular)
+                                                              out, h)
             self.filter_ran = False
-        self.counts["pass"] += gather_pass_impulses(self.x_pre, self.v_pre, system.x, system.v, system.inv_mass, system.active,
-                             system.radius, data.cint, data.cf, data.ci, data.pose1, data.ref, self.entry_body,
-                             self.body_q, max(self.tol, data.distance_tolerance), self.linear, self.angular)
+        particles = PassParticles(self.x_pre, self.v_pre, system.x, system.v, system.inv_mass, system.active,
+                                  system.radius)
+        rows = PackedRows(data.cint, data.cf, data.ci, data.pose1, data.ref, self.entry_body)
+        self.counts["pass"] += gather_pass_impulses(particles, rows, out,
+                                                    max(self.tol, data.distance_tolerance))
