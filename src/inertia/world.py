@@ -15,7 +15,7 @@ One `World.step` runs these stages in order, each timed in ``world.profile`` (se
 1. ``kinematics`` -- kinematic bodies of moving colliders are posed at t with the velocity that
                      takes them to their pose at t + dt; the bodies' start-of-step poses are kept;
 2. ``rigid``      -- ``RigidWorld.step`` (its own stages broad phase, narrow phase, islands,
-                     solve, finalize are timed in ``world.rigid.profile``);
+                     solve, finalize are also timed as ``rigid/<stage>``);
 3. ``fluids``     -- ``fluid.advance(dt, world.rigid)`` per fluid, in insertion order (each also
                      timed as ``fluid/<name>``); fluids read the moved bodies and push them back;
 4. groups         -- per group (timed under its name), ``substeps`` calls of ``Simulation.step``
@@ -361,9 +361,13 @@ class World:
         t1 = clock()
         self.profile["kinematics"] += t1 - t0
         if rigid is not None:
+            before = dict(rigid.profile)
             rigid.step()
             if self._driven:
                 self._kinematics_end(self.t + self.dt)
+            for stage, seconds in rigid.profile.items():      # the rigid world's own stages
+                key = f"rigid/{stage}"
+                self.profile[key] = self.profile.get(key, 0.0) + seconds - before.get(stage, 0.0)
         t2 = clock()
         self.profile["rigid"] += t2 - t1
         for name, fluid in self.fluids.items():
