@@ -152,5 +152,8 @@ def test_a_free_box_pushed_by_its_load_accelerates_at_the_total_force_over_the_t
     vz = world.rigid.state.body_qd[box, 5]
     assert -vz == pytest.approx(a * t, rel=2 * world.dt / t)
     assert np.all(np.abs(ps.v[:, 2] - vz) < 0.05 * a * t)        # the load moves with the box
+    # momentum theorem: particles + box carry exactly the external impulse -9 m g t (to rounding)
+    total = M * vz + m * ps.v[:, 2].sum()
+    assert total == pytest.approx(-9 * m * g * t, rel=1e-12)
     counts = world["load"]._collision.coupling.counts
     assert counts["resting" if rest_speed > 1e-3 else "pass"] > 0
