@@ -160,3 +160,14 @@ def test_a_plane_collider_is_ground_for_bodies_and_a_moving_box_collider_pushes_
         world.step()
     assert world.rigid.state.body_qd[ball, 3] == pytest.approx(0.5, rel=0.05)
     assert q[ball, 0] == pytest.approx(q[1, 0] + 0.2, abs=5e-3)              # touching the pusher's face
+
+
+def test_a_lone_particle_system_owns_a_small_shape_table():
+    import inertia as ia
+    from inertia.geometry import shapes as S
+    ps = ia.ParticleSystem(np.zeros((1, 3)))
+    ps.add_collider(ia.colliders.Plane())
+    ps.add_collider(ia.colliders.Container(half_extents=(1.0, 1.0, 1.0)))
+    table = ps._collision.shape_table()
+    assert list(table.shape_type) == [S.PLANE] * 7 and list(table.shape_source) == [0] + [1] * 6
+    assert table.body_count == 0

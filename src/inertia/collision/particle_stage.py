@@ -302,6 +302,13 @@ class ParticleCollisionData:
         self._pack()
         return np.arange(first, len(self.colliders))
 
+    def shape_table(self):
+        """The system's own colliders as a shape table (`inertia.model.with_colliders`, 3-D colliders;
+        None in 2-D): what a lone system collides with, in the World's row format."""
+        from ..model import with_colliders
+        own = [c for c in self.colliders if not getattr(c, "from_body", False) and c.dim == 3]
+        return with_colliders(None, own) if own else None
+
     def entry_bodies(self, model) -> np.ndarray:
         """(K,) int64: the dynamic body each packed collider row belongs to, -1 for the others."""
         out = np.full(self.cint.shape[0], -1, np.int64)
