@@ -860,6 +860,8 @@ class Run:
             "group_colors": [g.color for g in w.groups],
             "integrators": [g.integrator for g in w.groups],
             "dt": w.dt, "substeps": w.substeps, "duration": self.duration,
+            "body_names": [] if w.model is None else [str(n) for n in w.model.body_name],
+            "fluids": list(w.fluids),
         }
         meta.update(self.metadata)
         return meta
