@@ -167,7 +167,7 @@ class ParticleCollisionData:
     load (N,), static_ok (N,) bool                    written by the force filter
     dv_step (N, 3)       velocity change of the step before responses (self-collisions)
     profile              cumulative seconds per part: save, classify, collide, callables,
-                         broad_phase, pair_solve; ``steps``
+                         broad_phase, pair_solve, coupling (gathering impulses for bodies); ``steps``
     """
 
     def __init__(self):
@@ -185,7 +185,7 @@ class ParticleCollisionData:
         self.max_iterations = 32
         self.check_start = False
         self.profile = dict.fromkeys(("save", "classify", "collide", "callables", "broad_phase",
-                                      "pair_solve"), 0.0)
+                                      "pair_solve", "coupling"), 0.0)
         self.profile["steps"] = 0
         self.pair_count = 0
         self.color_count = 0
@@ -525,7 +525,9 @@ class ParticleCollisionStage:
             changed += self._self_collide(system, dt)
             finite = False  # not tracked by the pair solver: the simulation checks the state
         if coupling is not None:
+            toc = time.perf_counter()
             coupling.after_collisions(system, d, dt)
+            d.profile["coupling"] += time.perf_counter() - toc
         if changed:
             # the compiled pass reports whether what it wrote is finite (callables: not tracked)
             system.state_modified(finite=finite and not d.callables)
