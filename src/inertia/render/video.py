@@ -249,11 +249,18 @@ def render_states(
     if renderer.dim != states.dim:
         raise ValueError(f"render_states: renderer dim {renderer.dim} but the states are {states.dim}-D")
     active_all = states.fields.get("active")
+    # Bodies, cloth surfaces and springs of the state file's model, if any.
+    from .drawables import ModelDrawables, frame_options
+
+    drawables = ModelDrawables.from_states(states)
+    if drawables is not None:
+        colliders = list(colliders) + drawables.plane_colliders()
     # The view and the speed scale come from the whole run, whichever frames are drawn, so a
     # single frame looks as it does in the video.
     if renderer.camera is None:
         renderer.fit(states.positions, radius=states.radius(), colliders=colliders,
-                     t=float(states.times[0]), active=active_all)
+                     t=float(states.times[0]), active=active_all,
+                     extra_points=None if drawables is None else drawables.bounds_points(states.fields.get("body_q")))
     if renderer.speed_max is None:
         renderer.speed_max = _speed_max(states, np.arange(states.frame_count))
     if renderer.group_colors is None and states.metadata.get("group_colors"):
@@ -271,9 +278,9 @@ def render_states(
             velocities=None if states.velocities is None else states.velocities[f],
             colors=frame_colors,
             groups=groups,
-            active=states.active(f),
             colliders=colliders,
             t=float(states.times[f]),
+            **frame_options(drawables, states, f, states.active(f)),
         )
 
     total = int(indices.size)
