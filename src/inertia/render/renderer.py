@@ -406,12 +406,22 @@ class Renderer:
                         levels.append(float(params[k, 0:3] @ up - axis_up @ params[k, 3:6]))
             ground = np.empty((h, w, 3), np.float32)
             fog = 2.0 * self._scene_size()
+            sky_horizon = _srgb_to_linear(self.theme["sky_horizon"]).astype(np.float64)
+            grid_line = _srgb_to_linear(self.theme["ground_line"]).astype(np.float64)
+            # Sky and planes, then each other kind of primitive by its own kernel (a scene
+            # compiles only the intersectors it draws).
+            planes = kinds == K.PRIM_PLANE
             self._kernel("background_3d", w * h, _PARALLEL_PIXELS)(
-                cam, w, h, np.ascontiguousarray(params), kinds, colors, light,
-                _srgb_to_linear(self.theme["sky_top"]).astype(np.float64),
-                _srgb_to_linear(self.theme["sky_horizon"]).astype(np.float64), fog,
-                _srgb_to_linear(self.theme["ground_line"]).astype(np.float64), color, depth, ground,
+                cam, w, h, np.ascontiguousarray(params[planes]), kinds[planes], np.ascontiguousarray(colors[planes]), light,
+                _srgb_to_linear(self.theme["sky_top"]).astype(np.float64), sky_horizon, fog, grid_line, color, depth, ground,
             )
+            for kind, name in K.TRACE_KERNELS.items():
+                rows = kinds == kind
+                if rows.any():
+                    self._kernel(name, w * h, _PARALLEL_PIXELS)(
+                        cam, w, h, np.ascontiguousarray(params[rows]), np.ascontiguousarray(colors[rows]), light,
+                        sky_horizon, fog, grid_line, color, depth, ground,
+                    )
             for collider in prims.generic:
                 self._trace_generic(collider, t, camera, cam, light, collider_lin, color, depth)
             level = max(levels) if levels else None
@@ -611,7 +621,7 @@ class Renderer:
             verts = np.ascontiguousarray(np.concatenate(verts))
             norms = np.ascontiguousarray(np.concatenate(norms))
             tris = np.ascontiguousarray(np.concatenate(tris))
-            albedo = _srgb_to_linear(np.clip(np.concatenate(cols), 0.0, 1.0))
+            albedo = np.ascontiguousarray(_srgb_to_linear(np.clip(np.concatenate(cols), 0.0, 1.0)))
             light_dir = self._light_direction(camera)
             cam_light = self._light(camera)
             light = np.zeros(M.LIGHT_SIZE)
