@@ -47,14 +47,16 @@ def renderer_for(states, render: dict | None, colliders=()):
 
     speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
-                        theme=render.get("theme", "dark"), speed_max=speed_max, **options)
+                        theme=render.get("theme", "dark"), speed_max=speed_max,
+                        orbit=float(camera.get("orbit") or 0.0), **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
     from inertia.render.drawables import ModelDrawables
 
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     extra = None if drawables is None else drawables.bounds_points(states.fields.get("body_q"))
-    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra)
+    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
+                 times=states.times)
     cam = renderer.camera
     if dim == 2 and camera.get("height") is not None:
         center = camera.get("target") or cam.target[:2]

@@ -144,6 +144,9 @@ class Renderer:
     min_radius_px : smallest drawn radius in pixels, 1.0 default (0.7-2 is sensible).
     band : rows per parallel task of the splat, 16 default (8-64; smaller balances threads
         better, larger scans the particle list fewer times).
+    orbit : degrees the automatic 3-D camera turns about the up axis over the run (0 default,
+        still; 20-60 shows depth without distracting). `fit` with ``times`` frames every angle;
+        `frame` picks the angle from its ``t``.
     """
 
     def __init__(
@@ -168,6 +171,7 @@ class Renderer:
         default_radius: float | None = None,
         min_radius_px: float = 1.0,
         band: int = 16,
+        orbit: float = 0.0,
     ):
         if dim not in (2, 3):
             raise ValueError(f"Renderer: dim must be 2 or 3, got {dim!r}")
@@ -197,6 +201,11 @@ class Renderer:
         self.default_radius = default_radius
         self.min_radius_px = float(min_radius_px)
         self.band = int(band)
+        if not (isinstance(orbit, (int, float)) and math.isfinite(orbit) and abs(orbit) <= 360.0):
+            raise ValueError(f"Renderer: orbit must be degrees in [-360, 360], got {orbit!r}")
+        #: Degrees the automatic camera turns about the up axis over the run (3-D; 0: still).
+        self.orbit = float(orbit)
+        self._orbit_keys = None
         #: Unit world direction towards the key light (None: chosen from the first camera).
         self.light_direction = None
         #: Share of the direct light a mesh shadow takes from the ground and colliders.
@@ -232,12 +241,47 @@ class Renderer:
 
     # -- camera -------------------------------------------------------------------------------
     def fit(self, positions, *, radius=None, colliders: Sequence = (), t: float = 0.0, active=None, robust: float = 0.001,
-            extra_points=None) -> Camera:
+            extra_points=None, times=None) -> Camera:
         """Frame the camera on ``positions`` ((N, D), or (F, N, D) for a whole run) and colliders.
 
         ``extra_points (M, D)``: more world points to keep in view (mesh vertices over the run).
+        ``times (F,)``: the run's frame times; with ``orbit`` set, the camera is framed at
+        several angles of the orbit and `frame` interpolates between them by ``t``.
         Sets and returns ``self.camera``; also fixes the grid spacing and default radius.
         """
+        camera = self._fit(positions, radius, colliders, t, active, robust, extra_points)
+        self._orbit_keys = None
+        if self.orbit and self.dim == 3 and times is not None and len(times) > 1:
+            # Key cameras every <= 15 degrees of the orbit, each framed like the first.
+            t0, t1 = float(np.min(times)), float(np.max(times))
+            count = max(2, int(math.ceil(abs(self.orbit) / 15.0)) + 1)
+            base = self.azimuth
+            keys = []
+            for k in range(count):
+                self.azimuth = base + self.orbit * k / (count - 1)
+                cam = self._fit(positions, radius, colliders, t, active, robust, extra_points)
+                keys.append((cam.target, float(np.linalg.norm(cam.position - cam.target))))
+            self.azimuth = base
+            self.camera = camera
+            self._orbit_keys = (t0, t1, keys, camera)
+        return camera
+
+    def camera_at(self, t: float) -> Camera:
+        """The camera at time ``t``: ``self.camera``, or on the orbit when one was fitted."""
+        # A camera set by hand after `fit` wins over the orbit.
+        if self._orbit_keys is None or self._orbit_keys[3] is not self.camera:
+            return self.camera
+        t0, t1, keys, _ = self._orbit_keys
+        s = 0.0 if t1 <= t0 else min(max((t - t0) / (t1 - t0), 0.0), 1.0)
+        x = s * (len(keys) - 1)
+        k = min(int(x), len(keys) - 2)
+        w = x - k
+        target = (1 - w) * keys[k][0] + w * keys[k + 1][0]
+        distance = (1 - w) * keys[k][1] + w * keys[k + 1][1]
+        return Camera.orbit(target, distance, azimuth=self.azimuth + self.orbit * s, elevation=self.elevation,
+                            up=self.up, fov_y=self.fov_y)
+
+    def _fit(self, positions, radius, colliders, t, active, robust, extra_points) -> Camera:
         positions = np.asarray(positions)
         if positions.shape[-1] != self.dim:
             raise ValueError(f"Renderer.fit: positions have D = {positions.shape[-1]}, the renderer dim = {self.dim}")
@@ -523,7 +567,7 @@ class Renderer:
                 self.fit(pos, radius=radius, colliders=colliders, t=t, active=active)
             else:
                 self.bounds = scene_bounds(pos, active=active)
-        camera = self.camera
+        camera = self.camera_at(t)
         h, w = self.height, self.width
 
         # Background: rebuilt only when the camera or the colliders changed.

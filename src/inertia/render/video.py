@@ -259,7 +259,7 @@ def render_states(
     # single frame looks as it does in the video.
     if renderer.camera is None:
         renderer.fit(states.positions, radius=states.radius(), colliders=colliders,
-                     t=float(states.times[0]), active=active_all,
+                     t=float(states.times[0]), active=active_all, times=states.times,
                      extra_points=None if drawables is None else drawables.bounds_points(states.fields.get("body_q")))
     if renderer.speed_max is None:
         renderer.speed_max = _speed_max(states, np.arange(states.frame_count))

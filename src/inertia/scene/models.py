@@ -632,6 +632,8 @@ class Camera(_Model):
     distance: PositiveFloat | None = None
     fov: Annotated[float, Field(ge=1, le=170)] | None = Field(None, description="vertical field of view (degrees)")
     height: PositiveFloat | None = Field(None, description="2-D: world units visible vertically")
+    orbit: Annotated[float, Field(ge=-360, le=360)] | None = Field(
+        None, description="3-D: degrees the framed camera turns about the up axis over the run (0: still)")
 
 
 class Render(_Model):
