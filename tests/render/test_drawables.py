@@ -9,7 +9,7 @@ import pytest
 
 from inertia.io.states import States
 from inertia.render import Camera, Renderer, render_states
-from inertia.render.drawables import ModelDrawables, compose_poses, frame_options
+from inertia.render.drawables import TRAIL_OPACITY, ModelDrawables, compose_poses, frame_options, trail_lines
 
 
 def _rotation(q):
@@ -97,3 +97,27 @@ def test_cloth_is_a_surface_and_springs_are_lines():
     # The sheet covers [-1, 1]^2 = a quarter of the 4 x 4 view, in the cloth colour (reddish).
     cloth = (image[..., 0].astype(int) - image[..., 2] > 40)
     assert cloth.sum() == pytest.approx(200 * 200 / 4, rel=0.05)
+
+
+def test_trails_follow_each_particle_back_in_time_and_fade():
+    # Two particles moving at constant velocity; a respawned (teleported) one breaks its trail.
+    frames = 8
+    t = np.arange(frames)[:, None]
+    a = np.concatenate([0.1 * t, 0 * t, 0 * t + 1.0], axis=1)
+    b = np.concatenate([0 * t, 0.1 * t, 0 * t + 1.0], axis=1)
+    b[5:] += 50.0  # a jump at frame 5 (respawn)
+    pos = np.stack([a, b], axis=1)
+    states = States(times=np.arange(frames) / 10.0, positions=pos, metadata={"fps": 10.0})
+    lines = trail_lines(states, 7, 4)
+    # Frames 3..7: particle 0 has 4 segments; particle 1 loses its 4 -> 5 segment.
+    assert lines.pairs.shape == (7, 2)
+    seg = lines.points[lines.pairs]
+    lengths = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1)
+    assert np.allclose(lengths, 0.1)
+    # Opacity grows towards the present: the newest segment is the most opaque.
+    ends = lines.points[lines.pairs[:, 1]]
+    newest = lines.opacity[np.flatnonzero(np.all(np.isclose(ends, a[7]), axis=1))[0]]
+    assert newest == pytest.approx(TRAIL_OPACITY) and lines.opacity.min() == pytest.approx(TRAIL_OPACITY / 4)
+    assert trail_lines(states, 0, 4) is None
+    with pytest.raises(ValueError, match="trails"):
+        list(render_states(states, None, trails=-1))

@@ -176,10 +176,16 @@ def test_a_line_covers_its_width():
     for width in (1.0, 2.5, 4.0):
         color[:] = 0.0
         depth[:] = FAR
-        M.draw_lines(points, np.array([[0, 1]]), np.array([1.0, 1.0, 1.0]), width, camera.params(W, H), 1e-6, color, depth)
+        M.draw_lines(points, np.array([[0, 1]]), np.ones((1, 3)), np.ones(1), width, camera.params(W, H), 1e-6, color, depth)
         column = color[:, W // 2, 0]
         assert column.sum() == pytest.approx(width, rel=0.05)
         assert color[:, 5, 0].sum() == 0.0  # beyond the segment's end
+    # Opacity scales the coverage (blending over black) and leaves the depth buffer alone.
+    color[:] = 0.0
+    depth[:] = FAR
+    M.draw_lines(points, np.array([[0, 1]]), np.ones((1, 3)), np.full(1, 0.25), 2.5, camera.params(W, H), 1e-6, color, depth)
+    assert color[:, W // 2, 0].sum() == pytest.approx(0.25 * 2.5, rel=0.05)
+    assert np.all(depth == FAR)
 
 
 def test_renderer_draws_meshes_with_particles_in_front_and_behind():

@@ -110,7 +110,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             states.positions[f], radius=radius,
             velocities=None if states.velocities is None else states.velocities[f],
             colors=colors, groups=groups, colliders=draw, t=float(states.times[f]),
-            **frame_options(drawables, states, f, states.active(f)))
+            **frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0))))
         if legend is not None:
             from inertia.render.legend import overlay
 

@@ -29,7 +29,7 @@ from numba import njit
 from .colormaps import GROUP_PALETTE
 from .meshes import LineSet, TriangleMesh, tessellate_shape
 
-__all__ = ["ModelDrawables", "compose_poses", "frame_options"]
+__all__ = ["ModelDrawables", "compose_poses", "frame_options", "trail_lines"]
 
 #: Colours of cloth surfaces and spring lines when the model gives none (sRGB).
 CLOTH_COLOR = (0.86, 0.42, 0.32)
@@ -218,15 +218,58 @@ class ModelDrawables:
         return np.concatenate([self.body_vertices(frames[f])[0][::stride] for f in picks])
 
 
-def frame_options(drawables: "ModelDrawables | None", states, f: int, active=None) -> dict:
+#: Colour of motion trails (sRGB) and the opacity of their newest segment.
+TRAIL_COLOR = (0.9, 0.93, 1.0)
+TRAIL_OPACITY = 0.45
+
+
+def trail_lines(states, f: int, frames: int, *, active=None, max_particles: int = 4000) -> "LineSet | None":
+    """Each particle's path over the last ``frames`` frames up to ``f`` as faint lines (the flow
+    made visible: wind, vortices), fading from ``TRAIL_OPACITY`` at the particle to 0; at most
+    ``max_particles`` particles (an even stride). Segments touching an inactive slot, a jump
+    (respawn) longer than 10x the median step, or a NaN are left out."""
+    first = max(0, f - int(frames))
+    if frames <= 0 or f == first:
+        return None
+    n = states.particle_count
+    pick = np.arange(0, n, max(1, -(-n // max_particles)))
+    path = np.asarray(states.positions[first:f + 1][:, pick], np.float64)  # (K, M, 3), oldest first
+    k, m = path.shape[0], path.shape[1]
+    ok = np.all(np.isfinite(path), axis=2)
+    if "active" in states.fields:
+        ok &= np.asarray(states.fields["active"][first:f + 1][:, pick], bool)
+    elif active is not None:
+        ok &= np.asarray(active, bool)[pick][None]
+    step = np.linalg.norm(np.diff(path, axis=0), axis=2)  # (K - 1, M)
+    good = ok[1:] & ok[:-1]
+    if not good.any():
+        return None
+    typical = float(np.median(step[good])) if good.any() else 0.0
+    if typical > 0:
+        good &= step <= 10.0 * typical
+    seg, part = np.nonzero(good)
+    if seg.size == 0:
+        return None
+    points = path.reshape(-1, 3)
+    pairs = np.stack([seg * m + part, (seg + 1) * m + part], axis=1)
+    opacity = TRAIL_OPACITY * (seg + 1.0) / (k - 1.0)
+    return LineSet(points, pairs, np.array(TRAIL_COLOR), 1.2, opacity)
+
+
+def frame_options(drawables: "ModelDrawables | None", states, f: int, active=None, *, trails: int = 0) -> dict:
     """Keyword arguments for `Renderer.frame` at frame ``f`` of a run: ``meshes``, ``lines``
-    and ``active`` (the particles drawn as a surface switched off)."""
-    if drawables is None:
-        return {"active": active}
-    body_q = states.fields.get("body_q")
-    options = drawables.frame(states.positions[f], None if body_q is None else body_q[f])
-    hidden = drawables.hidden(states.particle_count)
-    if hidden is not None:
-        active = ~hidden if active is None else (np.asarray(active, bool) & ~hidden)
+    (springs, and motion trails over the last ``trails`` frames in 3-D) and ``active`` (the
+    particles drawn as a surface switched off)."""
+    options = {"meshes": [], "lines": []}
+    if drawables is not None:
+        body_q = states.fields.get("body_q")
+        options = drawables.frame(states.positions[f], None if body_q is None else body_q[f])
+        hidden = drawables.hidden(states.particle_count)
+        if hidden is not None:
+            active = ~hidden if active is None else (np.asarray(active, bool) & ~hidden)
+    if trails and states.dim == 3:
+        trail = trail_lines(states, f, trails, active=active)
+        if trail is not None:
+            options["lines"] = [trail] + options["lines"]
     options["active"] = active
     return options

@@ -81,12 +81,13 @@ class TriangleMesh(NamedTuple):
 
 class LineSet(NamedTuple):
     """Segments between ``points (V, 3)`` m given by ``pairs (P, 2)`` int, drawn ``width_px``
-    pixels wide in one sRGB ``color`` (3,)."""
+    pixels wide in sRGB ``color`` (3,) or (P, 3), with ``opacity`` (P,) in [0, 1] (None: 1)."""
 
     points: np.ndarray
     pairs: np.ndarray
     color: np.ndarray
     width_px: float = 1.5
+    opacity: np.ndarray | None = None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -443,11 +444,12 @@ def shadow_background(cam, frame, depth_map, strength, depth_buf, mask, color_bu
 
 
 @njit(cache=True)
-def draw_lines(points, pairs, color, width_px, cam, near, color_buf, depth_buf):
-    """Anti-aliased segments ``pairs (P, 2)`` between ``points (V, 3)``: coverage
-    clamp(w/2 + 1/2 - d, 0, 1) per pixel (d: distance of the pixel centre to the projected
-    segment), depth interpolated along the segment (linearly on screen), z-tested against
-    ``depth_buf`` and blended over ``color_buf``; depth written where the coverage is >= 1/2."""
+def draw_lines(points, pairs, color, opacity, width_px, cam, near, color_buf, depth_buf):
+    """Anti-aliased segments ``pairs (P, 2)`` between ``points (V, 3)``, linear ``color (P, 3)``,
+    ``opacity (P,)``: coverage clamp(w/2 + 1/2 - d, 0, 1) per pixel (d: distance of the pixel
+    centre to the projected segment) times the opacity, depth interpolated along the segment
+    (linearly on screen), z-tested against ``depth_buf`` and blended over ``color_buf``; depth
+    written where the coverage is >= 1/2 and the segment opaque."""
     height, width = depth_buf.shape
     half = 0.5 * width_px
     reach = half + 1.0
@@ -479,7 +481,8 @@ def draw_lines(points, pairs, color, width_px, cam, near, color_buf, depth_buf):
                 z = az + u * (bz - az)
                 if z >= depth_buf[py, px]:
                     continue
-                for c in range(3):
-                    color_buf[py, px, c] += (color[c] - color_buf[py, px, c]) * alpha
-                if alpha >= 0.5:
+                if alpha >= 0.5 and opacity[s] >= 1.0:
                     depth_buf[py, px] = z
+                alpha *= opacity[s]
+                for c in range(3):
+                    color_buf[py, px, c] += (color[s, c] - color_buf[py, px, c]) * alpha

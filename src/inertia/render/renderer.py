@@ -685,9 +685,12 @@ class Renderer:
             M.draw_triangles(verts, norms, tris, albedo, cam, light, frame, depth_map, near,
                              self._color, self._depth, mask)
         for line_set in lines:
-            color = _srgb_to_linear(np.clip(np.asarray(line_set.color, np.float64).reshape(3), 0.0, 1.0)).astype(np.float64)
-            M.draw_lines(np.ascontiguousarray(line_set.points, dtype=np.float64).reshape(-1, 3),
-                         np.ascontiguousarray(line_set.pairs, dtype=np.int64).reshape(-1, 2), color,
+            pairs = np.ascontiguousarray(line_set.pairs, dtype=np.int64).reshape(-1, 2)
+            srgb = np.broadcast_to(np.asarray(line_set.color, np.float64).reshape(-1, 3), (pairs.shape[0], 3))
+            color = np.ascontiguousarray(_srgb_to_linear(np.clip(srgb, 0.0, 1.0)), dtype=np.float64)
+            opacity = np.ones(pairs.shape[0]) if line_set.opacity is None else np.ascontiguousarray(
+                np.broadcast_to(np.asarray(line_set.opacity, np.float64), (pairs.shape[0],)))
+            M.draw_lines(np.ascontiguousarray(line_set.points, dtype=np.float64).reshape(-1, 3), pairs, color, opacity,
                          float(line_set.width_px), cam, near, self._color, self._depth)
         self._to_bytes_into(self._color, out)
         if mask.any():

@@ -208,6 +208,7 @@ def render_states(
     colors=None,
     quality: float = 6.5,
     progress: Callable[[int, int], None] | None = None,
+    trails: int = 0,
     **renderer_options,
 ):
     """Render a run (`inertia.io.States`, or a path to a state file) to a video, PNG(s) or a folder.
@@ -220,6 +221,9 @@ def render_states(
     ``color_by="group"``, ``azimuth=30``, ``theme="light"``). Unless a camera is given, the view
     is fitted to every frame of the run and speed colours share one scale over the run (the
     same whichever ``frames`` are drawn).
+    ``trails``: draw each particle's path over that many previous frames as faint lines (3-D).
+    A state file's ``model`` adds its bodies, cloth surfaces and springs
+    (`inertia.render.drawables`).
     ``colors``: (N, 3), (F, N, 3) or ``colors(frame) -> (N, 3)``. ``progress(done, total)`` is
     called after each frame. Returns the output path (a list of paths for PNG sequences).
 
@@ -228,6 +232,8 @@ def render_states(
     from ..io.states import load_states
     from .renderer import Renderer
 
+    if not (isinstance(trails, (int, np.integer)) and not isinstance(trails, bool) and 0 <= trails <= 100):
+        raise ValueError(f"render_states: trails must be an integer number of frames in [0, 100], got {trails!r}")
     if isinstance(states, (str, os.PathLike)):
         states = load_states(states)
     kind = "frames" if out is None else output_kind(out)
@@ -280,7 +286,7 @@ def render_states(
             groups=groups,
             colliders=colliders,
             t=float(states.times[f]),
-            **frame_options(drawables, states, f, states.active(f)),
+            **frame_options(drawables, states, f, states.active(f), trails=trails),
         )
 
     total = int(indices.size)

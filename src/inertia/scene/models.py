@@ -643,6 +643,8 @@ class Render(_Model):
     theme: Literal["dark", "light"] = "dark"
     camera: Camera = Field(default_factory=Camera)
     draw_colliders: bool = True
+    trails: Annotated[int, Field(ge=0, le=100)] = Field(
+        0, description="3-D: draw each particle's path over this many previous frames (shows the flow)")
 
 
 # ----------------------------------------------------------------------------------------------
