@@ -94,6 +94,8 @@ class ModelDrawables:
 
         # Shapes: one tessellation per row, concatenated with the row index per vertex.
         self.planes: list[tuple[np.ndarray, np.ndarray]] = []
+        #: Shape row -> (local vertices (V, 3), triangles (T, 3), sRGB colour (3,)) of each drawn shape.
+        self.shape_meshes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
         local_v, local_n, tris, tri_colors, vertex_shape, base = [], [], [], [], [], 0
         shape_type = np.asarray(model.get("shape_type", np.zeros(0)), np.int64)
         shape_body = np.asarray(model.get("shape_body", np.full(shape_type.shape, -1)), np.int64)
@@ -115,6 +117,7 @@ class ModelDrawables:
                 color = np.array(STATIC_COLOR, np.float32)
             else:
                 color = np.asarray(GROUP_PALETTE[int(shape_body[s]) % len(GROUP_PALETTE)], np.float32)
+            self.shape_meshes[s] = (v, t, color)
             local_v.append(v)
             local_n.append(n)
             tris.append(t + base)
