@@ -238,3 +238,24 @@ def test_an_orbit_turns_the_camera_over_the_run_and_keeps_the_scene_framed():
     assert renderer.camera_at(0.7) is renderer.camera
     with pytest.raises(ValueError, match="orbit"):
         Renderer(W, H, orbit=float("nan"))
+
+
+def test_follow_keeps_a_travelling_cloud_large_and_in_view():
+    # A ball of points travels 10 m along x over 4 s; framed on the whole run it spans a small
+    # part of the picture, followed it spans a large part, at every frame, and never leaves it.
+    rng = np.random.default_rng(5)
+    ball = rng.normal(size=(300, 3)) * 0.3
+    times = np.linspace(0.0, 4.0, 41)
+    run = ball[None] + np.stack([np.linspace(-5, 5, 41), np.zeros(41), np.full(41, 1.0)], axis=1)[:, None]
+    still = Renderer(W, H)
+    still.fit(run, times=times)
+    follow = Renderer(W, H, follow=True)
+    follow.fit(run, times=times)
+    for f in (0, 13, 20, 33, 40):
+        widths = []
+        for renderer in (still, follow):
+            cam = renderer.camera_at(times[f])
+            px, py, depth = cam.project(run[f], W, H)
+            assert np.all(depth > 0) and np.all((px >= 0) & (px <= W) & (py >= 0) & (py <= H))
+            widths.append(px.max() - px.min())
+        assert widths[1] > 2.0 * widths[0]

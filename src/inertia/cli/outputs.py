@@ -48,7 +48,7 @@ def renderer_for(states, render: dict | None, colliders=()):
     speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
                         theme=render.get("theme", "dark"), speed_max=speed_max,
-                        orbit=float(camera.get("orbit") or 0.0), **options)
+                        orbit=float(camera.get("orbit") or 0.0), follow=bool(camera.get("follow", False)), **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
     from inertia.render.drawables import ModelDrawables

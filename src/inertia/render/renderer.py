@@ -147,6 +147,10 @@ class Renderer:
     orbit : degrees the automatic 3-D camera turns about the up axis over the run (0 default,
         still; 20-60 shows depth without distracting). `fit` with ``times`` frames every angle;
         `frame` picks the angle from its ``t``.
+    follow : False default; True frames the particles near each moment of the run (key
+        cameras every ~0.5 s, framed on a window of frames, interpolated by ``t``), so a
+        travelling cloud stays large in the picture. Needs `fit` with (F, N, 3) positions and
+        ``times``.
     """
 
     def __init__(
@@ -172,6 +176,7 @@ class Renderer:
         min_radius_px: float = 1.0,
         band: int = 16,
         orbit: float = 0.0,
+        follow: bool = False,
     ):
         if dim not in (2, 3):
             raise ValueError(f"Renderer: dim must be 2 or 3, got {dim!r}")
@@ -205,6 +210,8 @@ class Renderer:
             raise ValueError(f"Renderer: orbit must be degrees in [-360, 360], got {orbit!r}")
         #: Degrees the automatic camera turns about the up axis over the run (3-D; 0: still).
         self.orbit = float(orbit)
+        #: Follow the particles over the run (3-D): the framing moves with them (see `fit`).
+        self.follow = bool(follow)
         self._orbit_keys = None
         #: Unit world direction towards the key light (None: chosen from the first camera).
         self.light_direction = None
@@ -250,20 +257,42 @@ class Renderer:
         Sets and returns ``self.camera``; also fixes the grid spacing and default radius.
         """
         camera = self._fit(positions, radius, colliders, t, active, robust, extra_points)
+        bounds = self.bounds
         self._orbit_keys = None
-        if self.orbit and self.dim == 3 and times is not None and len(times) > 1:
-            # Key cameras every <= 15 degrees of the orbit, each framed like the first.
+        positions = np.asarray(positions)
+        follow = self.follow and positions.ndim == 3 and times is not None and len(times) == positions.shape[0]
+        if (self.orbit or follow) and self.dim == 3 and times is not None and len(times) > 1:
+            # Key cameras every <= 15 degrees of the orbit (and, following, every ~0.5 s of the
+            # run, each framed on the frames within a window around its time), interpolated by
+            # `camera_at`.
+            times = np.asarray(times, dtype=np.float64)
             t0, t1 = float(np.min(times)), float(np.max(times))
             count = max(2, int(math.ceil(abs(self.orbit) / 15.0)) + 1)
+            if follow:
+                count = max(count, min(24, int(math.ceil((t1 - t0) / 0.5)) + 1))
+            half_window = max(0.5, 0.75 * (t1 - t0) / (count - 1))
+            act = None if active is None else np.asarray(active, dtype=bool)
             base = self.azimuth
             keys = []
             for k in range(count):
                 self.azimuth = base + self.orbit * k / (count - 1)
-                cam = self._fit(positions, radius, colliders, t, active, robust, extra_points)
-                keys.append((cam.target, float(np.linalg.norm(cam.position - cam.target))))
+                pos_k, act_k = positions, active
+                if follow:
+                    tk = t0 + (t1 - t0) * k / (count - 1)
+                    near = np.abs(times - tk) <= half_window
+                    pos_k = positions[near]
+                    act_k = None if act is None else (act[near] if act.ndim == 2 else act)
+                cam = self._fit(pos_k, radius, colliders, t, act_k, robust, extra_points)
+                keys.append([cam.target, float(np.linalg.norm(cam.position - cam.target))])
+            # A key's distance is the largest of its neighbours' (the scene never leaves the
+            # view between keys, and the zoom changes smoothly).
+            distances = [k[1] for k in keys]
+            for k in range(count):
+                keys[k][1] = max(distances[max(0, k - 1):k + 2])
             self.azimuth = base
             self.camera = camera
-            self._orbit_keys = (t0, t1, keys, camera)
+            self._orbit_keys = (t0, t1, [tuple(k) for k in keys], camera)
+        self.bounds = bounds
         return camera
 
     def camera_at(self, t: float) -> Camera:
