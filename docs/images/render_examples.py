@@ -28,7 +28,9 @@ SIZE = {"width": 640, "height": 360}
 
 
 def shot(states, name, frame, **extra):
-    render = dict(tomllib.loads(states.metadata["scene"]).get("render", {}), **SIZE, **extra)
+    render = dict(tomllib.loads(states.metadata["scene"]).get("render", {}))
+    render.update(SIZE)
+    render.update(extra)
     for _, image in render_frames(states, render, _scene_colliders(states), frames=[frame]):
         write_png(HERE / f"render_{name}.png", image)
 
@@ -40,7 +42,7 @@ def grid_triangles(nu, nv):
 
 
 def main(runs: Path) -> None:
-    shot(load_states(runs / "fountain" / "states"), "fountain", 75)
+    shot(load_states(runs / "fountain" / "states"), "fountain", 75, width=560, height=316)  # < 200 KB
     wind = load_states(runs / "wind" / "states")
     shot(wind, "wind", 100, trails=10, camera={"azimuth": -90.0, "elevation": 20.0, "follow": True})
     cloth = load_states(runs / "cloth" / "states")

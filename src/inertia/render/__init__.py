@@ -4,10 +4,14 @@ Public API::
 
     Renderer(width=1280, height=720, *, dim=3, camera=None, up="z", color_by="auto", ...)
         .frame(positions, *, radius=None, velocities=None, colors=None, groups=None,
-               active=None, colliders=(), t=0.0) -> (H, W, 3) uint8
-        .fit(positions, *, radius=None, colliders=(), t=0.0, active=None) -> Camera
+               active=None, colliders=(), t=0.0, meshes=(), lines=()) -> (H, W, 3) uint8
+        .fit(positions, *, radius=None, colliders=(), t=0.0, active=None, extra_points=None, times=None) -> Camera
+        orbit=DEG, follow=False: a camera that turns / follows the particles over the run
+    meshes.TriangleMesh(vertices, normals, triangles, color), meshes.LineSet(points, pairs, color, width_px, opacity)
+    drawables.ModelDrawables(states.model): bodies (body_q), cloth surfaces, springs of a run
+    warm_kernels() -> seconds: compile the kernels `inertia run` uses (for `inertia warmup`)
     Camera.orbit(target, distance, *, azimuth, elevation, up, fov_y), Camera.fit(...), Camera.plane_2d(...)
-    render_states(states_or_path, out, *, fps=None, width=1280, height=720, colliders=(), frames=None, ...)
+    render_states(states_or_path, out, *, fps=None, width=1280, height=720, colliders=(), frames=None, trails=0, ...)
     VideoWriter(path, fps=30), write_video(frames, path, fps=30)
     write_png(path, image), read_png(path), encode_png(image)
     plot_energy(times, kinetic, potential=None, momentum=None, path="energy.png")
