@@ -205,3 +205,30 @@ def test_renderer_draws_meshes_with_particles_in_front_and_behind():
     assert pixel[2] > pixel[0]                               # hidden behind the blue box
     again = renderer.frame(front, radius=0.15, meshes=[box])
     assert np.array_equal(again, img_front)                  # deterministic bytes
+
+
+def test_hulls_meshes_and_heightfields_from_the_shape_table():
+    # Rows as the contract stores them: a convex hull of a cube's 8 corners plus an inside point
+    # (volume 1 exactly), a triangle soup (3 vertices per triangle) of a tetrahedron (volume
+    # 1/6), and a 3 x 4 heightfield on a tilted plane z = 0.5 x (normals (-0.5, 0, 1) / |.|).
+    cube = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float) - 0.5
+    hull_points = np.concatenate([cube, [[0.1, 0.0, 0.0]]])
+    tet = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 0], [0, 0, 1], [1, 0, 0],
+                    [0, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 0], [0, 0, 1], [0, 1, 0]], float)
+    gx, gy = np.meshgrid((np.arange(3) - 1.0) * 0.5, (np.arange(4) - 1.5) * 0.5, indexing="ij")
+    field = np.stack([gx.ravel(), gy.ravel(), 0.5 * gx.ravel()], axis=1)
+    verts = np.concatenate([hull_points, tet, field])
+    model = {"shape_type": np.array([4, 5, 7], np.int32), "shape_params": np.array([[0, 0, 0, 0], [4, 0, 0, 0], [3, 4, 0.5, 0.5]]),
+             "shape_vert_start": np.array([0, 9, 21], np.int32), "shape_vert_count": np.array([9, 12, 12], np.int32),
+             "geom_vertices": verts}
+    v, n, t = M.tessellate_shape(model, 0)
+    assert t.shape == (12, 3) and _mesh_volume(v, t) == pytest.approx(1.0, rel=1e-12)
+    v, n, t = M.tessellate_shape(model, 1)
+    assert t.shape == (4, 3) and abs(_mesh_volume(v, t)) == pytest.approx(1 / 6, rel=1e-12)
+    v, n, t = M.tessellate_shape(model, 2)
+    assert t.shape == (2 * 2 * 3, 3)
+    assert np.allclose(n, np.array([-0.5, 0.0, 1.0]) / math.sqrt(1.25))
+    # The grid's triangles tile its footprint: total projected area (2 cells x 3 cells of 0.5 m).
+    a, b, c = v[t[:, 0]], v[t[:, 1]], v[t[:, 2]]
+    assert np.abs(np.cross(b - a, c - a)[:, 2]).sum() / 2 == pytest.approx(1.0 * 1.5)
+    assert M.tessellate_shape({"shape_type": np.array([6]), "shape_params": np.zeros((1, 4))}, 0) is None
