@@ -293,8 +293,11 @@ DETERMINISM_SCRIPT = textwrap.dedent("""
         f.step(0.02)
     print(f.state_hash())
 """)
-# golden hash: x86-64, numba 0.68.1, numpy 2.x; regenerate only for an intended change of results
-GOLDEN_HASH = "5f0f120d68a359fd85be4a92af1c60b00542a142dca80f4faf0fab46b6cac870"
+# golden hash: x86-64, numba 0.68.1, numpy 2.x; regenerate only for an intended change of results.
+# Re-measured when the advection moved to index space on padded fields and the multigrid
+# transfers to 1-D tables (same schemes; the back-trace positions and the restriction sums
+# round differently in the last bits): was 5f0f120d...b6cac870.
+GOLDEN_HASH = "76fbdea68b1f9924e204f1bdc5cedb7c14f3b4b5e49be839548d0d99cab099f8"
 
 
 def test_same_hash_at_one_and_two_threads():

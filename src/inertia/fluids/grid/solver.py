@@ -223,6 +223,17 @@ class GridFluid:
         self._vel_tmp = [np.zeros(s) for s in fs]   # advect output
         self._vel_fwd = [np.zeros(s) for s in fs]   # MacCormack scratch
         self._vel_bwd = [np.zeros(s) for s in fs]
+        # MacCormack limiter bounds per node (u, v, w faces, cells): advect
+        self._range_lo = [np.zeros(s) for s in fs] + [np.zeros((nx, ny, nz))]
+        self._range_hi = [np.zeros(s) for s in fs] + [np.zeros((nx, ny, nz))]
+        # padded copies (one ghost layer along the grid's axes) read by the advection
+        padz = 2 if dim == 3 else 0
+        pshape = [(a + 2, b + 2, c + padz) for a, b, c in fs + [(nx, ny, nz)]]
+        self._vel_pad = [np.zeros(s) for s in pshape[:3]]
+        self._cell_pad = np.zeros(pshape[3])
+        self._fwd_pad = [np.zeros(s) for s in pshape]
+        self._offsets = [np.array([0.0 if a == c else 0.5 for c in range(3)]) for a in range(3)]
+        self._offsets.append(np.full(3, 0.5))
         # cell scalars: advect, forces (sources), dissipate
         self._scal = [np.zeros((nx, ny, nz)) for _ in names]
         self._scal_tmp = [np.zeros((nx, ny, nz)) for _ in names]
@@ -458,12 +469,17 @@ class GridFluid:
 
     def _advect(self, dt):
         g = self.ctx
-        u, v, w = self._vel
+        k = self._k
+        for a in range(3):
+            if a < self.dim:
+                k.pad(self._vel[a], a, g, self._vel_pad[a])
+        up, vp, wp = self._vel_pad
         for a in range(self.dim):
-            self._advect_one(self._vel[a], a, u, v, w, dt, self._vel_tmp[a], self._vel_fwd[a],
-                             self._vel_bwd[a])
+            self._advect_one(self._vel[a], self._vel_pad[a], a, up, vp, wp, dt, self._vel_tmp[a],
+                             self._vel_fwd[a], self._vel_bwd[a])
         for s in range(len(self._scal)):
-            self._advect_one(self._scal[s], 3 + s, u, v, w, dt, self._scal_tmp[s],
+            k.pad(self._scal[s], 3 + s, g, self._cell_pad)
+            self._advect_one(self._scal[s], self._cell_pad, 3 + s, up, vp, wp, dt, self._scal_tmp[s],
                              self._cell_fwd, self._cell_bwd)
         for a in range(self.dim):
             self._vel[a], self._vel_tmp[a] = self._vel_tmp[a], self._vel[a]
@@ -471,14 +487,24 @@ class GridFluid:
             self._scal[s], self._scal_tmp[s] = self._scal_tmp[s], self._scal[s]
         self._enforce()
 
-    def _advect_one(self, src, slot, u, v, w, dt, dst, fwd, bwd):
+    def _advect_one(self, src, src_pad, slot, up, vp, wp, dt, dst, fwd, bwd):
+        """Advect the padded field `src_pad` of `slot` into dst (fwd, bwd: MacCormack scratch)."""
         g = self.ctx
+        k = self._k
+        h = self.grid.cell_size
+        off = self._offsets[min(slot, 3)]
         if self.advection == "semi-lagrangian":
-            self._k.advect(src, u, v, w, dt, slot, g, dst)
+            k.advect_padded(src_pad, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, dst,
+                            dst, dst, False)
             return
-        self._k.advect(src, u, v, w, dt, slot, g, fwd)
-        self._k.advect(fwd, u, v, w, -dt, slot, g, bwd)
-        self._k.maccormack_correct(src, fwd, bwd, u, v, w, dt, slot, g, dst)
+        i = min(slot, 3)
+        lo, hi, fwd_pad = self._range_lo[i], self._range_hi[i], self._fwd_pad[i]
+        k.advect_padded(src_pad, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, fwd,
+                        lo, hi, True)
+        k.pad(fwd, slot, g, fwd_pad)
+        k.advect_padded(fwd_pad, up, vp, wp, -dt / h, off, g.n, g.periodic, self.dim, bwd,
+                        bwd, bwd, False)
+        k.maccormack_combine(src, fwd, bwd, lo, hi, dst)
 
     def _forces(self, dt):
         f = self._force
