@@ -100,7 +100,7 @@ def _clamp_domain(p, axis, g):
     return p
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def sample(a, slot, px, py, pz, g):
     """Linear interpolation of the slot's array at physical point (px, py, pz).
 
@@ -193,7 +193,7 @@ def sample_range(a, slot, px, py, pz, g):
     return lo, hi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def velocity_at(u, v, w, px, py, pz, g):
     vx = sample(u, 0, px, py, pz, g)
     vy = sample(v, 1, px, py, pz, g)
@@ -201,7 +201,7 @@ def velocity_at(u, v, w, px, py, pz, g):
     return vx, vy, vz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _node_position(slot, i, j, k, g):
     px = g.origin[0] + (i + _offset(slot, 0)) * g.h
     py = g.origin[1] + (j + _offset(slot, 1)) * g.h
@@ -209,7 +209,7 @@ def _node_position(slot, i, j, k, g):
     return px, py, pz
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _backtrace(px, py, pz, u, v, w, dt, g):
     """Second-order Runge-Kutta (midpoint) back-trace x - dt u(x - dt/2 u(x))."""
     vx, vy, vz = velocity_at(u, v, w, px, py, pz, g)

@@ -706,8 +706,9 @@ class LiquidFluid:
             dt = min(self.max_dt, self.cfl * h / max(vmax + g * dt, 1e-12))
         return dt
 
-    def advance(self, frame_dt):
-        """Advance by frame_dt seconds in CFL substeps; returns the substep count."""
+    def advance(self, frame_dt, rigid=None):
+        """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid`
+        (World protocol) is accepted and ignored: rigid bodies are not coupled yet."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
         done = 0.0
         n = 0
@@ -758,6 +759,17 @@ class LiquidFluid:
             return [off + ln * h for ln in lines]
         verts, faces, _, _ = measure.marching_cubes(padded, 0.0, spacing=(h, h, h))
         return verts + off, faces.astype(np.int64)
+
+    def frame_arrays(self):
+        """Per-frame arrays (fixed shapes while no particle is added): positions ``x`` and
+        velocities ``v`` (N, dim) float32, level set ``phi`` (nx, ny[, nz]) float32."""
+        return {"x": self.x[:, :self.dim].astype(np.float32),
+                "v": self.v[:, :self.dim].astype(np.float32),
+                "phi": self.level_set().astype(np.float32)}
+
+    def static_arrays(self):
+        return {"origin": self.origin[:self.dim].copy(), "cell_size": np.array(self.cell_size),
+                "shape": np.array(self.shape, dtype=np.int64)}
 
     def save_state(self):
         return {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),

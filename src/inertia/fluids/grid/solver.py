@@ -627,8 +627,12 @@ class GridFluid:
             return self.max_dt if np.isfinite(self.max_dt) else self.grid.cell_size
         return min(self.cfl * self.grid.cell_size / vmax, self.max_dt)
 
-    def advance(self, frame_dt):
-        """Advance by frame_dt seconds in CFL-limited substeps; returns the substep count."""
+    def advance(self, frame_dt, rigid=None):
+        """Advance by frame_dt seconds in CFL-limited substeps; returns the substep count.
+
+        `rigid` is the World protocol's RigidWorld argument (docs/contracts.md); rigid bodies
+        are not coupled to the grid yet, so it is accepted and ignored (colliders passed as
+        ``obstacles`` still act, moving ones included)."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
         done = 0.0
         n = 0
@@ -690,6 +694,51 @@ class GridFluid:
                 x = x[tuple(idx)]
             e += float(np.sum(x * x))
         return 0.5 * e * vol
+
+    # ------------------------------------------------------------------------ World protocol
+    def save_state(self):
+        """The state a bit-for-bit resume needs: face velocities, scalars, the last pressure
+        (the next solve's initial guess), time and step index (copies)."""
+        st = {f"vel{a}": self._vel[a].copy() for a in range(self.dim)}
+        for name, a in zip(self.scalar_names, self._scal):
+            st[f"scalar/{name}"] = a.copy()
+        st["phi"] = self.phi.copy()
+        st["time"] = np.array(self.time)
+        st["step_index"] = np.array(self.step_index)
+        return st
+
+    def restore_state(self, state):
+        """Restore a `save_state` dict (same grid and scalars)."""
+        for a in range(self.dim):
+            self._vel[a][...] = state[f"vel{a}"]
+        for name, a in zip(self.scalar_names, self._scal):
+            a[...] = state[f"scalar/{name}"]
+        self.phi[...] = state["phi"]
+        self.time = float(state["time"])
+        self.step_index = int(state["step_index"])
+        if self._moving:
+            self._update_solids(self.time)
+
+    def frame_arrays(self):
+        """Per-frame arrays for a recorded run (fixed shapes): every scalar and ``speed`` (|u|
+        at cell centres, m/s) as float32 (nx, ny[, nz])."""
+        u, v, w = self._vel
+        s2 = (0.5 * (u[1:] + u[:-1])) ** 2 + (0.5 * (v[:, 1:] + v[:, :-1])) ** 2
+        if self.dim == 3:
+            s2 += (0.5 * (w[:, :, 1:] + w[:, :, :-1])) ** 2
+        out = {name: self._view(a).astype(np.float32) for name, a in zip(self.scalar_names, self._scal)}
+        out["speed"] = self._view(np.sqrt(s2)).astype(np.float32)
+        return out
+
+    def static_arrays(self):
+        """Grid description for a recorded run: origin (dim,), cell_size (), shape (dim,)."""
+        return {"origin": self.grid.origin.copy(), "cell_size": np.array(self.grid.cell_size),
+                "shape": np.array(self.grid.shape, dtype=np.int64)}
+
+    def write_vti(self, path):
+        """Export the current frame as VTK image data (see `inertia.fluids.grid.vtk`)."""
+        from .vtk import write_vti
+        return write_vti(path, self)
 
     def state_hash(self):
         """SHA-256 of the velocity and scalar arrays (determinism checks)."""
