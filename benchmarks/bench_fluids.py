@@ -11,6 +11,7 @@ measured in the same run.
 2. pressure: MGPCG iterations and time per solve at 64^2 .. 1024^2 (closed box, rhs = the
    peers' bench_pressure.py make_rhs: divergence of a seeded random face field), next to the
    peers' own Numba MGPCG on the same right-hand side.
+5. ghia: lid-driven cavity at Re 400 and 1000 on 64^2 and 128^2 against Ghia et al. (1982).
 4. liquid: a 2-D FLIP (and APIC) dam break with 100,000 particles, ms per 60 Hz frame.
 3. smoke3d: a 128^3 smoke step (buoyant plume from a source box, MacCormack and
    semi-Lagrangian, MGPCG 1e-4 and 1e-6): seconds per step. Aim: < 0.5 s on 2 cores.
@@ -18,7 +19,7 @@ measured in the same run.
 Timings are medians of repeated steps after warm-up (JIT excluded); the foreign load (other
 processes' CPU use) during each measurement is printed, since the machine may be shared.
 
-Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d liquid]
+Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d liquid ghia]
      [--sizes 64 128 256 512 1024] [--reps 5]
 """
 
@@ -233,6 +234,44 @@ def bench_liquid(reps, load_cls, particles=100_000):
               f"first frame incl. JIT {first:.1f} s", flush=True)
 
 
+# ----------------------------------------------------------------------------- 5. Ghia
+GHIA_Y = np.array([1.0, 0.9766, 0.9688, 0.9609, 0.9531, 0.8516, 0.7344, 0.6172, 0.5, 0.4531,
+                   0.2813, 0.1719, 0.1016, 0.0703, 0.0625, 0.0547, 0.0])
+GHIA_X = np.array([1.0, 0.9688, 0.9609, 0.9531, 0.9453, 0.9063, 0.8594, 0.8047, 0.5, 0.2344,
+                   0.2266, 0.1563, 0.0938, 0.0781, 0.0703, 0.0625, 0.0])
+# Ghia, Ghia and Shin (1982), J. Comput. Phys. 48, Tables I (u on x = 0.5) and II (v on y = 0.5)
+GHIA = {
+    400: ([1.0, 0.75837, 0.68439, 0.61756, 0.55892, 0.29093, 0.16256, 0.02135, -0.11477,
+           -0.17119, -0.32726, -0.24299, -0.14612, -0.10338, -0.09266, -0.08186, 0.0],
+          [0.0, -0.12146, -0.15663, -0.19254, -0.22847, -0.23827, -0.44993, -0.38598, 0.05186,
+           0.30174, 0.30203, 0.28124, 0.22965, 0.20920, 0.19713, 0.18360, 0.0]),
+    1000: ([1.0, 0.65928, 0.57492, 0.51117, 0.46604, 0.33304, 0.18719, 0.05702, -0.06080,
+            -0.10648, -0.27805, -0.38289, -0.29730, -0.22220, -0.20196, -0.18109, 0.0],
+           [0.0, -0.21388, -0.27669, -0.33714, -0.39188, -0.51550, -0.42665, -0.31966, 0.02526,
+            0.32235, 0.33075, 0.37095, 0.32627, 0.30353, 0.29012, 0.27485, 0.0]),
+}
+
+
+def bench_ghia(sizes=(64, 128), t_end=40.0):
+    """Lid-driven cavity at Re 400 and 1000 on finer grids than the tests: max centre-line
+    errors against Ghia et al. (1982) (fraction of the lid speed) and wall time."""
+    from inertia.fluids.grid import GridFluid, Wall
+    print(f"\n== 5. lid-driven cavity vs Ghia et al. (1982), MacCormack, CFL 2, t = {t_end:.0f} ==")
+    for re in (400, 1000):
+        for n in sizes:
+            t0 = time.perf_counter()
+            f = GridFluid((n, n), 1.0 / n, boundaries={"y+": Wall(velocity=(1.0, 0.0))},
+                          viscosity=1.0 / re, cfl=2.0, scalars=())
+            for _ in range(int(t_end)):
+                f.advance(1.0)
+            u = f.sample_velocity(np.stack([np.full_like(GHIA_Y, 0.5), GHIA_Y], 1))[:, 0]
+            v = f.sample_velocity(np.stack([GHIA_X, np.full_like(GHIA_X, 0.5)], 1))[:, 1]
+            eu = np.max(np.abs(u - GHIA[re][0]))
+            ev = np.max(np.abs(v - GHIA[re][1]))
+            print(f"  Re {re:5d} {n:4d}^2: max |u - Ghia| {eu:.4f}, max |v - Ghia| {ev:.4f} "
+                  f"({time.perf_counter() - t0:.0f} s)", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--parts", nargs="+", default=["smoke256", "pressure", "smoke3d"])
@@ -252,6 +291,8 @@ def main():
         bench_smoke3d(max(2, a.reps // 2), load_cls)
     if "liquid" in a.parts:
         bench_liquid(a.reps, load_cls)
+    if "ghia" in a.parts:
+        bench_ghia()
 
 
 if __name__ == "__main__":
