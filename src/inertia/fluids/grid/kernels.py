@@ -703,25 +703,35 @@ def _mag(vort, i, j, k):
 
 @njit(cache=True, parallel=True)
 def add_cell_force(force, dt, axis, open_frac, g, vel):
-    """vel += dt * (average of the two cells' force component `axis`) on open faces."""
+    """vel += dt * (average of the two cells' force component `axis`) on open faces; a cell
+    index one outside wraps on a periodic axis and clamps to the edge cell otherwise (written
+    out: a helper taking the force array would cost a reference-count update per face)."""
     nx, ny, nz = force.shape[0], force.shape[1], force.shape[2]
     fx, fy, fz = vel.shape
+    per = g.periodic[axis]
+    na = nx if axis == 0 else (ny if axis == 1 else nz)
     for i_ in prange(fx):
         i = np.int64(i_)
         for j in range(fy):
             for k in range(fz):
                 if open_frac[i, j, k] == 0.0:
                     continue
-                i0, j0, k0 = i, j, k
-                i1, j1, k1 = i, j, k
+                m = i if axis == 0 else (j if axis == 1 else k)
+                lo = m - 1
+                hi = m
+                if lo < 0:
+                    lo = lo % na if per else 0
+                if hi >= na:
+                    hi = hi % na if per else na - 1
                 if axis == 0:
-                    i0 = i - 1
+                    a = force[lo, j, k, 0]
+                    b = force[hi, j, k, 0]
                 elif axis == 1:
-                    j0 = j - 1
+                    a = force[i, lo, k, 1]
+                    b = force[i, hi, k, 1]
                 else:
-                    k0 = k - 1
-                a = _cell_force(force, i0, j0, k0, axis, nx, ny, nz, g)
-                b = _cell_force(force, i1, j1, k1, axis, nx, ny, nz, g)
+                    a = force[i, j, lo, 2]
+                    b = force[i, j, hi, 2]
                 vel[i, j, k] += dt * 0.5 * (a + b)
 
 
