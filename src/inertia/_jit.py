@@ -53,15 +53,26 @@ def serial_twin(kernel):
 class SizeDispatched:
     """Calls the parallel kernel, or its serial twin when the first argument has fewer than
     ``serial_below`` elements (``SERIAL_BELOW`` default). Each is compiled on first use.
-    Use from Python only; inside other kernels call ``.parallel`` or ``.serial``."""
+    Use from Python only; inside other kernels call ``.parallel`` or ``.serial``.
 
-    def __init__(self, kernel, serial_below: int | None = None):
+    The threshold is read at each call, so setting ``inertia._jit.SERIAL_BELOW`` (0: always
+    parallel, as the thread-count tests do) applies to every dispatched kernel. ``serial`` may
+    hand in an existing serial twin (kernels other code calls by their ``_serial`` name)."""
+
+    def __init__(self, kernel, serial_below: int | None = None, serial=None):
         self.parallel = kernel
-        self.serial_below = SERIAL_BELOW if serial_below is None else min(int(serial_below), SERIAL_BELOW)
-        self._serial = None
+        self._own_below = None if serial_below is None else int(serial_below)
+        self._serial = serial
         self.__doc__ = kernel.py_func.__doc__
         self.__name__ = kernel.py_func.__name__
         self.py_func = kernel.py_func
+
+    @property
+    def serial_below(self) -> int:
+        """Elements below which the serial twin runs: the kernel's own threshold, never above
+        the global ``SERIAL_BELOW``."""
+        below = SERIAL_BELOW
+        return below if self._own_below is None else min(self._own_below, below)
 
     @property
     def serial(self):
