@@ -56,10 +56,11 @@ def test_stage_runs_the_kernels_of_its_kind_set():
     ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
     ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.5)
     bundle = pk.kernels_for(ps._collision.cint)
-    assert bundle is pk.kernels_for([D.PLANE]) and bundle.kinds == {D.PLANE}
-    assert repr(bundle) == "ParticleKernels(plane)"
+    assert bundle is pk.kernels_for([D.PLANE, D.CONTAINER]) and bundle.kinds == pk.LIGHT_KINDS
+    assert repr(bundle) == "ParticleKernels(plane, sphere, container)"
+    assert pk.kernels_for([D.PLANE, D.BOX]).kinds == pk.ALL_KINDS
     ia.Simulation(ps, integrator="rk4", dt=1 / 240).run(0.5)
-    # the plane-only token: only the plane entry is compiled in
+    # the light token: only the plane, sphere and container entries are compiled in
     tokens = [[str(t) for t in sig[-1].types] for sig in bundle.step_and_collide.dispatched.serial.signatures]
-    assert ["bool"] + ["none"] * D.GRID in tokens
+    assert ["bool", "bool", "none", "none", "none", "bool", "none"] in tokens
     assert ps.x[0, 2] >= 0.05 - 1e-6
