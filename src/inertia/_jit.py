@@ -8,8 +8,10 @@ versions compute identical bits: the kernels write each output element from one 
 and reductions use fixed chunks.
 
 ``parallel_kernel`` / ``SizeDispatched`` is the one size-dispatch mechanism: the serial twin
-runs when the first argument holds fewer than ``SERIAL_BELOW`` elements (``args[0].size``),
-the parallel build from there on. Each build is compiled on its first call only, so a small
+runs when the first argument holds fewer than ``SERIAL_BELOW`` elements (``args[0].size``, or
+another count through ``.pick(n)``, e.g. the pair solver's number of pairs), the parallel
+build from there on. ``SERIAL_BELOW`` is read at every call, so setting it (0: always
+parallel) applies to every dispatched kernel, the particle collision kernels included. Each build is compiled on its first call only, so a small
 scene never compiles the parallel build (which costs several times the serial build's
 compile time) and a large one never compiles the serial twin.
 

@@ -441,26 +441,42 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
     return ex, ey, ez, evx, evy, evz, modified, False
 
 
-@njit(cache=True)
-def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
-    """Bit k set for each collider k the step's path (of length ``length``, ending at e) may
-    reach: a lower bound of its distance at the end point (exact for planes and containers, the
-    bounding sphere otherwise) beyond r + 2 tol + length proves the path cannot reach the
-    surface. Inline math only, no square root: this runs for every particle."""
-    reach = r + 2.0 * tol + length
-    near = 0
+@njit(cache=True, inline="always")
+def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, dx, dy, dz):
+    """Bit k set for each collider k the step's path (displacement d, ending at e) may reach: a
+    lower bound of its distance at the end point (exact for planes and containers, the bounding
+    sphere otherwise) beyond r + 2 tol + |d| proves the path cannot reach the surface.
+
+    Cheap bound first, in registers: |d|_1 >= |d| decides for every particle farther than
+    r + 2 tol + |d|_1 without a square root; only the others compute |d| and apply the exact
+    test (so the mask is the same bits as the exact test alone). This runs for every particle."""
+    reach0 = r + 2.0 * tol
+    l1 = abs(dx) + abs(dy) + abs(dz)  # >= the path's length
+    length = -1.0  # the path's length, computed when the cheap bound does not decide
+    near = cnear.shape[0] * 0  # an int64 variable (a literal 0 would type the callers twice)
     for k in range(cnear.shape[0]):
         kind = cnear[k, 0]
         if kind == NEAR_NEVER:
             continue
         if k < 62 and k != kr:
             if kind == NEAR_PLANE:
-                if cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4] > reach:
+                f = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
+                if f - reach0 > l1:
+                    continue
+                if length < 0.0:
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if f > reach0 + length:
                     continue
             elif kind == NEAR_BALL:
-                dx, dy, dz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
-                far = cnear[k, 4] + reach
-                if far > 0.0 and dx * dx + dy * dy + dz * dz > far * far:
+                bx, by, bz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
+                d2 = bx * bx + by * by + bz * bz
+                far = cnear[k, 4] + (reach0 + l1)
+                if far > 0.0 and d2 > far * far:
+                    continue
+                if length < 0.0:
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                far = cnear[k, 4] + (reach0 + length)
+                if far > 0.0 and d2 > far * far:
                     continue
             elif kind == NEAR_PLANES:
                 o, m = int(cnear[k, 1]), int(cnear[k, 2])
@@ -468,7 +484,11 @@ def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
                 for p in range(m):
                     b = o + 4 * p
                     lb = min(lb, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
-                if lb > reach:
+                if lb - reach0 > l1:
+                    continue
+                if length < 0.0:
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if lb > reach0 + length:
                     continue
             # NEAR_ALWAYS (moving colliders): always a candidate
         near |= 1 << min(k, 62)
@@ -606,7 +626,7 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
         kr = rest_k[i]
         # 0. colliders near the path
         dx, dy, dz = ex - sx, ey - sy, ez - sz
-        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, dx, dy, dz)
         if near != 0 or kr >= 0:
             if started:
                 svx, svy = v0[i, 0], v0[i, 1]
@@ -693,7 +713,7 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
             ez, evz = 0.0, 0.0
         kr = rest_k[i]
         dx, dy, dz = ex - sx, ey - sy, ez - sz
-        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, dx, dy, dz)
         if near != 0 or kr >= 0:
             ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                 i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
