@@ -55,3 +55,14 @@ def test_warmup_covers_the_fused_collision_kernels_of_both_kind_sets():
             assert group.integrator == "rk4" and d.can_fuse() and group.system._affine_terms() is not None
             kinds.add(pk.kernels_for(d.cint).kinds)
     assert kinds == {pk.LIGHT_KINDS, pk.ALL_KINDS}
+
+
+def test_warmup_ends_with_the_render_kernels_of_meshes_and_lines(monkeypatch):
+    # bodies, cloth surfaces and spring lines are drawn by kernels the particle examples never
+    # reach: warm_all calls inertia.render.warm_kernels once (here replaced by a recorder)
+    import inertia.render
+
+    calls = []
+    monkeypatch.setattr(inertia.render, "warm_kernels", lambda: calls.append(1) or 0.0)
+    assert warm.warm_all(only="render") == ["render"]
+    assert calls == [1]

@@ -5,7 +5,8 @@ sources, or under ``NUMBA_CACHE_DIR``) and later runs start warm. First every bu
 runs for two frames and renders one (what `inertia run NAME` compiles, render kernels
 included); then the scenes below touch every integrator, force, emitter, tracer field and
 collider type for a few steps, in 2-D and 3-D, and the collision kernels of both collider kind
-sets (``particle_kernels.kernels_for``), fused into rk4 and separate.
+sets (``particle_kernels.kernels_for``), fused into rk4 and separate; last the render kernels of
+meshes, lines and every collider primitive (``inertia.render.warm_kernels``).
 
 Limitations: kernels have a serial and a parallel build (``inertia._jit``); tiny scenes compile
 the serial builds only, so the first run of a scene above ``inertia._jit.SERIAL_BELOW``
@@ -228,6 +229,18 @@ def warm_all(report: Callable[[str], None] | None = None, *, only: str | None = 
             done.append(name)
         except Exception as exc:  # noqa: BLE001 - keep compiling the rest, then report
             failures.append(f"{name}: {type(exc).__name__}: {exc}")
+    if only is None or only in "render":
+        # Meshes (bodies, cloth surfaces), lines and every collider primitive: what a scene with
+        # rigid bodies draws, which the particle examples above do not reach.
+        if report is not None:
+            report("render")
+        try:
+            from ..render import warm_kernels
+
+            warm_kernels()
+            done.append("render")
+        except Exception as exc:  # noqa: BLE001
+            failures.append(f"render: {type(exc).__name__}: {exc}")
     if failures:
         raise RuntimeError("warm-up scenes failed:\n  " + "\n  ".join(failures))
     return done
