@@ -42,7 +42,9 @@ Limitations
 - One iteration per substep (the soft step's design): tall stacks need 4-8 substeps.
 - Effective masses use the inertia at the start of the step (as Box2D v3 does).
 - The gyroscopic term is explicit: very fast-spinning, very elongated bodies may gain energy.
-- No twisting (spin about the normal) friction beyond what rolling resistance provides.
+- Twisting friction (spin about the normal) models a contact patch of radius ``twist_radius``
+  (limit friction * twist_radius * normal impulse; without it a box balanced on one corner spins
+  forever and keeps its island awake); it is not warm-started across steps.
 """
 
 from __future__ import annotations
@@ -106,6 +108,8 @@ class SolverContext(NamedTuple):
     cons_tangent_mass: np.ndarray  # (N, 4, 2) kg
     cons_rolling_mass: np.ndarray  # (N, 9) kg m^2 (inverse of the summed world inverse inertias)
     cons_soft: np.ndarray         # (N, 3) bias_rate, mass_scale, impulse_scale
+    cons_twist: np.ndarray        # (N, 3) twist mass kg m^2, accumulated twist impulse N m s (this step),
+                                  # limit per unit normal impulse m (friction * twist_radius)
 
 
 @njit(cache=True)
@@ -249,7 +253,8 @@ def _apply_angular(qd, b, sign, l, ii):
 
 
 @njit(cache=True)
-def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, body_inv_inertia_world, body_inv_mass, body_qd, cons_anchor, cons_base_separation, cons_manifold, cons_normal_mass, cons_rolling_mass, cons_soft, cons_tangent_mass, contact_body, contact_max_normal_impulse, contact_normal, contact_point_count, contact_relative_velocity, contact_rolling_friction, contact_tangent, contact_total_normal_impulse):
+def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, twist_radius, cons_twist,
+                   contact_friction, body_inv_inertia_world, body_inv_mass, body_qd, cons_anchor, cons_base_separation, cons_manifold, cons_normal_mass, cons_rolling_mass, cons_soft, cons_tangent_mass, contact_body, contact_max_normal_impulse, contact_normal, contact_point_count, contact_relative_velocity, contact_rolling_friction, contact_tangent, contact_total_normal_impulse):
     for c in range(lo, hi):
         i = cons_manifold[c]
         ba, bb = contact_body[i, 0], contact_body[i, 1]
@@ -264,6 +269,11 @@ def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, stat
         cons_soft[c, 0] = sr[0]
         cons_soft[c, 1] = sr[1]
         cons_soft[c, 2] = sr[2]
+        # twisting friction about the normal (a contact patch of radius twist_radius): 1 / n.(Ia^-1 + Ib^-1) n
+        kt = dot(n, mat_vec(iia, n)) + dot(n, mat_vec(iib, n))
+        cons_twist[c, 0] = 1.0 / kt if kt > 0.0 else 0.0
+        cons_twist[c, 1] = 0.0
+        cons_twist[c, 2] = contact_friction[i] * twist_radius
         xa = (0.0, 0.0, 0.0)
         qa = (1.0, 0.0, 0.0, 0.0)
         if ba >= 0:
@@ -319,19 +329,20 @@ def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, stat
 
 
 @njit(cache=True)
-def _prepare_range(ctx, body_q, lo, hi, contact_point, contact_separation, soft, static_soft):
-    _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft,
+def _prepare_range(ctx, body_q, lo, hi, contact_point, contact_separation, soft, static_soft, twist_radius):
+    _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, twist_radius, ctx.cons_twist,
+                   ctx.contact_friction,
                    ctx.body_inv_inertia_world, ctx.body_inv_mass, ctx.body_qd, ctx.cons_anchor, ctx.cons_base_separation, ctx.cons_manifold, ctx.cons_normal_mass, ctx.cons_rolling_mass, ctx.cons_soft, ctx.cons_tangent_mass, ctx.contact_body, ctx.contact_max_normal_impulse, ctx.contact_normal, ctx.contact_point_count, ctx.contact_relative_velocity, ctx.contact_rolling_friction, ctx.contact_tangent, ctx.contact_total_normal_impulse)
 
 
 @njit(cache=True, parallel=True)
-def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, soft, static_soft):
+def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, soft, static_soft, twist_radius):
     """Anchors, effective masses, softness and pre-step normal velocities of each constraint."""
     nch = min(n_cons, CHUNKS)
     for ch in prange(nch):
         a = n_cons * ch // nch
         b = n_cons * (ch + 1) // nch
-        _prepare_range(ctx, body_q, a, b, contact_point, contact_separation, soft, static_soft)
+        _prepare_range(ctx, body_q, a, b, contact_point, contact_separation, soft, static_soft, twist_radius)
 
 
 # --- the hot loops. Each range kernel unpacks the context bundle once into local arrays: reading a
@@ -340,7 +351,8 @@ def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, 
 
 @njit(cache=True)
 def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact_body, contact_point_count,
-                contact_normal, contact_tangent, normal_impulse, tangent_impulse, rolling_impulse, cons_anchor):
+                contact_normal, contact_tangent, normal_impulse, tangent_impulse, rolling_impulse, cons_anchor,
+                cons_twist):
     for t in range(lo, hi):
         c = items[t]
         i = cons_manifold[c]
@@ -358,6 +370,9 @@ def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact
             _apply(qd, ba, -1.0, p, ra, ima, iia)
             _apply(qd, bb, 1.0, p, rb, imb, iib)
         l = (rolling_impulse[i, 0], rolling_impulse[i, 1], rolling_impulse[i, 2])
+        tw = cons_twist[c, 1]
+        if tw != 0.0:
+            l = add(l, scale(n, tw))
         if l[0] != 0.0 or l[1] != 0.0 or l[2] != 0.0:
             _apply_angular(qd, ba, -1.0, l, iia)
             _apply_angular(qd, bb, 1.0, l, iib)
@@ -381,7 +396,7 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
                  cons_manifold, contact_body, contact_point_count, contact_normal, contact_tangent,
                  contact_friction, contact_rolling_friction, normal_impulse, tangent_impulse, rolling_impulse,
                  max_normal_impulse, total_normal_impulse, relative_velocity, cons_anchor, cons_base_separation,
-                 cons_normal_mass, cons_tangent_mass, cons_rolling_mass, cons_soft):
+                 cons_normal_mass, cons_tangent_mass, cons_rolling_mass, cons_soft, cons_twist):
     for t in range(lo, hi):
         c = items[t]
         i = cons_manifold[c]
@@ -452,6 +467,18 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
             p = add(scale(t1, n1 - o1), scale(t2, n2 - o2))
             _apply(qd, ba, -1.0, p, ra, ima, iia)
             _apply(qd, bb, 1.0, p, rb, imb, iib)
+        # -- twisting friction: |impulse about n| <= friction * twist_radius * total normal impulse
+        tlim = cons_twist[c, 2] * total_normal
+        if cons_twist[c, 0] > 0.0 and (tlim > 0.0 or cons_twist[c, 1] != 0.0):
+            va, wa = _vel(qd, ba)
+            vb, wb = _vel(qd, bb)
+            old = cons_twist[c, 1]
+            new = old - cons_twist[c, 0] * dot(sub(wb, wa), n)
+            new = min(max(new, -tlim), tlim)
+            cons_twist[c, 1] = new
+            l = scale(n, new - old)
+            _apply_angular(qd, ba, -1.0, l, iia)
+            _apply_angular(qd, bb, 1.0, l, iib)
         # -- rolling resistance: |angular impulse| <= rolling_friction * total normal impulse
         rr = contact_rolling_friction[i]
         if rr > 0.0:
@@ -572,7 +599,7 @@ def _warm_range(ctx, items, lo, hi):
     _warm_block(items, lo, hi, ctx.body_qd, ctx.body_inv_mass, ctx.body_inv_inertia_world, ctx.cons_manifold,
                 ctx.contact_body, ctx.contact_point_count, ctx.contact_normal, ctx.contact_tangent,
                 ctx.contact_normal_impulse, ctx.contact_tangent_impulse, ctx.contact_rolling_impulse,
-                ctx.cons_anchor)
+                ctx.cons_anchor, ctx.cons_twist)
 
 
 @njit(cache=True)
@@ -583,7 +610,7 @@ def _solve_range(ctx, items, lo, hi, use_bias, inv_h, push_max):
                  ctx.contact_rolling_friction, ctx.contact_normal_impulse, ctx.contact_tangent_impulse,
                  ctx.contact_rolling_impulse, ctx.contact_max_normal_impulse, ctx.contact_total_normal_impulse,
                  ctx.contact_relative_velocity, ctx.cons_anchor, ctx.cons_base_separation, ctx.cons_normal_mass,
-                 ctx.cons_tangent_mass, ctx.cons_rolling_mass, ctx.cons_soft)
+                 ctx.cons_tangent_mass, ctx.cons_rolling_mass, ctx.cons_soft, ctx.cons_twist)
 
 
 @njit(cache=True)
