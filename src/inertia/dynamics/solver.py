@@ -254,7 +254,11 @@ def _apply_angular(qd, b, sign, l, ii):
 
 @njit(cache=True)
 def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, twist_radius, cons_twist,
-                   contact_friction, body_inv_inertia_world, body_inv_mass, body_qd, cons_anchor, cons_base_separation, cons_manifold, cons_normal_mass, cons_rolling_mass, cons_soft, cons_tangent_mass, contact_body, contact_max_normal_impulse, contact_normal, contact_point_count, contact_relative_velocity, contact_rolling_friction, contact_tangent, contact_total_normal_impulse):
+                   contact_friction, body_inv_inertia_world, body_inv_mass, body_qd, cons_anchor,
+                   cons_base_separation, cons_manifold, cons_normal_mass, cons_rolling_mass, cons_soft,
+                   cons_tangent_mass, contact_body, contact_max_normal_impulse, contact_normal,
+                   contact_point_count, contact_relative_velocity, contact_rolling_friction, contact_tangent,
+                   contact_total_normal_impulse):
     for c in range(lo, hi):
         i = cons_manifold[c]
         ba, bb = contact_body[i, 0], contact_body[i, 1]
@@ -330,9 +334,14 @@ def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, stat
 
 @njit(cache=True)
 def _prepare_range(ctx, body_q, lo, hi, contact_point, contact_separation, soft, static_soft, twist_radius):
-    _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, twist_radius, ctx.cons_twist,
+    _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, twist_radius,
+                   ctx.cons_twist,
                    ctx.contact_friction,
-                   ctx.body_inv_inertia_world, ctx.body_inv_mass, ctx.body_qd, ctx.cons_anchor, ctx.cons_base_separation, ctx.cons_manifold, ctx.cons_normal_mass, ctx.cons_rolling_mass, ctx.cons_soft, ctx.cons_tangent_mass, ctx.contact_body, ctx.contact_max_normal_impulse, ctx.contact_normal, ctx.contact_point_count, ctx.contact_relative_velocity, ctx.contact_rolling_friction, ctx.contact_tangent, ctx.contact_total_normal_impulse)
+                   ctx.body_inv_inertia_world, ctx.body_inv_mass, ctx.body_qd, ctx.cons_anchor,
+                   ctx.cons_base_separation, ctx.cons_manifold, ctx.cons_normal_mass, ctx.cons_rolling_mass,
+                   ctx.cons_soft, ctx.cons_tangent_mass, ctx.contact_body, ctx.contact_max_normal_impulse,
+                   ctx.contact_normal, ctx.contact_point_count, ctx.contact_relative_velocity,
+                   ctx.contact_rolling_friction, ctx.contact_tangent, ctx.contact_total_normal_impulse)
 
 
 @njit(cache=True, parallel=True)
@@ -582,8 +591,8 @@ def collide(ctx, n_cons, horizon, threshold, iterations):
     """Collision pass before the substeps (Guendelman, Bridson and Fedkiw 2003, section 5): every point
     with restitution e > 0 that approaches faster than ``threshold`` and whose gap closes within the
     ``horizon`` (the step plus one substep: the last relax pass would otherwise start to stop a
-    speculative contact that closes early in the next step, and the bounce would lose that speed) gets the two-body impulse ``-(1 + e) m_n v_n`` from the current velocities, in constraint
-    order; passes repeat (up to ``iterations``) until no point approaches. A touching chain (Newton's
+    speculative contact that closes early in the next step, and the bounce would lose that speed) gets
+    the two-body impulse ``-(1 + e) m_n v_n`` from the current velocities, in constraint order; passes repeat (up to ``iterations``) until no point approaches. A touching chain (Newton's
     cradle) hands the impact on ball by ball within one step, so momentum is conserved exactly and
     energy at e = 1 (each single impulse with e <= 1 never adds energy). Serial: a few restitution
     contacts per step. Returns the number of passes that applied an impulse."""
