@@ -115,6 +115,24 @@ def test_block_stopping_distance():
     assert world.state.body_q[0, 0] == pytest.approx(v0 ** 2 / (2 * mu * G), rel=0.01)
 
 
+def test_spinning_sphere_stops_under_twisting_friction():
+    # a sphere spinning about the vertical on a floor: twisting friction (a patch of radius
+    # twist_radius) gives the torque mu m g twist_radius, so w(t) = w0 - mu m g r_t t / I with
+    # I = 2/5 m r^2, and it stops at w0 I / (mu m g r_t); the sphere does not move sideways
+    r, mu, r_t, w0 = 0.1, 0.6, 0.005, 10.0
+    b = ModelBuilder()
+    b.add_plane(friction=mu)
+    body = b.add_body(position=(0, 0, r), angular_velocity=(0, 0, w0))
+    b.add_sphere(body, r, friction=mu, density=1000.0)
+    world = RigidWorld(b.finalize(), substeps=4, twist_radius=r_t, enable_sleep=False)
+    world.step(30)                                  # 0.5 s
+    decel = mu * G * r_t / (0.4 * r * r)
+    assert world.state.body_qd[0, 2] == pytest.approx(w0 - decel * 0.5, rel=0.01)
+    world.step(60)                                  # past the stop at w0 / decel = 1.36 s
+    assert abs(world.state.body_qd[0, 2]) < 1e-6
+    assert np.linalg.norm(world.state.body_q[0, :2]) < 1e-9
+
+
 def test_bouncing_apex_heights():
     # restitution e: each apex is e^2 times the previous one, h_n = e^(2n) h0. The approach speed is
     # sampled once per substep, so the bounce speed errs by O(g h / v): 1/480 s steps keep the third
