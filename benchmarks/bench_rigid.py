@@ -85,6 +85,7 @@ def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
         world.step()
         per_step.append(time.perf_counter() - t0)
     zmin = float(world.state.body_q[:, 2].min())
+    window_profile = dict(world.profile)
     # rest: until all bodies sleep; the deepest penetration of the last second before that
     last_second, rest_steps, t_rest = [], 0, 0.0
     while world.state.body_awake.any() and (steps + rest_steps) < rest_cap * 60:
@@ -95,7 +96,7 @@ def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
         last_second = (last_second + [world.max_penetration()])[-60:]
     rest = dict(asleep=int((~world.state.body_awake).sum()), t_sleep=(steps + 1 + rest_steps) / 60.0,
                 deepest_at_rest=max(last_second) if last_second else float("nan"),
-                rest_ms_per_s=t_rest / max(rest_steps, 1) * 60e3)
+                rest_ms_per_s=t_rest / max(rest_steps, 1) * 60e3, profile=window_profile)
     return world, np.array(per_step), zmin, rest
 
 
@@ -167,7 +168,7 @@ def main():
             world, per_step, zmin, rest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
             ms_per_s = per_step.sum() / (len(per_step) / 60.0) * 1e3
             results[("inertia", shape)] = ms_per_s
-            prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in world.profile.items())
+            prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in rest["profile"].items())
             depth = (EDGE / 2 if shape == "box" else RAD) - zmin
             print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: "
                   f"{ms_per_s:9.1f} ms per simulated s over 0-3 s ({per_step.mean() * 1e3:.2f} ms per 1/60 s "
