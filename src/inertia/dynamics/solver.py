@@ -456,13 +456,15 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
         # -- Coulomb friction, circular cone at each point
         mu = contact_friction[i]
         for k in range(npts):
+            o1 = tangent_impulse[i, k, 0]
+            o2 = tangent_impulse[i, k, 1]
+            if normal_impulse[i, k] == 0.0 and o1 == 0.0 and o2 == 0.0:
+                continue                     # a speculative point: the cone is a point, nothing changes
             ra = (cons_anchor[c, k, 0, 0], cons_anchor[c, k, 0, 1], cons_anchor[c, k, 0, 2])
             rb = (cons_anchor[c, k, 1, 0], cons_anchor[c, k, 1, 1], cons_anchor[c, k, 1, 2])
             va, wa = _vel(qd, ba)
             vb, wb = _vel(qd, bb)
             dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
-            o1 = tangent_impulse[i, k, 0]
-            o2 = tangent_impulse[i, k, 1]
             n1 = o1 - cons_tangent_mass[c, k, 0] * dot(dv, t1)
             n2 = o2 - cons_tangent_mass[c, k, 1] * dot(dv, t2)
             lim = mu * normal_impulse[i, k]
