@@ -12,6 +12,7 @@ and the same seed always gives the same run.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 import math
 import zlib
@@ -647,8 +648,15 @@ class _Builder:
             if spec.groups is not None:
                 self.check_group_names(spec.groups, f"colliders[{k}].groups", particle_names)
         self.build_colliders()
+        from .rigid_builder import build_rigid
+
+        rigid = build_rigid(m, source=self.source, base_dir=self.base)
+        kwargs = {}
+        if rigid is not None and "model" in inspect.signature(World).parameters:
+            kwargs = dict(model=rigid.model, rigid_options={k: v for k, v in rigid.options.items() if k != "dt"})
         world = World(dt=m.simulation.dt, substeps=m.simulation.substeps,
-                      colliders=[obj for _, obj, _ in self.colliders], name=m.name or "scene")
+                      colliders=[obj for _, obj, _ in self.colliders], name=m.name or "scene", **kwargs)
+        world.rigid_scene = rigid          # the bodies (RigidScene) until World(model=) steps them
         for i, group in enumerate(m.particles):
             self.particle_group(world, i, group, names)
         for i, group in enumerate(m.tracers):

@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
+from .rigid_models import Body, Material, Rigid
 
 __all__ = [
     "FORMAT_VERSION", "INTEGRATORS", "FIRST_ORDER_INTEGRATORS", "SceneModel", "Simulation",
@@ -664,6 +665,9 @@ class SceneModel(_Model):
     fields: dict[str, FieldSpec] = Field(default_factory=dict, description="named vector fields")
     output: Output = Field(default_factory=Output)
     render: Render = Field(default_factory=Render)
+    materials: dict[str, Material] = Field(default_factory=dict, description="named rigid-body materials")
+    bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies (inertia.scene.rigid_models)")
+    rigid: Rigid = Field(default_factory=Rigid, description="rigid-body solver options")
 
     @model_validator(mode="before")
     @classmethod
@@ -686,6 +690,6 @@ class SceneModel(_Model):
 
     @model_validator(mode="after")
     def _names(self):
-        if not self.particles and not self.tracers:
-            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group")
+        if not self.particles and not self.tracers and not self.bodies:
+            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group or [bodies.NAME] table")
         return self
