@@ -1,0 +1,164 @@
+"""Scene-file rigid bodies: syntax, poses, layouts, bad input with key paths, bundled body examples."""
+
+import math
+
+import numpy as np
+import pytest
+
+from inertia.cli.main import bundled_examples
+from inertia.model import ModelBuilder
+from inertia.rigid.world import RigidWorld
+from inertia.scene import read_scene
+from inertia.scene.errors import SceneError
+from inertia.scene.rigid_builder import rigid_world
+
+HEAD = """
+format_version = 1
+[simulation]
+dt = 0.016666666666666666
+duration = 1.0
+fps = 30
+"""
+
+
+def _world(write_scene, text):
+    return rigid_world(read_scene(write_scene(HEAD + text)))
+
+
+def test_scene_body_equals_api_body_bit_for_bit(write_scene):
+    """A box dropped on a plane from a scene file follows the same trajectory as the ModelBuilder one."""
+    w, _ = _world(write_scene, """
+[materials.wood]
+friction = 0.5
+restitution = 0.2
+density = 600.0
+[rigid]
+substeps = 4
+[bodies.ground]
+motion = "static"
+material = "wood"
+shape = { type = "plane" }
+[bodies.crate]
+shape = { type = "box", half_extents = [0.1, 0.2, 0.3] }
+material = "wood"
+position = [0.0, 0.0, 1.0]
+rotation = { axis = [1, 0, 0], degrees = 30 }
+velocity = [0.5, 0.0, 0.0]
+""")
+    b = ModelBuilder()
+    b.add_material("wood", friction=0.5, restitution=0.2, density=600.0)
+    b.add_plane(material="wood")
+    body = b.add_body(position=(0, 0, 1), orientation=(math.cos(math.pi / 12), math.sin(math.pi / 12), 0, 0),
+                      linear_velocity=(0.5, 0, 0))
+    b.add_box(body, (0.1, 0.2, 0.3), material="wood")
+    ref = RigidWorld(b.finalize(), dt=1 / 60, substeps=4)
+    np.testing.assert_allclose(w.model.body_mass, [600.0 * 0.2 * 0.4 * 0.6], rtol=1e-12)
+    for _ in range(60):
+        w.step()
+        ref.step()
+    np.testing.assert_array_equal(w.state.body_q, ref.state.body_q)
+    assert w.state.body_q[0, 2] < 0.4          # it fell onto the ground
+
+
+def test_rotation_forms_agree(write_scene):
+    """axis-angle, Euler and quaternion forms of a 90 degree turn about z give the same orientation."""
+    h = math.sqrt(0.5)
+    qs = []
+    for rot in ("{ axis = [0, 0, 2], degrees = 90 }", "{ euler_degrees = [0, 0, 90] }",
+                f"{{ quaternion = [{h!r}, 0, 0, {h!r}] }}"):
+        w, _ = _world(write_scene, f"""
+[bodies.rod]
+shape = {{ type = "box", half_extents = [0.3, 0.1, 0.05] }}
+rotation = {rot}
+""")
+        qs.append(w.state.body_q[0].copy())
+    for q in qs[1:]:
+        np.testing.assert_allclose(np.abs(q[3:] @ qs[0][3:]), 1.0, atol=1e-12)
+    # the box's long side (local x, the smallest principal moment) now lies along world y
+    q = qs[0][3:]
+    x_axis = np.array([1 - 2 * (q[2] ** 2 + q[3] ** 2), 2 * (q[1] * q[2] + q[0] * q[3]), 2 * (q[1] * q[3] - q[0] * q[2])])
+    assert abs(abs(x_axis[1]) - 1.0) < 1e-9 or abs(abs(x_axis[0]) - 1.0) < 1e-9
+
+
+def test_layouts_count_and_names(write_scene):
+    w, rs = _world(write_scene, """
+[bodies.wall]
+shape = { type = "box", half_extents = [0.1, 0.1, 0.1] }
+pyramid = { base = 5, spacing = [0.2, 0.2] }
+[bodies.pyr]
+shape = { type = "box", half_extents = [0.1, 0.1, 0.1] }
+position = [3, 0, 0.1]
+pyramid = { base = 4, spacing = [0.2, 0.2], square = true }
+[bodies.grid]
+mix = [{ type = "sphere", radius = 0.05 }, { type = "capsule", radius = 0.03, half_length = 0.05 }]
+position = [-3, 0, 1]
+array = { count = [3, 2, 2], spacing = [0.2, 0.2, 0.2] }
+[bodies.compound]
+shapes = [{ type = "sphere", radius = 0.1, position = [0, 0, 0.2] }, { type = "sphere", radius = 0.1, position = [0, 0, -0.2] }]
+position = [0, 5, 1]
+""")
+    m = w.model
+    assert m.body_count == 15 + (16 + 9 + 4 + 1) + 12 + 1
+    assert m.body_name[0] == "wall[0]" and m.body_name[-1] == "compound"
+    # square pyramid: top box above the base centre, layers 0.2 apart
+    top = m.body_name.index("pyr[29]")
+    np.testing.assert_allclose(w.state.body_q[top, :3], [3, 0, 0.1 + 3 * 0.2], atol=1e-12)
+    # mix alternates sphere / capsule; the compound's centre of mass is midway between its spheres
+    first = m.body_name.index("grid[0]")
+    kinds = [int(m.shape_type[np.flatnonzero(m.shape_body == first + k)[0]]) for k in range(4)]
+    assert kinds == [0, 2, 0, 2]
+    np.testing.assert_allclose(w.state.body_q[-1, :3], [0, 5, 1], atol=1e-12)
+    assert rs.body_colors.shape == (m.body_count, 3)
+
+
+@pytest.mark.parametrize("text, path, words", [
+    ('[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\nmaterial = "stel"\n[materials.steel]\nfriction = 0.3\n',
+     "bodies.a.material", ["'stel'", "steel", "default"]),
+    ('[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\nrotation = { quaternion = [1, 1, 0, 0] }\n',
+     "bodies.a.rotation", ["unit quaternion"]),
+    ('[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\nrotation = { quaternion = [0, 0, 0, 0] }\n',
+     "bodies.a.rotation", ["unit quaternion"]),
+    ('[bodies.a]\nshape = { type = "sphere", radius = -0.1 }\n', "bodies.a.shape.radius", ["must be > 0"]),
+    ('[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\ndensity = 0\n', "bodies.a.density", ["must be > 0"]),
+    ('[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\nmass = -1\n', "bodies.a.mass", ["must be > 0"]),
+    ('[bodies.a]\nshape = { type = "plane" }\n', "bodies.a.shape.type", ["static or kinematic"]),
+    ('[bodies.a]\nshape = { type = "hull", points = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]] }\n',
+     "bodies.a.shape", ["coplanar"]),
+    ('[bodies.a]\nshape = { type = "cone", radius = 0.1 }\n', "bodies.a.shape", ["sphere", "heightfield"]),
+    ('[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\nmaterial = "x"\n[materials.x]\nfriction = -1\n',
+     "materials.x.friction", ["must be >= 0"]),
+])
+def test_bad_bodies_name_the_key_path(write_scene, text, path, words):
+    with pytest.raises(SceneError) as info:
+        _world(write_scene, text)
+    message = str(info.value)
+    assert f"{path}:" in message or f"{path} " in message, message
+    for w in words:
+        assert w in message, message
+
+
+BODY_EXAMPLES = ["box_pyramid", "dominoes", "pile", "marbles"]
+
+
+@pytest.mark.parametrize("name", BODY_EXAMPLES)
+def test_body_example_validates_and_steps(name):
+    """Each bundled body example builds and steps without diverging; nothing starts overlapping."""
+    # serial kernels: the pile's 1000 bodies would otherwise compile the parallel set (~60 s cold)
+    w, _ = rigid_world(read_scene(bundled_examples()[name]), parallel=False)
+    q0 = w.state.body_q.copy()
+    w.step(3)
+    assert np.all(np.isfinite(w.state.body_q))
+    assert w.max_penetration() < 5e-3
+    assert not w.initial_overlaps, w.initial_overlaps[:3]
+    moved = np.abs(w.state.body_q[:, :3] - q0[:, :3]).max()
+    assert moved < 1.0                     # 3 steps of 1/60 s: nothing flew off
+
+
+def test_dominoes_all_fall(tmp_path):
+    """The ball knocks over every domino of the bundled row within 3 s (each tips past 45 degrees)."""
+    w, _ = rigid_world(read_scene(bundled_examples()["dominoes"]))
+    dominoes = [i for i, n in enumerate(w.model.body_name) if n.startswith("domino")]
+    w.step(180)
+    q = w.state.body_q[dominoes, 3:]
+    up_z = 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2)      # z component of each domino's local z axis
+    assert np.all(up_z < math.cos(math.radians(45))), up_z
