@@ -106,3 +106,19 @@ def test_usd_body_transform_matches_body_q(tmp_path):
         q = qs[k][0]
         expected = q[:3] + Rotation.from_quat([q[4], q[5], q[6], q[3]]).apply([0.1, 0.2, 0.3])
         np.testing.assert_allclose(world_corner[:3], expected, atol=1e-6)
+
+
+def test_output_keys_write_body_exports(tmp_path):
+    """[output] obj / usd write the body files when the state file recorded body_q and the shape table."""
+    pytest.importorskip("pxr")
+    from types import SimpleNamespace
+
+    from inertia.cli.outputs import write_outputs
+    from inertia.io.obj import model_arrays
+
+    model, qs = _run(3)
+    states = SimpleNamespace(fps=10.0, frame_count=len(qs), particle_count=0, dim=3,
+                             fields={"body_q": qs}, model=model_arrays(model))
+    written = write_outputs(states, tmp_path, {"video": [], "plot": False, "obj": True, "usd": True})
+    assert sorted(written) == ["obj", "usd_bodies"]
+    assert len(list((tmp_path / "obj").glob("*.obj"))) == 3 and (tmp_path / "bodies.usdc").is_file()

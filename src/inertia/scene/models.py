@@ -613,7 +613,8 @@ class Output(_Model):
     frames: bool = Field(False, description="PNG image of every frame")
     plot: bool = Field(True, description="energy and momentum over time (PNG)")
     ply: bool = Field(False, description="PLY point file of every frame")
-    usd: bool = Field(False, description="animated USD points (.usdc)")
+    usd: bool = Field(False, description="animated USD points (.usdc); rigid bodies as animated transforms (bodies.usdc)")
+    obj: bool = Field(False, description="OBJ mesh of the rigid bodies per frame (obj/frame_NNNNN.obj)")
     checkpoint_interval: PositiveFloat = Field(10.0, description="wall-clock seconds between checkpoints")
 
     @field_validator("directory")

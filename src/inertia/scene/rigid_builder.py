@@ -155,7 +155,7 @@ class _RigidBuilder:
         options = dict(substeps=rig.substeps, contact_hertz=rig.contact_hertz,
                        contact_damping_ratio=rig.contact_damping_ratio,
                        restitution_threshold=rig.restitution_threshold, enable_sleep=rig.sleep,
-                       dt=rig.dt if rig.dt is not None else self.m.simulation.dt)
+                       dt=self.m.simulation.dt)
         return RigidScene(model, options, np.asarray(body_colors, np.float32).reshape(-1, 3),
                           np.asarray(shape_colors, np.float32).reshape(-1, 3))
 

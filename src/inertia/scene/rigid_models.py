@@ -261,7 +261,6 @@ class Body(_Model):
 class Rigid(_Model):
     """Solver options (inertia.rigid.world.RigidWorld)."""
 
-    dt: Positive | None = Field(None, description="rigid step (s); default: simulation.dt")
     substeps: Annotated[int, Field(ge=1, le=256)] = 8
     contact_hertz: Positive = 60.0
     contact_damping_ratio: NonNegative = 10.0
