@@ -162,3 +162,16 @@ def test_dominoes_all_fall(tmp_path):
     q = w.state.body_q[dominoes, 3:]
     up_z = 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2)      # z component of each domino's local z axis
     assert np.all(up_z < math.cos(math.radians(45))), up_z
+
+
+def test_resources_count_bodies_and_refuse_huge_arrays(write_scene):
+    from inertia.scene.resources import BYTES_PER_BODY, SECONDS_PER_BODY_SUBSTEP, estimate_resources
+
+    model = read_scene(bundled_examples()["box_pyramid"]).model
+    est = estimate_resources(model)
+    assert est.items["bodies.box.pyramid.base"][0] == 204 * BYTES_PER_BODY      # 8^2 + 7^2 + ... + 1
+    steps = round(model.simulation.duration / model.simulation.dt)
+    assert est.seconds >= steps * model.rigid.substeps * 204 * SECONDS_PER_BODY_SUBSTEP
+    with pytest.raises(SceneError, match=r"bodies\.big: .*1,000,000 bodies"):
+        read_scene(write_scene(HEAD + '[bodies.big]\nshape = { type = "sphere", radius = 0.1 }\n'
+                                      'array = { count = [100, 100, 100], spacing = [1, 1, 1] }\n'))

@@ -45,6 +45,9 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+#: Most bodies one [bodies.NAME] table may make (the solver is far from real time beyond ~10^4).
+MAX_COPIES = 100_000
+
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3, description="a 3-D vector")]
 Point3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
@@ -252,10 +255,23 @@ class Body(_Model):
             raise ValueError("mix needs array or pyramid (it picks a shape per copy)")
         if self.array is not None and self.pyramid is not None:
             raise ValueError("give array or pyramid, not both")
+        if self.copies > MAX_COPIES:
+            raise ValueError(f"array/pyramid makes {self.copies:,} bodies; at most {MAX_COPIES:,} per table")
         if self.color is not None and (len(self.color) != 7 or self.color[0] != "#"
                                        or any(c not in "0123456789abcdefABCDEF" for c in self.color[1:])):
             raise ValueError(f"color must be '#rrggbb'; got {self.color!r}")
         return self
+
+
+    @property
+    def copies(self) -> int:
+        """How many bodies this table makes."""
+        if self.array is not None:
+            return math.prod(self.array.count)
+        if self.pyramid is not None:
+            n = self.pyramid.base
+            return n * (n + 1) * (2 * n + 1) // 6 if self.pyramid.square else n * (n + 1) // 2
+        return 1
 
 
 class Rigid(_Model):
