@@ -202,3 +202,31 @@ position = [{0.1 * s!r}, 0.0, {0.1 * c!r}]
         ts.append(w.state.time)
     a = np.polyfit(np.array(ts[10:]), np.array(xs[10:]), 2)[0] * 2
     assert a == pytest.approx(5 / 7 * 9.81 * s, rel=0.01)
+
+
+def test_kinematic_body_moves_with_its_velocity_and_static_bodies_are_world_shapes(write_scene):
+    """A kinematic paddle keeps x(t) = x0 + v t exactly (no gravity, no contact response); a static
+    body's rotated box becomes a world shape (body -1) at its world pose."""
+    w, _ = _world(write_scene, """
+[bodies.paddle]
+motion = "kinematic"
+shape = { type = "box", half_extents = [0.5, 0.1, 0.05] }
+position = [0.0, 0.0, 1.0]
+velocity = [0.5, -0.25, 0.0]
+[bodies.shelf]
+motion = "static"
+shape = { type = "box", half_extents = [1.0, 0.2, 0.05], position = [0.0, 0.0, 0.1] }
+position = [2.0, 0.0, 0.5]
+rotation = { axis = [0, 1, 0], degrees = 90 }
+""")
+    assert w.model.body_count == 1 and int(w.model.shape_body[1]) == -1
+    # local (0, 0, 0.1) turned 90 degrees about y -> (0.1, 0, 0), added to (2, 0, 0.5)
+    np.testing.assert_allclose(w.model.shape_local_pose[1, :3], [2.1, 0.0, 0.5], atol=1e-12)
+    w.step(30)
+    np.testing.assert_allclose(w.state.body_q[0, :3], [0.25, -0.125, 1.0], atol=1e-12)
+
+
+def test_bodies_need_a_3d_scene(write_scene):
+    text = HEAD.replace("fps = 30", "fps = 30\ndim = 2") + '[bodies.a]\nshape = { type = "sphere", radius = 0.1 }\n'
+    with pytest.raises(SceneError, match=r"bodies: rigid bodies need a 3-D scene"):
+        rigid_world(read_scene(write_scene(text)))
