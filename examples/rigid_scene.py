@@ -18,7 +18,7 @@ import numpy as np
 from inertia.cli.main import bundled_examples
 from inertia.io import write_obj_sequence, write_usd_bodies
 from inertia.scene import read_scene
-from inertia.scene.rigid_builder import rigid_world
+from inertia.scene.rigid_builder import rigid_world, step_scene
 
 
 def main(argv=None):
@@ -34,7 +34,7 @@ def main(argv=None):
     steps_per_frame = max(1, round(1.0 / (args.fps * world.dt)))
     frames = [world.state.body_q.copy()]
     for _ in range(int(args.seconds * args.fps)):
-        world.step(steps_per_frame)
+        step_scene(world, rigid, steps_per_frame)    # runs [vehicles] scripts before each step
         frames.append(world.state.body_q.copy())
     frames = np.array(frames)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -137,7 +137,7 @@ def test_bad_bodies_name_the_key_path(write_scene, text, path, words):
         assert w in message, message
 
 
-BODY_EXAMPLES = ["box_pyramid", "dominoes", "pile", "marbles"]
+BODY_EXAMPLES = ["box_pyramid", "dominoes", "pile", "marbles", "vehicle_terrain"]
 
 
 @pytest.mark.parametrize("name", BODY_EXAMPLES)
@@ -257,3 +257,33 @@ position = [0.2, 0.1, 0.6]
     ball = w.model.body_name.index("ball")
     w.step(120)
     assert abs(w.state.body_q[ball, 2] - 0.4) < 5.7e-4
+
+
+def test_vehicle_terrain_follows_its_script():
+    """The bundled car: 250 N m on two rear wheels of r = 0.35 m accelerate m = 1000 kg (+ 2 I / r^2 of wheel
+    spin inertia) at a = 2 T / (r (m + 2 I / r^2)) = 1.40 m/s^2; the terrain's slope along the first metre
+    is under 3 %, so v(1 s) = a t within g 0.03 t = 0.3 m/s. Brakes from 6 s stop it within a second."""
+    from inertia.scene.rigid_builder import step_scene
+
+    w, rs = rigid_world(read_scene(bundled_examples()["vehicle_terrain"]))
+    car = rs.controllers[0].vehicle
+    step_scene(w, rs, 60)
+    a = 2 * 250.0 / (0.35 * (1000.0 + 2 * 1.2 / 0.35 ** 2))
+    assert abs(np.linalg.norm(w.state.body_qd[0, 3:]) - a * 1.0) < 9.81 * 0.03
+    assert car.wheel_in_contact.all() and car.engine_torque == 250.0
+    step_scene(w, rs, 5 * 60 + 1)                               # the step from t = 6 s: brakes applied
+    assert car.engine_torque == 0.0 and car.brake_torque == 800.0
+    assert np.linalg.norm(w.state.body_qd[0, 3:]) > 2.0
+    step_scene(w, rs, 60)
+    assert np.linalg.norm(w.state.body_qd[0, 3:]) < 0.2
+
+
+def test_vehicle_bad_chassis_names_the_key(write_scene):
+    with pytest.raises(SceneError, match=r"vehicles\.v\.chassis: no body named 'cra'; did you mean 'car'"):
+        _world(write_scene, """
+[bodies.car]
+shape = { type = "box", half_extents = [1, 0.5, 0.2] }
+[vehicles.v]
+chassis = "cra"
+wheels = [{ hardpoint = [1, 0, -0.2] }]
+""")

@@ -34,7 +34,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
-from .rigid_models import Body, Material, Rigid
+from .rigid_models import Body, Material, Rigid, Vehicle
 
 __all__ = [
     "FORMAT_VERSION", "INTEGRATORS", "FIRST_ORDER_INTEGRATORS", "SceneModel", "Simulation",
@@ -669,6 +669,7 @@ class SceneModel(_Model):
     materials: dict[str, Material] = Field(default_factory=dict, description="named rigid-body materials")
     bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies (inertia.scene.rigid_models)")
     rigid: Rigid = Field(default_factory=Rigid, description="rigid-body solver options")
+    vehicles: dict[str, Vehicle] = Field(default_factory=dict, description="ray-cast vehicles on bodies")
 
     @model_validator(mode="before")
     @classmethod

@@ -21,7 +21,7 @@ from ..geometry import shapes as S
 from . import rigid_models as R
 from .errors import Issue, SceneError, did_you_mean
 
-__all__ = ["RigidScene", "build_rigid", "rigid_world", "body_copies"]
+__all__ = ["RigidScene", "VehicleController", "build_rigid", "rigid_world", "step_scene", "body_copies"]
 
 
 @dataclasses.dataclass
@@ -30,6 +30,41 @@ class RigidScene:
     options: dict                  # RigidWorld keyword arguments
     body_colors: np.ndarray        # (B, 3) float32 in 0..1 (NaN where the scene gives none)
     shape_colors: np.ndarray       # (S, 3) float32 in 0..1 (NaN where none)
+    vehicles: dict = dataclasses.field(default_factory=dict)   # name -> (chassis body index, R.Vehicle)
+    controllers: list = dataclasses.field(default_factory=list)  # VehicleController, made by attach()
+
+    def attach(self, world) -> "RigidScene":
+        """Make the vehicles' controllers for a RigidWorld stepping this model (call once)."""
+        self.controllers = [VehicleController(world, chassis, spec) for chassis, spec in self.vehicles.values()]
+        return self
+
+    def before_step(self, time: float) -> None:
+        """Apply every vehicle's script at ``time`` (s) and compute its wheel forces for the next step."""
+        for c in self.controllers:
+            c(time)
+
+
+class VehicleController:
+    """A `RaycastVehicle` driven by its scene script (piecewise constant rows)."""
+
+    def __init__(self, world, chassis: int, spec: R.Vehicle):
+        from ..rigid.vehicle import RaycastVehicle, Wheel
+
+        wheels = [Wheel(tuple(w.hardpoint), rest_length=w.rest_length, radius=w.radius, stiffness=w.stiffness,
+                        damping=w.damping, friction=w.friction, inertia=w.inertia, steered=w.steered,
+                        driven=w.driven) for w in spec.wheels]
+        self.vehicle = RaycastVehicle(world, chassis, wheels)
+        self.script = spec.script
+        self._next = 0
+
+    def __call__(self, time: float) -> None:
+        while self._next < len(self.script) and self.script[self._next].time <= time + 1e-12:
+            row = self.script[self._next]
+            for key in ("engine_torque", "steering", "brake_torque"):
+                if getattr(row, key) is not None:
+                    setattr(self.vehicle, key, float(getattr(row, key)))
+            self._next += 1
+        self.vehicle.update()
 
 
 def _hex(color):
@@ -152,12 +187,23 @@ class _RigidBuilder:
                     shape_colors.extend([color] * (len(b._shapes) - n_before))
         with self.at("bodies"):
             model = b.finalize()
+        vehicles = {}
+        for vname, spec in self.m.vehicles.items():
+            path = f"vehicles.{vname}.chassis"
+            body = self.m.bodies.get(spec.chassis)
+            if body is None:
+                self.fail(path, f"no body named {spec.chassis!r}{did_you_mean(spec.chassis, list(self.m.bodies), show_allowed=False)}; "
+                                f"bodies: {', '.join(self.m.bodies) or 'none'}")
+            if body.copies != 1 or body.motion != "dynamic":
+                self.fail(path, f"the chassis must be one dynamic body (bodies.{spec.chassis} makes {body.copies} "
+                                f"{body.motion} bodies)")
+            vehicles[vname] = (model.body_name.index(spec.chassis), spec)
         options = dict(substeps=rig.substeps, contact_hertz=rig.contact_hertz,
                        contact_damping_ratio=rig.contact_damping_ratio,
                        restitution_threshold=rig.restitution_threshold, enable_sleep=rig.sleep,
                        dt=self.m.simulation.dt)
         return RigidScene(model, options, np.asarray(body_colors, np.float32).reshape(-1, 3),
-                          np.asarray(shape_colors, np.float32).reshape(-1, 3))
+                          np.asarray(shape_colors, np.float32).reshape(-1, 3), vehicles)
 
     def add_shape(self, b, bi, spec, path, body, world_pos, world_q):
         """Add one shape spec; ``world_pos``/``world_q`` given for static bodies (shapes on body -1)."""
@@ -245,10 +291,22 @@ def build_rigid(scene_model, *, source=None, base_dir=None) -> RigidScene | None
 def rigid_world(scene, **overrides):
     """Adapter: a `RigidWorld` stepping the bodies of a loaded `Scene` (``inertia.scene.read_scene``).
 
-    Returns (world, RigidScene). To be replaced by ``World(model=..., rigid_options=...)`` in the coupled world."""
+    Returns (world, RigidScene). To be replaced by ``World(model=..., rigid_options=...)`` in the coupled world.
+    Scenes with ``[vehicles]`` need ``rs.before_step(world.state.time)`` before each ``world.step()``
+    (`step_scene` does both)."""
     from ..rigid.world import RigidWorld
 
     rs = build_rigid(scene.model, source=scene.path, base_dir=scene.base_dir)
     if rs is None:
         raise SceneError(scene.path, [Issue("bodies", "the scene has no [bodies.NAME] tables")])
-    return RigidWorld(rs.model, **{**rs.options, **overrides}), rs
+    world = RigidWorld(rs.model, **{**rs.options, **overrides})
+    with _RigidBuilder(scene.model, scene.path, scene.base_dir).at("vehicles"):
+        rs.attach(world)
+    return world, rs
+
+
+def step_scene(world, rs: RigidScene, steps: int = 1) -> None:
+    """Step a scene's RigidWorld ``steps`` times, running its vehicle scripts before each step."""
+    for _ in range(int(steps)):
+        rs.before_step(world.state.time)
+        world.step()

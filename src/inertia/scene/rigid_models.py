@@ -284,3 +284,41 @@ class Rigid(_Model):
     sleep: bool = True
     gravity: Vec3 = Field(default_factory=lambda: [0.0, 0.0, -9.81])
     margin: NonNegative = Field(0.02, description="speculative contact margin (m)")
+
+
+class WheelSpec(_Model):
+    """One ray-cast wheel (inertia.rigid.vehicle.Wheel): ``hardpoint`` in the chassis frame (m)."""
+
+    hardpoint: Vec3
+    rest_length: Positive = 0.3
+    radius: Positive = 0.35
+    stiffness: Positive = Field(30000.0, description="N/m")
+    damping: NonNegative = Field(3000.0, description="N s/m")
+    friction: NonNegative = 1.0
+    inertia: Positive = Field(1.2, description="spin inertia (kg m^2)")
+    steered: bool = False
+    driven: bool = False
+
+
+class ControlRow(_Model):
+    """From ``time`` on (s), the keys given hold until a later row changes them."""
+
+    time: NonNegative
+    engine_torque: float | None = Field(None, description="N m on each driven wheel")
+    steering: float | None = Field(None, description="rad, + = left")
+    brake_torque: NonNegative | None = Field(None, description="N m on every wheel")
+
+
+class Vehicle(_Model):
+    """A ray-cast vehicle (inertia.rigid.vehicle.RaycastVehicle) on a dynamic body, driven by a script."""
+
+    chassis: str = Field(description="name of a [bodies.NAME] table making one dynamic body")
+    wheels: Annotated[list[WheelSpec], Field(min_length=1)]
+    script: list[ControlRow] = Field(default_factory=list, description="rows in increasing time")
+
+    @model_validator(mode="after")
+    def _sorted(self):
+        times = [r.time for r in self.script]
+        if times != sorted(times):
+            raise ValueError(f"script rows must be in increasing time; got times {times}")
+        return self
