@@ -116,3 +116,58 @@ def test_hull_body_takes_the_polyhedral_mass_properties():
     assert model.body_inertia[0] == pytest.approx([m * a * a / 6] * 3, rel=1e-9)
     state = model.state()
     assert state.body_q[0, :3] == pytest.approx([a / 2, a / 2, 1.0 + a / 2], abs=1e-12)
+
+
+# ---- one shape table: particle colliders as rows (model.with_colliders) ---------------------------
+def test_collider_rows_reproduce_the_colliders_geometry():
+    # each collider's rows, posed by the table, give the same signed distance as the collider itself
+    import inertia as ia
+    from inertia.collision.shapes import BodyShape
+    from inertia.model import with_colliders
+    cols = [ia.colliders.Sphere(center=(0.3, 0.1, 0.2), radius=0.25),
+            ia.colliders.Box(center=(-1.0, 0.5, 0.3), half_extents=(0.2, 0.3, 0.4), rotation=(0.3, -0.2, 0.5)),
+            ia.colliders.Capsule(a=(0.0, 0.0, 0.0), b=(0.4, 0.3, 0.2), radius=0.1),
+            ia.colliders.Cylinder(center=(1.0, -1.0, 0.0), radius=0.3, half_height=0.2, axis=(1.0, 1.0, 0.0)),
+            ia.colliders.Plane(point=(0.0, 0.0, -0.5), normal=(0.2, 0.1, 1.0))]
+    model = with_colliders(None, cols)
+    assert list(model.shape_type) == [0, 1, 2, 3, 6] and list(model.shape_source) == [0, 1, 2, 3, 4]
+    pts = np.random.default_rng(0).uniform(-1.5, 1.5, (200, 3))
+    for s, col in enumerate(cols):
+        row = BodyShape(model, s)
+        np.testing.assert_allclose(row.signed_distance(pts), col.signed_distance(pts), atol=1e-12)
+
+
+def test_a_plane_collider_is_ground_for_bodies_and_a_moving_box_collider_pushes_them():
+    # one table: the rigid world sees the particle colliders. A ball dropped on an ia.colliders.Plane
+    # rests on it at its radius; a box collider with a Motion (a kinematic body carrying the motion's
+    # velocity) sweeps a resting ball along +x at its own speed, 0.5 m/s.
+    import inertia as ia
+    from inertia.world import World
+    b = ModelBuilder()
+    ball = b.add_body(position=(0.0, 0.0, 0.3))
+    b.add_sphere(ball, 0.1, friction=0.0)
+    pusher = ia.colliders.Box(center=(-0.4, 0.0, 0.1), half_extents=(0.1, 0.3, 0.1),
+                              motion=lambda t: (-0.4 + 0.5 * t, 0.0, 0.1))
+    world = World(dt=1 / 60, colliders=[ia.colliders.Plane(), pusher], model=b.finalize(),
+                  rigid_options={"substeps": 4, "contact_hertz": 120.0})
+    assert world.model.body_count == 2 and world.model.body_type[1] == 2 - 1   # kinematic
+    for _ in range(30):
+        world.step()
+    q = world.rigid.state.body_q
+    assert q[ball, 2] == pytest.approx(0.1, abs=2e-3)
+    assert q[1, 0] == pytest.approx(-0.4 + 0.5 * 0.5, abs=1e-12)             # the pusher follows its motion
+    for _ in range(60):
+        world.step()
+    assert world.rigid.state.body_qd[ball, 3] == pytest.approx(0.5, rel=0.05)
+    assert q[ball, 0] == pytest.approx(q[1, 0] + 0.2, abs=5e-3)              # touching the pusher's face
+
+
+def test_a_lone_particle_system_owns_a_small_shape_table():
+    import inertia as ia
+    from inertia.geometry import shapes as S
+    ps = ia.ParticleSystem(np.zeros((1, 3)))
+    ps.add_collider(ia.colliders.Plane())
+    ps.add_collider(ia.colliders.Container(half_extents=(1.0, 1.0, 1.0)))
+    table = ps._collision.shape_table()
+    assert list(table.shape_type) == [S.PLANE] * 7 and list(table.shape_source) == [0] + [1] * 6
+    assert table.body_count == 0

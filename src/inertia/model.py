@@ -515,3 +515,136 @@ class ModelBuilder:
         model._initial_q = q0
         model._initial_qd = qd0
         return model
+
+
+# ---------------------------------------------------------------------------------------------------
+# one shape table: particle colliders as rows (static on body -1, moving ones on kinematic bodies)
+# ---------------------------------------------------------------------------------------------------
+def empty_model(gravity=(0.0, 0.0, -9.81)) -> Model:
+    """A Model with no bodies and no shapes (the start of a table that colliders are appended to)."""
+    return ModelBuilder(gravity=gravity).finalize()
+
+
+def with_colliders(model: Model | None, colliders, *, margin: float = 0.02, friction: float = 0.6,
+                   restitution: float = 0.0) -> Model:
+    """A new Model: `model`'s bodies and shapes, then the shape rows of the 3-D `colliders`
+    (``Collider.shape_rows``) appended.
+
+    A static collider's rows sit on body -1 (world pose = its rest pose); a moving one (``motion``)
+    gets a kinematic body named ``collider<i>`` whose pose is the collider's ``pose(t)`` (the world's
+    kinematics stage writes ``body_q`` and ``body_qd`` from it each step). New columns:
+    ``shape_source (S,) int32`` (the index in `colliders` a row came from, -1 for the builder's shapes)
+    and ``body_source (B,) int32`` (same for bodies). Rows get ``margin``, ``friction`` and
+    ``restitution`` (the rigid material; particles use the values given to ``add_collider``).
+    Colliders of another dimension than 3 are skipped (the shape table is 3-D).
+    """
+    from .geometry.trimesh_collide import mesh_soup
+    from .math import mat3_to_quat as _m2q
+
+    base = empty_model() if model is None else model
+    nb0, ns0 = base.body_count, base.shape_count
+    bodies, shapes = [], []
+    for ci, col in enumerate(colliders):
+        if getattr(col, "dim", 3) != 3:
+            continue
+        rows = col.shape_rows()
+        if col.moving:
+            p, r = col.pose(0.0)
+            bodies.append(dict(q=np.concatenate([p, _m2q(np.ascontiguousarray(r))]), source=ci,
+                               name=f"collider{ci}", rows=rows))
+            body = nb0 + len(bodies) - 1
+        else:
+            body = -1
+        for row in rows:
+            pose = np.array(row["pose"], dtype=np.float64)
+            if body < 0:
+                pose[:3] += col._ref
+            verts, bvh = None, None
+            if row["type"] == S.TRIANGLE_MESH:
+                try:
+                    verts, bvh = mesh_soup(row["vertices"], row["triangles"])
+                except ValueError:     # e.g. zero-area triangles: particles only (an SDF-type row)
+                    row = dict(row, type=S.SDF)
+            shapes.append(dict(type=int(row["type"]), body=body, pose=pose, params=np.asarray(row["params"], float),
+                               verts=verts, bvh=bvh, source=ci))
+    nb, ns = nb0 + len(bodies), ns0 + len(shapes)
+
+    def grow(name, extra, dtype=None):
+        old = getattr(base, name)
+        extra = np.asarray(extra, dtype=old.dtype if dtype is None else dtype).reshape((-1,) + old.shape[1:])
+        return np.concatenate([old, extra])
+
+    kb = len(bodies)
+    arrays = {}
+    arrays["body_type"] = grow("body_type", [S.KINEMATIC] * kb)
+    for name in ("body_mass", "body_inv_mass", "body_linear_damping", "body_angular_damping"):
+        arrays[name] = grow(name, np.zeros(kb))
+    for name in ("body_inertia", "body_inv_inertia"):
+        arrays[name] = grow(name, np.zeros((kb, 3)))
+    arrays["body_com_pose"] = grow("body_com_pose", np.tile([0.0, 0, 0, 1, 0, 0, 0], (kb, 1)))
+    arrays["body_name"] = list(base.body_name) + [b["name"] for b in bodies]
+    arrays["body_source"] = np.concatenate([getattr(base, "body_source", np.full(nb0, -1, np.int32)),
+                                            np.array([b["source"] for b in bodies], np.int32)]).astype(np.int32)
+    # shapes
+    vstart, vcount, verts = [], [], []
+    nverts = len(base.geom_vertices)
+    bvh_start, bvh_b, bvh_n = [], [base.geom_bvh_bounds], [base.geom_bvh_nodes]
+    nnodes = len(base.geom_bvh_nodes)
+    for sh in shapes:
+        if sh["verts"] is not None:
+            vstart.append(nverts)
+            vcount.append(len(sh["verts"]))
+            verts.append(sh["verts"])
+            nverts += len(sh["verts"])
+        else:
+            vstart.append(0)
+            vcount.append(0)
+        if sh["bvh"] is not None:
+            bvh_start.append(nnodes)
+            bvh_b.append(sh["bvh"][0])
+            bvh_n.append(sh["bvh"][1])
+            nnodes += len(sh["bvh"][1])
+        else:
+            bvh_start.append(-1)
+    k = len(shapes)
+    arrays["shape_type"] = grow("shape_type", [sh["type"] for sh in shapes])
+    arrays["shape_body"] = grow("shape_body", [sh["body"] for sh in shapes])
+    arrays["shape_local_pose"] = grow("shape_local_pose", [sh["pose"] for sh in shapes])
+    arrays["shape_params"] = grow("shape_params", [sh["params"] for sh in shapes])
+    arrays["shape_margin"] = grow("shape_margin", np.full(k, float(margin)))
+    arrays["shape_friction"] = grow("shape_friction", np.full(k, float(friction)))
+    arrays["shape_restitution"] = grow("shape_restitution", np.full(k, float(restitution)))
+    arrays["shape_rolling_friction"] = grow("shape_rolling_friction", np.zeros(k))
+    arrays["shape_density"] = grow("shape_density", np.zeros(k))
+    arrays["shape_group"] = grow("shape_group", np.ones(k))
+    arrays["shape_mask"] = grow("shape_mask", np.full(k, -1))
+    arrays["shape_is_sensor"] = grow("shape_is_sensor", np.zeros(k, bool))
+    arrays["shape_vert_start"] = grow("shape_vert_start", vstart)
+    arrays["shape_vert_count"] = grow("shape_vert_count", vcount)
+    arrays["geom_vertices"] = np.concatenate([base.geom_vertices] + verts) if verts else base.geom_vertices.copy()
+    arrays["geom_bvh_bounds"] = np.concatenate(bvh_b)
+    arrays["geom_bvh_nodes"] = np.concatenate(bvh_n)
+    arrays["shape_bvh_start"] = grow("shape_bvh_start", bvh_start)
+    arrays["shape_source"] = np.concatenate([getattr(base, "shape_source", np.full(ns0, -1, np.int32)),
+                                             np.array([sh["source"] for sh in shapes], np.int32)]).astype(np.int32)
+    # bounding radius of the new kinematic bodies (finite shapes; planes are unbounded and skipped)
+    bound = np.zeros(kb)
+    for sh in shapes:
+        if sh["body"] >= nb0 and sh["type"] != S.PLANE:
+            p = sh["params"]
+            ext = {S.SPHERE: p[0], S.BOX: float(np.linalg.norm(p[:3])), S.CAPSULE: p[0] + p[1],
+                   S.CYLINDER: p[0] + p[1]}.get(sh["type"])
+            if ext is None:
+                ext = float(np.linalg.norm(sh["verts"], axis=1).max()) if sh["verts"] is not None else 0.0
+            i = sh["body"] - nb0
+            bound[i] = max(bound[i], float(np.linalg.norm(sh["pose"][:3])) + ext)
+    arrays["body_bound_radius"] = np.concatenate([base.body_bound_radius, bound])
+    arrays["gravity"] = base.gravity.copy()
+    for name, value in vars(base).items():      # columns other helpers appended to the Model
+        if name not in arrays and not name.startswith("_") and name not in ("body_count", "shape_count"):
+            arrays[name] = value
+    out = Model(**arrays)
+    out._initial_q = np.concatenate([base._initial_q, np.array([b["q"] for b in bodies]).reshape(kb, 7)])
+    out._initial_qd = np.concatenate([base._initial_qd, np.zeros((kb, 6))])
+    assert out.body_count == nb and out.shape_count == ns
+    return out

@@ -1,13 +1,36 @@
-"""The world: several systems stepped together, and the run loop that records and checkpoints them.
+"""The world: every system stepped together, and the run loop that records and checkpoints them.
 
-`World` composes groups (each a `ParticleSystem` or `Tracers` with its own `Simulation` and
-integrator) that advance in lockstep at one fixed step ``dt``, each step split into
-``substeps`` integrator steps of ``dt / substeps``. Colliders are attached to the particle
-systems (``system.add_collider``); the world keeps the list for drawing.
+A `World` holds one shape table (``world.model``, an `inertia.model.Model`): the rows of the model
+given to it (bodies and their shapes, static world geometry) followed by the rows its 3-D
+``colliders`` become (`inertia.model.with_colliders`: static colliders on body -1, a collider with a
+``Motion`` on a kinematic body that follows the motion). With bodies, ``world.rigid`` is a
+`inertia.rigid.RigidWorld` stepping that table (``rigid_options``: its keyword options, e.g.
+``{"substeps": 4}``), so rigid bodies land on the scene's collider planes and meshes too. Particle
+and tracer groups (each a `ParticleSystem` or `Tracers` with its own `Simulation` and integrator)
+advance in lockstep at one fixed step ``dt``, each step split into ``substeps`` integrator steps of
+``dt / substeps``; fluids (``add_fluid``) advance once per step.
 
-One `World.step` runs, for every group in order, ``substeps`` calls of ``Simulation.step``
-(whose own stages are begin -> integrate -> end -> check, see `inertia.simulation`); the time
-spent per group is added to ``world.profile``.
+One `World.step` runs these stages in order, each timed in ``world.profile`` (seconds, summed):
+
+1. ``kinematics`` -- kinematic bodies of moving colliders are posed at t with the velocity that
+                     takes them to their pose at t + dt; the bodies' start-of-step poses are kept;
+2. ``rigid``      -- ``RigidWorld.step`` (its own stages broad phase, narrow phase, islands,
+                     solve, finalize are also timed as ``rigid/<stage>``);
+3. ``fluids``     -- ``fluid.advance(dt, world.rigid)`` per fluid, in insertion order (each also
+                     timed as ``fluid/<name>``); fluids read the moved bodies and push them back;
+4. groups         -- per group (timed under its name), ``substeps`` calls of ``Simulation.step``
+                     (begin -> integrate -> end -> check, see `inertia.simulation`). 3-D particle
+                     groups collide with the shape table's body and world rows
+                     (``collision.shapes.BodyShape``, packed into the particle stage's kernel
+                     format); a body row's pose over each substep is interpolated between the
+                     body's poses before and after the rigid stage. The momentum the particles
+                     gain from body rows is gathered per body (`inertia.dynamics.particle_coupling`);
+5. ``coupling``   -- those impulses are applied to the bodies (``apply_body_impulses``):
+                     linear and angular momentum of particles plus bodies are conserved.
+
+Rows the particle colliders became are *not* added to the particle groups a second time: a
+particle system sees a collider through ``system.add_collider`` (with its own restitution and
+friction) exactly as before; the table's rows make them visible to the rigid bodies.
 
 `Run` drives a world over a duration and records it:
 
@@ -39,8 +62,17 @@ Arrays (N = total particles over the groups in order, D = dim): ``World.position
 ``World.velocities()`` are (N, D) float64 copies gathered from the groups, ``World.active()``
 (N,) bool; group ``g`` owns rows ``group.start : group.stop``.
 
+``Run`` also writes ``model.npz`` (``States.model``, see `model_file_arrays`) and, per frame,
+``body_q`` (B, 7) when the world has bodies and ``fluid/<name>/<key>`` for each fluid's
+``frame_arrays()``; checkpoints hold the rigid state and contact cache and each fluid's
+``save_state()``.
+
 Limitations: all groups share dim and dt; groups do not interact with each other (springs,
-self-collisions and forces act within a group); the particle count is fixed for a run.
+self-collisions and forces act within a group); the particle count is fixed for a run. The
+coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
+particles see a body's surface velocity as the average over the (sub)step of its rows' motion.
+Heightfield rows are not seen by particles. Rigid bodies do not collide with ``SDF`` colliders,
+and a ``Container``'s walls are infinite planes for them.
 """
 
 from __future__ import annotations
@@ -58,13 +90,21 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from numba import njit
 
 from .errors import SimulationDiverged
+from .collision.particle_kernels import NEAR_ALWAYS as _NEAR_ALWAYS
+from .collision.particle_kernels import NEAR_BALL as _NEAR_BALL
+from .geometry import shapes as _S
+from .math import quat_to_mat3
 from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
            "CHECKPOINT_NAME", "STATES_NAME", "frame_steps", "CheckpointError",
-           "read_checkpoint_info"]
+           "read_checkpoint_info", "model_file_arrays", "STAGES"]
+
+#: the world step's stages (``world.profile`` keys, besides one per group and ``fluid/<name>``)
+STAGES = ("kinematics", "rigid", "fluids", "coupling")
 
 CHECKPOINT_NAME = "checkpoint.npz"
 STATES_NAME = "states"
@@ -86,6 +126,13 @@ class Group:
     start: int = 0
     stop: int = 0
     colliders: list = field(default_factory=list)
+    # (T, 3) int64 group-local particle indices of a drawn surface (``World.add(triangles=)``)
+    triangles: np.ndarray | None = None
+    # the shape-table rows on moving bodies this group collides with: their rows in the group's
+    # packed collider arrays, their bodies, and bounding radii about the centre of mass (-1: plane)
+    body_entries: np.ndarray | None = None
+    entry_body_all: np.ndarray | None = None
+    entry_bound: np.ndarray | None = None
 
     @property
     def integrator(self) -> str:
@@ -98,10 +145,14 @@ class Group:
 
 @dataclass
 class WorldState:
-    """A checkpoint of a world: its step count and every group's `SimulationState`."""
+    """A checkpoint of a world: its step count, every group's `SimulationState`, the rigid state
+    (``rigid``: a dict of arrays, see `World.save_state`; None without bodies) and each fluid's
+    ``save_state()`` dict by name."""
 
     step_count: int
     groups: list[SimulationState]
+    rigid: dict | None = None
+    fluids: dict = field(default_factory=dict)
 
 
 class World:
@@ -116,19 +167,26 @@ class World:
     colliders : the collider objects of the scene (for drawing; attach them to systems yourself).
     """
 
-    def __init__(self, *, dt: float, substeps: int = 1, colliders=(), name: str = "world"):
+    def __init__(self, *, dt: float, substeps: int = 1, colliders=(), model=None, rigid_options=None,
+                 name: str = "world"):
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"dt must be a finite number > 0; got {dt!r}")
         if int(substeps) != substeps or substeps < 1:
             raise ValueError(f"substeps must be an integer >= 1; got {substeps!r}")
+        if rigid_options is not None and not isinstance(rigid_options, dict):
+            raise ValueError(f"rigid_options must be a dict of RigidWorld options (e.g. {{'substeps': 4}}); "
+                             f"got {type(rigid_options).__name__}")
         self.name = name
         self.dt = float(dt)
         self.substeps = int(substeps)
         self.groups: list[Group] = []
         self.colliders = list(colliders)
+        self.fluids: dict[str, Any] = {}
         self.step_count = 0
         self.t = 0.0
-        self.profile: dict[str, float] = {}
+        self.profile: dict[str, float] = dict.fromkeys(STAGES, 0.0)
+        self._in_particle_stage = False
+        self._setup_model(model, rigid_options)
         self.metadata: dict[str, Any] = {}
         # run settings of a loaded scene (None for a world built by hand)
         self.duration: float | None = None
@@ -136,20 +194,138 @@ class World:
         self.seed: int | None = None
 
     # ---- building ----------------------------------------------------------------------------
+    def _setup_model(self, model, rigid_options) -> None:
+        """One shape table: the model's rows plus the rows the 3-D colliders become (see
+        `inertia.model.with_colliders`); a RigidWorld when the model has bodies."""
+        from .model import Model, with_colliders
+        if model is not None and not isinstance(model, Model):
+            raise ValueError(f"model must be an inertia.model.Model (ModelBuilder(...).finalize()) or None; "
+                             f"got {type(model).__name__}")
+        self._user_bodies = 0 if model is None else model.body_count
+        colliders3 = [c for c in self.colliders if getattr(c, "dim", 3) == 3]
+        self.model = with_colliders(model, self.colliders) if (model is not None or colliders3) else None
+        self.rigid = None
+        self._body_shape_cache: dict = {}
+        self._rigid_options = dict(rigid_options or {})
+        if self.model is not None and self._user_bodies > 0:
+            from .rigid.world import RigidWorld
+            options = dict(self._rigid_options)
+            if "dt" in options:
+                raise ValueError("rigid_options must not set 'dt': the rigid world steps the world's dt")
+            self.rigid = RigidWorld(self.model, dt=self.dt, **options)
+            nb = self.model.body_count
+            self._q_start = np.zeros((nb, 7))
+            self._impulse_linear = np.zeros((nb, 3))
+            self._impulse_angular = np.zeros((nb, 3))
+            # colliders with a Motion: kinematic bodies driven by the collider's pose(t)
+            self._driven = [(int(b), self.colliders[int(src)]) for b, src in enumerate(self.model.body_source)
+                            if src >= 0]
+            self._kinematics(0.0)
+
     def add(self, name: str, system, *, integrator: str = "rk4", color: str | None = None,
-            kind: str | None = None, **integrator_options) -> Group:
-        """Add a system (ParticleSystem or Tracers) stepped by its own integrator; returns its group."""
+            kind: str | None = None, triangles=None, **integrator_options) -> Group:
+        """Add a system (ParticleSystem or Tracers) stepped by its own integrator; returns its group.
+
+        ``triangles``: optional (T, 3) int, group-local particle indices of a surface drawn over the
+        particles (cloth); recorded as ``surface_triangles`` in the state file's model.
+        In a world with a shape table, a 3-D particle system collides with the table's body and world
+        rows (the rows the particle colliders became are attached by ``system.add_collider`` as before).
+        """
         if any(g.name == name for g in self.groups):
             raise ValueError(f"a group named {name!r} already exists; names must be unique")
         if self.groups and system.dim != self.dim:
             raise ValueError(f"group {name!r} is {system.dim}-D but the world is {self.dim}-D")
+        if name in STAGES or name in self.fluids:
+            raise ValueError(f"group name {name!r} is taken (stages {STAGES}, fluids {sorted(self.fluids)})")
+        tri = None
+        if triangles is not None:
+            tri = np.asarray(triangles)
+            if (tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer)
+                    or (tri.size and (tri.min() < 0 or tri.max() >= system.particle_count))):
+                raise ValueError(f"triangles must be a (T, 3) integer array of particle indices in "
+                                 f"[0, {system.particle_count - 1}]; got shape {tri.shape}")
+            tri = tri.astype(np.int64)
         sim = Simulation(system, integrator=integrator, dt=self.dt / self.substeps, **integrator_options)
         kind = kind or ("particles" if getattr(system, "second_order", False) else "tracers")
         start = self.particle_count
-        group = Group(name, kind, system, sim, color, start, start + system.particle_count)
+        group = Group(name, kind, system, sim, color, start, start + system.particle_count, triangles=tri)
         self.groups.append(group)
         self.profile[name] = 0.0
+        self._attach_shape_table(group)
         return group
+
+    def _attach_shape_table(self, group) -> None:
+        """Give a 3-D particle group the shape table's rows that are not particle colliders (the
+        builder's world geometry and every body's shapes), and couple it to the dynamic bodies."""
+        system, model = group.system, self.model
+        if model is None or system.dim != 3 or group.kind != "particles":
+            return
+        rows = np.flatnonzero(model.shape_source < 0)
+        if rows.size == 0:
+            return
+        from .collision.particle_stage import _data
+        from .dynamics.particle_coupling import ParticleBodyCoupling
+        data = _data(system)
+        state = self.rigid.state if self.rigid is not None else model.state()
+        entries = data.add_body_shapes(model, rows, state, self._body_shape_cache)
+        moving = np.array([i for i in entries if data.colliders[i].moving], np.int64)
+        group.body_entries = moving
+        group.entry_body_all = np.array([data.colliders[i].body for i in moving], np.int64)
+        # bounding radius about the centre of mass of each moving row (-1: unbounded, a plane)
+        group.entry_bound = np.array([-1.0 if model.shape_type[data.colliders[i].shape] == _S.PLANE
+                                      else float(model.body_bound_radius[data.colliders[i].body])
+                                      for i in moving], np.float64)
+        if self.rigid is not None:
+            entry_body = data.entry_bodies(model)
+            if np.any(entry_body >= 0):
+                data.coupling = ParticleBodyCoupling(system, entry_body, self.rigid.state.body_q,
+                                                     self._impulse_linear, self._impulse_angular,
+                                                     data.distance_tolerance)
+
+    def shape_collider(self, shape: int):
+        """Row ``shape`` of the shape table as a collider object that follows its body (a bound
+        `inertia.collision.shapes.BodyShape`): use it where a collider is expected outside the
+        particle stage, e.g. as a curl-noise boundary (``CurlNoise(boundaries=[...])``). During
+        the particle stage its pose is interpolated over the step like the stage's own rows."""
+        from .collision.shapes import BodyShape
+        m = self.model
+        if m is None or not isinstance(shape, (int, np.integer)) or not 0 <= shape < m.shape_count:
+            count = 0 if m is None else m.shape_count
+            raise ValueError(f"shape must be a row index of the world's shape table in [0, {count - 1}]; got {shape!r}")
+        body = int(m.shape_body[shape])
+        col = BodyShape(m, int(shape), None if (body < 0 or self.rigid is None) else self.rigid.state.body_q[body])
+        if body >= 0 and self.rigid is not None:
+            col.bind(lambda t, b=body: self._body_pose_at(b, t), lambda t, b=body: self.rigid.state.body_qd[b])
+        return col
+
+    def _body_pose_at(self, body: int, t: float) -> np.ndarray:
+        q1 = self.rigid.state.body_q[body]
+        if not self._in_particle_stage:
+            return q1.copy()
+        s = min(max((t - self.t) / self.dt, 0.0), 1.0)
+        q0 = self._q_start[body]
+        q = np.empty(7)
+        q[:3] = (1.0 - s) * q0[:3] + s * q1[:3]
+        r = (1.0 - s) * q0[3:] + s * np.copysign(1.0, float(q0[3:] @ q1[3:])) * q1[3:]
+        q[3:] = r / np.linalg.norm(r)
+        return q
+
+    def add_fluid(self, name: str, fluid) -> Any:
+        """Add a fluid (an object with ``advance(dt, rigid)``, ``save_state()``, ``restore_state(d)``,
+        ``frame_arrays()``, ``static_arrays()``; see the contract in the module docstring). The fluids
+        stage calls ``fluid.advance(dt, world.rigid)`` after the rigid stage, before the particle groups."""
+        if not isinstance(name, str) or not name or "/" in name:
+            raise ValueError(f"fluid name must be a non-empty string without '/'; got {name!r}")
+        if name in self.fluids or any(g.name == name for g in self.groups) or name in STAGES:
+            raise ValueError(f"a group, fluid or stage named {name!r} already exists; names must be unique")
+        missing = [m for m in ("advance", "save_state", "restore_state", "frame_arrays", "static_arrays")
+                   if not callable(getattr(fluid, m, None))]
+        if missing:
+            raise ValueError(f"fluid {name!r} lacks the methods {missing} (the fluid protocol: advance(dt, rigid), "
+                             "save_state(), restore_state(dict), frame_arrays(), static_arrays())")
+        self.fluids[name] = fluid
+        self.profile[f"fluid/{name}"] = 0.0
+        return fluid
 
     # ---- sizes and lookup --------------------------------------------------------------------
     @property
@@ -175,16 +351,78 @@ class World:
 
     # ---- stepping ----------------------------------------------------------------------------
     def step(self) -> None:
-        """Advance every group by dt (``substeps`` integrator steps each)."""
+        """Advance everything by dt: the stages of the module docstring, each timed in ``profile``."""
         clock = _time.perf_counter
-        for g in self.groups:
-            t0 = clock()
-            sim = g.simulation
-            for _ in range(self.substeps):
-                sim.step()
-            self.profile[g.name] += clock() - t0
+        rigid = self.rigid
+        t0 = clock()
+        if rigid is not None:
+            self._kinematics(self.t)
+            self._q_start[:] = rigid.state.body_q
+        t1 = clock()
+        self.profile["kinematics"] += t1 - t0
+        if rigid is not None:
+            before = dict(rigid.profile)
+            rigid.step()
+            if self._driven:
+                self._kinematics_end(self.t + self.dt)
+            for stage, seconds in rigid.profile.items():      # the rigid world's own stages
+                key = f"rigid/{stage}"
+                self.profile[key] = self.profile.get(key, 0.0) + seconds - before.get(stage, 0.0)
+        t2 = clock()
+        self.profile["rigid"] += t2 - t1
+        for name, fluid in self.fluids.items():
+            tf = clock()
+            fluid.advance(self.dt, rigid)
+            self.profile[f"fluid/{name}"] += clock() - tf
+        t3 = clock()
+        self.profile["fluids"] += t3 - t2
+        if rigid is not None:
+            self._impulse_linear[:] = 0.0
+            self._impulse_angular[:] = 0.0
+        self._in_particle_stage = True
+        try:
+            for g in self.groups:
+                t0 = clock()
+                sim = g.simulation
+                entries = g.body_entries if rigid is not None else None
+                for j in range(self.substeps):
+                    if entries is not None and entries.size:
+                        data = g.system._collision
+                        _interpolated_poses(entries, g.entry_body_all, g.entry_bound, self._q_start,
+                                            rigid.state.body_q, j / self.substeps, (j + 1) / self.substeps,
+                                            data.pose0, data.pose1, data.cnear)
+                    sim.step()
+                self.profile[g.name] += clock() - t0
+        finally:
+            self._in_particle_stage = False
+        t4 = clock()
+        if rigid is not None:
+            from .dynamics.particle_coupling import apply_body_impulses
+            apply_body_impulses(self.model, rigid.state, self._impulse_linear, self._impulse_angular)
+        self.profile["coupling"] += clock() - t4
         self.step_count += 1
         self.t = self.step_count * self.dt
+
+    def _kinematics(self, t: float) -> None:
+        """Bodies of moving colliders: pose at t, velocity from the pose at t and t + dt."""
+        from .collision.motion import rotation_log
+        from .math import mat3_to_quat
+        st = self.rigid.state
+        for b, col in self._driven:
+            p0, r0 = col.pose(t)
+            p1, r1 = col.pose(t + self.dt)
+            st.body_q[b, :3] = p0
+            st.body_q[b, 3:] = mat3_to_quat(np.ascontiguousarray(r0))
+            st.body_qd[b, :3] = rotation_log(r1 @ r0.T) / self.dt
+            st.body_qd[b, 3:] = (p1 - p0) / self.dt
+
+    def _kinematics_end(self, t: float) -> None:
+        from .math import mat3_to_quat
+        st = self.rigid.state
+        for b, col in self._driven:
+            p, r = col.pose(t)
+            st.body_q[b, :3] = p
+            st.body_q[b, 3:] = mat3_to_quat(np.ascontiguousarray(r))
 
     def run(self, duration: float | None = None, callback: Callable[["World"], None] | None = None) -> None:
         """Advance by `duration` seconds (rounded up to whole steps); default the scene's duration."""
@@ -238,20 +476,101 @@ class World:
 
     # ---- checkpoints -------------------------------------------------------------------------
     def save_state(self) -> WorldState:
-        """Everything that changes; `restore_state` continues bit for bit."""
-        return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups])
+        """Everything that changes; `restore_state` continues bit for bit.
+
+        ``rigid`` holds the rigid State's arrays (``body_q``, ``body_qd``, ``body_sleep_time``,
+        ``body_awake``, ``body_sleep_island``, ``clock``, ``step_index``) and the warm-start contact
+        cache (``contacts/<array>`` and ``contacts_count``, ``contacts_active_count``)."""
+        rigid = None
+        if self.rigid is not None:
+            saved = self.rigid.save()
+            rigid = {f: np.array(getattr(saved["state"], f)) for f in saved["state"]._FIELDS}
+            contacts = saved["contacts"]
+            from .dynamics.contacts import _SPEC
+            for name in _SPEC:
+                rigid[f"contacts/{name}"] = np.array(getattr(contacts, name))
+            rigid["contacts_count"] = int(contacts.count)
+            rigid["contacts_active_count"] = int(contacts.active_count)
+        fluids = {name: dict(f.save_state()) for name, f in self.fluids.items()}
+        return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups], rigid, fluids)
 
     def restore_state(self, state: WorldState) -> None:
         if len(state.groups) != len(self.groups):
             raise ValueError(f"the saved state has {len(state.groups)} groups; this world has {len(self.groups)}")
+        if (state.rigid is None) != (self.rigid is None):
+            raise ValueError("the saved state and this world differ in having rigid bodies")
+        if sorted(state.fluids) != sorted(self.fluids):
+            raise ValueError(f"the saved state has fluids {sorted(state.fluids)}; this world has {sorted(self.fluids)}")
         for g, s in zip(self.groups, state.groups):
             g.simulation.restore_state(s)
+        if self.rigid is not None:
+            from .dynamics.contacts import _SPEC, Contacts
+            from .model import State
+            r = state.rigid
+            saved_state = State.__new__(State)
+            for f in State._FIELDS:
+                setattr(saved_state, f, np.asarray(r[f]))
+            contacts = Contacts.__new__(Contacts)
+            contacts.capacity = int(r["contacts/" + next(iter(_SPEC))].shape[0])
+            contacts.count, contacts.active_count = int(r["contacts_count"]), int(r["contacts_active_count"])
+            for name in _SPEC:
+                setattr(contacts, name, np.asarray(r[f"contacts/{name}"]))
+            self.rigid.restore({"state": saved_state, "contacts": contacts})
+        for name, f in self.fluids.items():
+            f.restore_state(state.fluids[name])
         self.step_count = int(state.step_count)
         self.t = self.step_count * self.dt
 
     def __repr__(self):
         groups = ", ".join(f"{g.name}: {g.particle_count} {g.kind} ({g.integrator})" for g in self.groups)
         return f"World({self.name!r}, dt={self.dt:g}, substeps={self.substeps}, t={self.t:g}, groups=[{groups}])"
+
+
+@njit(cache=True)
+def _interpolated_poses(entries, entry_body, entry_bound, q_start, q_end, s0, s1, pose0, pose1, cnear):
+    """pose0/pose1 rows [p, R row-major] of the body-shape colliders `entries` at fractions s0, s1 of
+    the step (positions linear, orientations normalised-linear between the step's two poses), and
+    their ``cnear`` rows: a ball about the centre of mass swept over the substep (radius
+    ``entry_bound`` + half the displacement) for bounded shapes, "always near" for planes (< 0)."""
+    for e in range(entries.shape[0]):
+        k, b = entries[e], entry_body[e]
+        if entry_bound[e] >= 0.0:
+            half = 0.0
+            cnear[k, 0] = _NEAR_BALL
+            for c in range(3):
+                a = (1.0 - s0) * q_start[b, c] + s0 * q_end[b, c]
+                z = (1.0 - s1) * q_start[b, c] + s1 * q_end[b, c]
+                cnear[k, 1 + c] = 0.5 * (a + z)
+                half += (z - a) * (z - a)
+            cnear[k, 4] = entry_bound[e] + 0.5 * np.sqrt(half) + 1e-9
+        else:
+            cnear[k, 0] = _NEAR_ALWAYS
+        for out, s in ((pose0, s0), (pose1, s1)):
+            q = np.empty(4)
+            dot = 0.0
+            for c in range(4):
+                dot += q_start[b, 3 + c] * q_end[b, 3 + c]
+            sign = 1.0 if dot >= 0.0 else -1.0
+            norm = 0.0
+            for c in range(4):
+                q[c] = (1.0 - s) * q_start[b, 3 + c] + s * sign * q_end[b, 3 + c]
+                norm += q[c] * q[c]
+            norm = np.sqrt(norm)
+            for c in range(4):
+                q[c] /= norm
+            if s == 1.0:
+                for c in range(4):
+                    q[c] = q_end[b, 3 + c]
+            elif s == 0.0:
+                for c in range(4):
+                    q[c] = q_start[b, 3 + c]
+            for c in range(3):
+                out[k, c] = (1.0 - s) * q_start[b, c] + s * q_end[b, c] if 0.0 < s < 1.0 else (
+                    q_start[b, c] if s == 0.0 else q_end[b, c])
+            r = quat_to_mat3(q)
+            for i in range(3):
+                for j in range(3):
+                    out[k, 3 + 3 * i + j] = r[i, j]
 
 
 # ----------------------------------------------------------------------------------------------
@@ -345,7 +664,8 @@ def save_checkpoint(path, state: WorldState, info: dict) -> Path:
                "extra": _encode(s.extra, arrays, f"groups[{i}].extra")}
               for i, s in enumerate(state.groups)]
     tree = {"checkpoint_version": CHECKPOINT_VERSION, "info": info, "step_count": state.step_count,
-            "groups": groups}
+            "groups": groups, "rigid": _encode(state.rigid, arrays, "rigid"),
+            "fluids": _encode(state.fluids, arrays, "fluids")}
     arrays["tree"] = np.array(json.dumps(tree))
     with atomic_write(path, "wb") as handle:
         np.savez(handle, **arrays)
@@ -417,7 +737,9 @@ def load_checkpoint(path, *, fingerprint: str | None = None) -> tuple[WorldState
         groups = [SimulationState(g["time"], g["step_count"], _decode(g["system"], arrays, path),
                                   _decode(g["integrator"], arrays, path), _decode(g["extra"], arrays, path))
                   for g in tree["groups"]]
-        return WorldState(tree["step_count"], groups), info
+        rigid = _decode(tree.get("rigid"), arrays, path)
+        fluids = _decode(tree.get("fluids") or {}, arrays, path)
+        return WorldState(tree["step_count"], groups, rigid, fluids), info
     except (KeyError, TypeError) as exc:
         raise CheckpointError(f"{path}: the checkpoint is damaged (missing or malformed entry {exc})") from None
 
@@ -512,7 +834,8 @@ class Run:
         w = self.world
         return {"fingerprint": self.fingerprint, "fps": self.fps, "dt": w.dt, "substeps": w.substeps,
                 "frame_count": frames, "time": w.t, "particle_count": w.particle_count,
-                "groups": [g.name for g in w.groups], "duration": self.duration, "seed": w.seed}
+                "groups": [g.name for g in w.groups], "duration": self.duration, "seed": w.seed,
+                "body_count": 0 if w.rigid is None else int(w.model.body_count), "fluids": sorted(w.fluids)}
 
     def _static(self) -> dict[str, np.ndarray]:
         w = self.world
@@ -525,6 +848,10 @@ class Run:
             mass[g.start:g.stop] = getattr(g.system, "mass", 0.0)
         return {"group": group, "radius": radius, "mass": mass}
 
+    def _model_arrays(self) -> dict[str, np.ndarray]:
+        """``States.model``: the shape table, spring_pairs, surface_triangles, fluids' static arrays."""
+        return model_file_arrays(self.world)
+
     def _header(self) -> dict:
         w = self.world
         meta = {
@@ -533,6 +860,8 @@ class Run:
             "group_colors": [g.color for g in w.groups],
             "integrators": [g.integrator for g in w.groups],
             "dt": w.dt, "substeps": w.substeps, "duration": self.duration,
+            "body_names": [] if w.model is None else [str(n) for n in w.model.body_name],
+            "fluids": list(w.fluids),
         }
         meta.update(self.metadata)
         return meta
@@ -551,6 +880,11 @@ class Run:
         }
         if w.has_emitters:
             fields["active"] = w.active(self._active)
+        if w.rigid is not None:
+            fields["body_q"] = w.rigid.state.body_q
+        for name, fluid in w.fluids.items():
+            for key, value in fluid.frame_arrays().items():
+                fields[f"fluid/{name}/{key}"] = value
         writer.append(w.t, self._x, self._v, **fields)
 
     def _checkpoint(self, writer, frames: int) -> None:
@@ -586,7 +920,8 @@ class Run:
         else:
             self.out_dir.mkdir(parents=True, exist_ok=True)
             writer = StateWriter(self.states_path, dim=w.dim, particle_count=w.particle_count, fps=self.fps,
-                                 static=self._static(), metadata=self._header(), overwrite=True)
+                                 static=self._static(), metadata=self._header(), model=self._model_arrays(),
+                                 overwrite=True)
             frame = 0
         status, error = "completed", None
         first_frame = None
@@ -659,6 +994,10 @@ class Run:
                 problems.append("dt or substeps changed")
             if int(info["particle_count"]) != w.particle_count:
                 problems.append("the particle count changed")
+            if int(info.get("body_count", 0)) != (0 if w.rigid is None else int(w.model.body_count)):
+                problems.append("the body count changed")
+            if list(info.get("fluids", [])) != sorted(w.fluids):
+                problems.append("the fluids changed")
             int(info["frame_count"])
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointError(f"{self.checkpoint_path}: the checkpoint's run facts are damaged ({exc!r})") from None
@@ -698,6 +1037,80 @@ class Run:
     def stop_requested(self) -> bool:
         """True once Ctrl-C (or `request_stop`) asked the run to stop."""
         return self._stop_requested
+
+
+def model_file_arrays(world: World) -> dict[str, np.ndarray]:
+    """What `Run` writes to the state directory's ``model.npz`` (``States.model``).
+
+    - the shape table (when the world has one): ``shape_type``, ``shape_body``, ``shape_source``
+      (S,) int32, ``shape_local_pose (S, 7)``, ``shape_params (S, 4)``, ``shape_vert_start`` /
+      ``shape_vert_count (S,) int32`` into ``geom_vertices (V, 3)``, ``shape_tri_start`` /
+      ``shape_tri_count (S,) int32`` into ``geom_triangles (T, 3) int32`` (rows of geom_vertices:
+      the outward hull of a convex hull, a mesh's triangles, a heightfield's grid cells), and
+      ``body_type``, ``body_source (B,) int32``, ``body_com_pose (B, 7)``;
+    - ``spring_pairs (P, 2) int64``: global particle indices of every Springs force's pairs;
+    - ``surface_triangles (T, 3) int64``: global particle indices of the groups' ``triangles=``;
+    - ``fluid/<name>/<key>``: each fluid's ``static_arrays()``.
+    """
+    from .geometry import shapes as S
+    out: dict[str, np.ndarray] = {}
+    m = world.model
+    if m is not None:
+        ns = m.shape_count
+        out["shape_type"] = np.asarray(m.shape_type, np.int32)
+        out["shape_body"] = np.asarray(m.shape_body, np.int32)
+        out["shape_source"] = np.asarray(getattr(m, "shape_source", np.full(ns, -1)), np.int32)
+        out["shape_local_pose"] = np.asarray(m.shape_local_pose, np.float64)
+        out["shape_params"] = np.asarray(m.shape_params, np.float64)
+        out["shape_vert_start"] = np.asarray(m.shape_vert_start, np.int32)
+        out["shape_vert_count"] = np.asarray(m.shape_vert_count, np.int32)
+        out["geom_vertices"] = np.asarray(m.geom_vertices, np.float64).reshape(-1, 3)
+        out["body_type"] = np.asarray(m.body_type, np.int32)
+        out["body_source"] = np.asarray(getattr(m, "body_source", np.full(m.body_count, -1)), np.int32)
+        out["body_com_pose"] = np.asarray(m.body_com_pose, np.float64).reshape(-1, 7)
+        tri_start, tri_count, tris = np.zeros(ns, np.int32), np.zeros(ns, np.int32), []
+        total = 0
+        for si in range(ns):
+            t, v0, nv = int(m.shape_type[si]), int(m.shape_vert_start[si]), int(m.shape_vert_count[si])
+            if t == S.CONVEX_HULL:
+                from scipy.spatial import ConvexHull
+                pts = m.geom_vertices[v0:v0 + nv]
+                faces = ConvexHull(pts).simplices.astype(np.int64)
+                a, b, c = pts[faces[:, 0]], pts[faces[:, 1]], pts[faces[:, 2]]
+                flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - pts.mean(axis=0)) < 0
+                faces[flip] = faces[flip][:, ::-1]
+                local = faces
+            elif t == S.TRIANGLE_MESH:
+                local = np.arange(nv, dtype=np.int64).reshape(-1, 3)
+            elif t == S.HEIGHTFIELD:
+                nx, ny = int(m.shape_params[si, 0]), int(m.shape_params[si, 1])
+                i, j = np.meshgrid(np.arange(nx - 1), np.arange(ny - 1), indexing="ij")
+                p00 = (i * ny + j).ravel()
+                p10, p01, p11 = p00 + ny, p00 + 1, p00 + ny + 1
+                local = np.concatenate([np.stack([p00, p10, p11], 1), np.stack([p00, p11, p01], 1)])
+            else:
+                continue
+            tri_start[si], tri_count[si] = total, len(local)
+            tris.append(local + v0)
+            total += len(local)
+        out["shape_tri_start"], out["shape_tri_count"] = tri_start, tri_count
+        out["geom_triangles"] = (np.concatenate(tris) if tris else np.zeros((0, 3))).astype(np.int32)
+    pairs, surfaces = [], []
+    for g in world.groups:
+        for force in getattr(g.system, "forces", ()):
+            p = getattr(force, "pairs", None)
+            if type(force).__name__ == "Springs" and p is not None:
+                pairs.append(np.asarray(p, np.int64) + g.start)
+        if getattr(g, "triangles", None) is not None:
+            surfaces.append(g.triangles + g.start)
+    if pairs:
+        out["spring_pairs"] = np.concatenate(pairs).reshape(-1, 2)
+    if surfaces:
+        out["surface_triangles"] = np.concatenate(surfaces).reshape(-1, 3)
+    for name, fluid in world.fluids.items():
+        for key, value in fluid.static_arrays().items():
+            out[f"fluid/{name}/{key}"] = np.asarray(value)
+    return out
 
 
 def fingerprint(text: str) -> str:

@@ -48,10 +48,16 @@ def renderer_for(states, render: dict | None, colliders=()):
 
     speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
-                        theme=render.get("theme", "dark"), speed_max=speed_max, **options)
+                        theme=render.get("theme", "dark"), speed_max=speed_max,
+                        orbit=float(camera.get("orbit") or 0.0), follow=bool(camera.get("follow", False)), **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
-    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active)
+    from inertia.render.drawables import ModelDrawables
+
+    drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
+    extra = None if drawables is None else drawables.bounds_points(states.fields.get("body_q"))
+    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
+                 times=states.times)
     cam = renderer.camera
     if dim == 2 and camera.get("height") is not None:
         center = camera.get("target") or cam.target[:2]
@@ -88,8 +94,13 @@ def _group_colors(states, renderer):
 
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
+    from inertia.render.drawables import ModelDrawables, frame_options
+
     renderer = renderer_for(states, render, colliders)
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
+    drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
+    if drawables is not None:
+        draw = list(draw) + drawables.plane_colliders()
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
@@ -99,8 +110,8 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
         image = renderer.frame(
             states.positions[f], radius=radius,
             velocities=None if states.velocities is None else states.velocities[f],
-            colors=colors, groups=groups, active=states.active(f), colliders=draw,
-            t=float(states.times[f]))
+            colors=colors, groups=groups, colliders=draw, t=float(states.times[f]),
+            **frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0))))
         if legend is not None:
             from inertia.render.legend import overlay
 

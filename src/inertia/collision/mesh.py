@@ -353,6 +353,14 @@ class Mesh(Collider):
         ci = np.concatenate([ihead, faces.reshape(-1), start, items])
         super().__init__(3, 0.5 * (bmin + bmax), cf, ci, motion=motion)
 
+    def shape_rows(self):
+        """One TRIANGLE_MESH row (vertices relative to the reference point), so rigid bodies collide
+        with the mesh too (``inertia.geometry.trimesh_collide``)."""
+        from ..geometry import shapes as S
+        return [dict(type=S.TRIANGLE_MESH, pose=np.array([0.0, 0, 0, 1, 0, 0, 0]),
+                     params=np.array([float(len(self.faces)), 0.0, 0.0, 0.0]),
+                     vertices=self.vertices - self._ref, triangles=self.faces.copy())]
+
 
 def bake_callable(function, lo, hi, resolution, dim):
     """Sample a rest-frame distance function on a grid; returns packed (cf, ci) of a GRID shape."""

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..math import quat_to_mat3
+
 __all__ = ["Motion", "as_rotation", "rotation_log", "rotation_exp"]
 
 
@@ -62,11 +64,7 @@ def rotation_log(r) -> np.ndarray:
 
 
 def _quaternion_matrix(q) -> np.ndarray:
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    return quat_to_mat3(np.ascontiguousarray(q / np.linalg.norm(q), dtype=np.float64))
 
 
 def as_rotation(value, dim: int, name: str = "rotation") -> np.ndarray:

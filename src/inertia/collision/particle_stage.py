@@ -6,6 +6,20 @@
 system delegates to ``attach_collider``, ``set_collision_mode`` and ``set_self_collisions``
 here; the per-system data lives on ``system._collision`` (a ``ParticleCollisionData``).
 
+Shape-table rows
+----------------
+In a ``World`` with a Model, the table's body and world rows are packed into the same kernel
+arrays after the system's own colliders (``ParticleCollisionData.add_body_shapes``: each row a
+``collision.shapes.BodyShape``, its geometry in its body's frame). Rows of dynamic and kinematic
+bodies are moving colliders whose ``pose0``/``pose1`` the world writes from the bodies' poses
+before and after the rigid stage (``update_poses`` leaves them alone); rows on body -1 and on
+static bodies are static colliders in world coordinates. With dynamic bodies the world sets
+``data.coupling`` (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``): the force filter
+and ``end_step`` then hand it the forces the filter cancelled and the state before and after the
+collision pass, from which it gathers the impulses that go back into the bodies. A lone system's
+colliders stay packed from the collider objects themselves (2-D colliders, unbaked SDFs and the
+bit-exact packing of existing scenes have no 3-D table row to come from).
+
 One step (``Simulation.step``), with what each part reads and writes
 -------------------------------------------------------------------
 begin_step (before the integrator)
@@ -109,18 +123,15 @@ import numpy as np
 from . import broadphase as bp
 from . import distance as _d
 from . import particle_kernels as pk
-from .shapes import Collider
+from .shapes import BodyShape, Collider
 
-__all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "get_collision_mode",
-           "get_self_collisions", "configure_contacts", "ParticleCollisionData",
-           "ParticleCollisionStage", "RestingContactFilter", "COLLISION_MODES"]
+__all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "configure_contacts",
+           "ParticleCollisionData", "ParticleCollisionStage", "RestingContactFilter", "COLLISION_MODES"]
 
 COLLISION_MODES = ("a_priori", "a_posteriori")
-# Below these sizes the serial twins of the kernels run: a parallel launch costs ~10 us on an
-# idle machine and milliseconds on an oversubscribed one, against ~50-100 ns of work per
-# particle here; each colour batch of the pair solver is one launch.
-SERIAL_BELOW = 16384
-PARALLEL_PAIRS = 65536
+# The kernels come from ``particle_kernels.kernels_for`` (compiled for the collider kinds in use;
+# serial twin or parallel build by ``inertia._jit``'s size dispatch; the pair solver's colour
+# batches by the number of pairs).
 
 
 def _user_stacklevel() -> int:
@@ -132,11 +143,6 @@ def _user_stacklevel() -> int:
     while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
         frame, level = frame.f_back, level + 1
     return level
-
-
-def pick(kernel, twin, n):
-    """The kernel for n items: its serial twin below ``SERIAL_BELOW``."""
-    return twin if n < SERIAL_BELOW else kernel
 
 
 class ParticleCollisionData:
@@ -154,7 +160,7 @@ class ParticleCollisionData:
     load (N,), static_ok (N,) bool                    written by the force filter
     dv_step (N, 3)       velocity change of the step before responses (self-collisions)
     profile              cumulative seconds per part: save, classify, collide, callables,
-                         broad_phase, pair_solve; ``steps``
+                         broad_phase, pair_solve, coupling (gathering impulses for bodies); ``steps``
     """
 
     def __init__(self):
@@ -172,7 +178,7 @@ class ParticleCollisionData:
         self.max_iterations = 32
         self.check_start = False
         self.profile = dict.fromkeys(("save", "classify", "collide", "callables", "broad_phase",
-                                      "pair_solve"), 0.0)
+                                      "pair_solve", "coupling"), 0.0)
         self.profile["steps"] = 0
         self.pair_count = 0
         self.color_count = 0
@@ -189,6 +195,9 @@ class ParticleCollisionData:
         self.fused_step = None
         self.fused_armed = False  # between that begin_step and the integrator's kernel
         self.fused_result = None
+        # two-way coupling with bodies (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``,
+        # set by the world): particle momentum changes go back into the bodies
+        self.coupling = None
         self._pack()
 
     # --- model -------------------------------------------------------------------------------
@@ -228,21 +237,23 @@ class ParticleCollisionData:
         self.cf = np.concatenate(cfs) if cfs else np.zeros(1)
         self.ci = np.concatenate(cis) if cis else np.zeros(1, np.int64)
         self.callables = [(i, c) for i, c in enumerate(self.colliders) if c.kind == _d.CALLABLE]
+        if getattr(self, "coupling", None) is not None:     # rows added later: re-map them to bodies
+            self.coupling.entry_body = self.entry_bodies(self._model)
         self.any_moving = any(c.moving for c in self.colliders)
         self.any_kernel = any(c.kind != _d.CALLABLE for c in self.colliders)
 
     def can_fuse(self) -> bool:
         """True when the collision pass can run inside the integrator's fused kernel: only
         static compiled colliders (no moving ones, no unbaked SDFs) and no self-collisions."""
-        return self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
+        return (self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
+                and self.coupling is None)
 
     def run_fused(self, system, affine, rk4, dt):
         """The integrator's fused step with the collision pass (``particle_kernels.step_and_collide``)."""
         g, force, damping = affine
         self.fused_armed = False
-        n = system.x.shape[0]
         tic = time.perf_counter()
-        self.fused_result = pick(pk.step_and_collide, pk.step_and_collide_serial, n)(
+        self.fused_result = pk.kernels_for(self.cint).step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
             self.cint, self.cnear, self.cmat, self.cf, self.ci, self.pose1, self.ref, self.rest_k,
             self.rest_n, self.rest_u, self.load, self.static_ok, dt, self.distance_tolerance,
@@ -250,13 +261,53 @@ class ParticleCollisionData:
         self.profile["collide"] += time.perf_counter() - tic
 
     def update_poses(self, t, dt):
-        """pose0 / pose1 of the moving colliders at t and t + dt."""
+        """pose0 / pose1 of the moving colliders at t and t + dt (rows of body shapes are written by
+        the world from the bodies' poses, see ``set_body_poses``)."""
         if not self.any_moving:
             return
         for i, c in enumerate(self.colliders):
-            if c.moving:
+            if c.moving and not getattr(c, "from_body", False):
                 self.pose0[i] = c._packed_pose(t)
                 self.pose1[i] = c._packed_pose(t + dt)
+
+    # --- shape-table rows on bodies ----------------------------------------------------------
+    def add_body_shapes(self, model, shapes, state=None, cache=None):
+        """Append rows ``shapes`` of ``model``'s shape table as colliders (``BodyShape``), with the
+        rows' restitution and friction. Returns their entry indices (rows of cint, pose0, pose1).
+        ``cache``: a dict shared by the groups of one world (a hull or mesh row is baked once)."""
+        first = len(self.colliders)
+        self._model = model
+        body_q = None if state is None else state.body_q
+        cache = {} if cache is None else cache
+        for s in shapes:
+            b = int(model.shape_body[s])
+            if int(s) not in cache:
+                cache[int(s)] = BodyShape(model, int(s), None if (body_q is None or b < 0) else body_q[b])
+            shape = cache[int(s)]
+            if getattr(shape, "unsupported", False):
+                continue
+            self.colliders.append(shape)
+            self.restitution.append(float(min(max(model.shape_restitution[s], 0.0), 1.0)))
+            self.friction.append(float(model.shape_friction[s]))
+        self.check_start = True
+        self._valid_revision = None
+        self._pack()
+        return np.arange(first, len(self.colliders))
+
+    def shape_table(self):
+        """The system's own colliders as a shape table (`inertia.model.with_colliders`, 3-D colliders;
+        None in 2-D): what a lone system collides with, in the World's row format."""
+        from ..model import with_colliders
+        own = [c for c in self.colliders if not getattr(c, "from_body", False) and c.dim == 3]
+        return with_colliders(None, own) if own else None
+
+    def entry_bodies(self, model) -> np.ndarray:
+        """(K,) int64: the dynamic body each packed collider row belongs to, -1 for the others."""
+        out = np.full(self.cint.shape[0], -1, np.int64)
+        for i, c in enumerate(self.colliders):
+            if getattr(c, "from_body", False) and c.body >= 0 and int(model.body_type[c.body]) == 0:
+                out[i] = c.body
+        return out
 
     # --- buffers -----------------------------------------------------------------------------
     def ensure_buffers(self, system):
@@ -373,9 +424,12 @@ class RestingContactFilter:
         d.filter_ran = True
         if d.resting_count == 0 or d._shape is None:
             return
-        kernel = pick(pk.resting_filter, pk.resting_filter_serial, f.shape[0])
-        kernel(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
+        if d.coupling is not None:
+            d.coupling.before_filter(f)
+        pk.kernels_for(d.cint).resting_filter(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
                d.static_ok)
+        if d.coupling is not None:
+            d.coupling.after_filter(x, f, d)
 
 
 class ParticleCollisionStage:
@@ -395,7 +449,6 @@ class ParticleCollisionStage:
         d.ensure_buffers(system)
         d.filter_ran = False
         d.fused_result = None
-        n = system.x.shape[0]
         tic = time.perf_counter()
         # the collision pass runs inside the integrator's fused kernel when it can: then the
         # kernel keeps the step's start in registers and nothing is saved here
@@ -409,7 +462,7 @@ class ParticleCollisionStage:
             d.fused_armed = False
             # the step's start: already written by the previous end_step unless someone changed it
             if d._saved_revision != system.state_revision:
-                pick(pk.copy_into, pk.copy_into_serial, n)(system.state, d.state0)
+                pk.kernels_for(d.cint).copy_into(system.state, d.state0)
             np.copyto(d.active0, system.active)
         d.update_poses(t, dt)
         toc = time.perf_counter()
@@ -418,7 +471,7 @@ class ParticleCollisionStage:
             self._push_out_start(system)
         # resting contacts at the start of the step (reuse end_step's when still valid)
         if d.any_kernel and (d.any_moving or (d._valid_revision != system.state_revision and not d._restored)):
-            d.resting_count = pick(pk.classify_contacts, pk.classify_contacts_serial, n)(
+            d.resting_count = pk.kernels_for(d.cint).classify_contacts(
                 system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                 d.pose0, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt,
                 d.distance_tolerance, d.rest_speed)
@@ -433,15 +486,17 @@ class ParticleCollisionStage:
             self._end_fused_step(system)
             return
         x, v = system.x, system.v
-        n = x.shape[0]
         changed = 0
         finite = True
         tic = time.perf_counter()
+        coupling = d.coupling
+        if coupling is not None:
+            coupling.before_collisions(system)
         # x0, v0 can be refreshed by the kernel itself when nothing runs after it
         save_next = not d.self_collisions and not d.callables
         if d.any_kernel or d.self_collisions:
             classify = not d.self_collisions
-            changed, resting, finite = pick(pk.collide_particles, pk.collide_particles_serial, n)(
+            changed, resting, finite = pk.kernels_for(d.cint).collide_particles(
                 x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
                 d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
                 d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
@@ -458,6 +513,10 @@ class ParticleCollisionStage:
         if d.self_collisions:
             changed += self._self_collide(system, dt)
             finite = False  # not tracked by the pair solver: the simulation checks the state
+        if coupling is not None:
+            toc = time.perf_counter()
+            coupling.after_collisions(system, d, dt)
+            d.profile["coupling"] += time.perf_counter() - toc
         if changed:
             # the compiled pass reports whether what it wrote is finite (callables: not tracked)
             system.state_modified(finite=finite and not d.callables)
@@ -487,8 +546,7 @@ class ParticleCollisionStage:
         d = self.data
         d.check_start = False
         inside = np.zeros(d.cint.shape[0], np.int64)
-        kernel = pick(pk.push_out, pk.push_out_serial, system.x.shape[0])
-        moved = kernel(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
+        moved = pk.kernels_for(d.cint).push_out(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                        d.pose0, d.ref, d.distance_tolerance, inside)
         if moved:
             names = ", ".join(f"{type(c).__name__} #{i}: {int(inside[i])}"
@@ -518,22 +576,23 @@ class ParticleCollisionStage:
         nbuckets = int(np.prod(d.grid_dims)) if dense else d.table_size
         d.grid_mode = "dense" if dense else "hash"
         grid = (inv_cell, d.box_lo, d.grid_dims, dense, mask)
-        pick(bp.bin_particles, bp.bin_particles_serial, n)(x, radius, system.active, *grid, d.cell_key, d.bucket)
+        kernels = pk.kernels_for(d.cint)
+        kernels.bin_particles(x, radius, system.active, *grid, d.cell_key, d.bucket)
         ns = int(bp.counting_sort(d.bucket, nbuckets, d.bucket_start, d.order))
         # sorted space: the particles in cell order (see broadphase)
-        gather, scatter = pick(bp.gather, bp.gather_serial, n), pick(bp.scatter, bp.scatter_serial, n)
+        gather, scatter = kernels.gather.pick(x.size), kernels.scatter.pick(x.size)
         order = d.order
         xs, rs, ks = d.xs[:ns], d.rs[:ns], d.ks[:ns]
         gather(order, ns, x, xs)
         gather(order, ns, radius, rs)
         if not dense:
             gather(order, ns, d.cell_key, ks)
-        pick(bp.count_pairs, bp.count_pairs_serial, n)(
+        kernels.count_pairs.pick(x.size)(
             xs, rs, ks, *grid, d.bucket_start, ns, margin, d.pair_counts)
         total = int(bp.exclusive_scan(d.pair_counts, ns, d.pair_start))
         if total > d.pair_i.shape[0]:
             d._alloc_pairs(int(total * 1.5) + 64)
-        pick(bp.fill_pairs, bp.fill_pairs_serial, n)(
+        kernels.fill_pairs.pick(x.size)(
             xs, rs, ks, *grid, d.bucket_start, ns, margin, d.pair_start, d.pair_i, d.pair_j)
         ncolors = int(bp.color_pairs(d.pair_i, d.pair_j, total, d.used_colors, d.pair_color,
                                      d.color_start, d.color_order, d.color_cursor))
@@ -548,10 +607,9 @@ class ParticleCollisionStage:
             gather(order, ns, d.support, sups)
             inp[:] = 0
             # colour batches pay off when they are large; small pair sets run serially
-            m = n if total >= PARALLEL_PAIRS else 0
-            pick(pk.mark_pairs, pk.mark_pairs_serial, m)(d.pair_i, d.pair_j, d.color_start, d.color_order,
+            kernels.mark_pairs.pick(total)(d.pair_i, d.pair_j, d.color_start, d.color_order,
                                                          ncolors, inp)
-            pick(pk.solve_pairs, pk.solve_pairs_serial, m)(
+            kernels.solve_pairs.pick(total)(
                 xs, vs, ims, rs, dvs, d.pair_i, d.pair_j, d.color_start, d.color_order, ncolors, inp, sups,
                 d.cint, d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, dt, d.self_restitution,
                 d.self_friction, d.rest_speed, d.iterations)
@@ -566,7 +624,7 @@ class ParticleCollisionStage:
         # resting contacts for the next step, after the pair solver moved the particles
         d = self.data
         if d.any_kernel:
-            d.resting_count = pick(pk.classify_contacts, pk.classify_contacts_serial, system.x.shape[0])(
+            d.resting_count = pk.kernels_for(d.cint).classify_contacts(
                 system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci, d.pose1,
                 d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt, d.distance_tolerance, d.rest_speed)
 
@@ -754,11 +812,6 @@ def set_collision_mode(system, mode):
     _data(system).mode = mode
 
 
-def get_collision_mode(system) -> str:
-    data = getattr(system, "_collision", None)
-    return "a_priori" if data is None else data.mode
-
-
 def set_self_collisions(system, flag):
     """Switch particle-particle collisions on or off (particles need radius > 0)."""
     if not isinstance(flag, (bool, np.bool_)):
@@ -769,11 +822,6 @@ def set_self_collisions(system, flag):
         warnings.warn("self_collisions is on but every particle has radius 0, so none can touch; "
                       "give the particles a radius (ParticleSystem(..., radius=...))",
                       stacklevel=_user_stacklevel())
-
-
-def get_self_collisions(system) -> bool:
-    data = getattr(system, "_collision", None)
-    return False if data is None else data.self_collisions
 
 
 def configure_contacts(system, *, distance_tolerance=None, rest_speed=None, self_restitution=None,

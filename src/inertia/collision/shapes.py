@@ -34,6 +34,8 @@ import numpy as np
 
 from .. import _validate
 from . import distance as _d
+from ..geometry import shapes as _S
+from ..math import mat3_to_quat
 from .motion import Motion, as_rotation
 
 __all__ = ["Collider", "Plane", "Sphere", "Box", "Capsule", "Cylinder", "Container", "SDF"]
@@ -57,6 +59,27 @@ def _as_motion(motion):
         return Motion(position=motion)
     raise ValueError(f"motion must be None, an inertia.colliders.Motion or a callable t -> position; "
                      f"got {type(motion).__name__}")
+
+
+def _quat_z_to(axis) -> np.ndarray:
+    """Unit quaternion (w, x, y, z) of the shortest rotation taking +z onto the unit vector `axis`."""
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    w = 1.0 + a[2]
+    if w < 1e-12:                       # axis = -z: half turn about x
+        return np.array([0.0, 1.0, 0.0, 0.0])
+    q = np.array([w, -a[1], a[0], 0.0])  # (1 + z.a, z x a)
+    return q / np.linalg.norm(q)
+
+
+def _pose(position, q=(1.0, 0.0, 0.0, 0.0)) -> np.ndarray:
+    return np.concatenate([np.asarray(position, dtype=np.float64).reshape(3), np.asarray(q, dtype=np.float64)])
+
+
+def _row(kind, position, q=(1.0, 0.0, 0.0, 0.0), params=(), **extra) -> dict:
+    p = np.zeros(4)
+    p[:len(params)] = params
+    return dict(type=kind, pose=_pose(position, q), params=p, **extra)
 
 
 class Collider:
@@ -147,6 +170,20 @@ class Collider:
     def __repr__(self):
         return f"{type(self).__name__}(dim={self.dim}{', moving' if self.moving else ''})"
 
+    # --- shape-table rows --------------------------------------------------------------------
+    def shape_rows(self) -> list[dict]:
+        """This collider as rows of the Model's shape table (3-D colliders only).
+
+        Each row is a dict: ``type`` (an ``inertia.geometry.shapes`` code), ``pose`` (7,) (position,
+        quaternion w, x, y, z) *relative to the collider's rest frame* (its reference point, rest
+        orientation), ``params`` (4,), and for meshes ``vertices`` (V, 3) / ``triangles`` (T, 3) in
+        that frame. A static collider's rows sit on body -1 at ``rest_point + pose``; a moving one's
+        on a kinematic body whose pose is the collider's ``pose(t)`` (see ``inertia.model.with_colliders``).
+        """
+        if self.dim != 3:
+            raise ValueError(f"{type(self).__name__} is {self.dim}-D; only 3-D colliders become shape-table rows")
+        return [dict(type=_S.SDF, pose=_pose(np.zeros(3)), params=np.zeros(4))]
+
 
 class Plane(Collider):
     """Half-space below the plane through ``point`` with unit outward ``normal``.
@@ -169,6 +206,10 @@ class Plane(Collider):
         self.point, self.normal_vector = p[:dim].copy(), n[:dim].copy()
         super().__init__(dim, p, [n[0], n[1], n[2], float(n @ p)], motion=motion)
 
+    def shape_rows(self):
+        Collider.shape_rows(self)
+        return [_row(_S.PLANE, np.zeros(3), _quat_z_to(self.normal_vector))]
+
 
 class Sphere(Collider):
     """Solid ball of ``radius`` > 0 around ``center`` (a disc in 2-D). Reference point: centre."""
@@ -179,6 +220,10 @@ class Sphere(Collider):
         c, dim = _vec3(center, "center")
         self.center, self.radius = c[:dim].copy(), _positive(radius, "radius")
         super().__init__(dim, c, [c[0], c[1], c[2], self.radius], motion=motion)
+
+    def shape_rows(self):
+        Collider.shape_rows(self)
+        return [_row(_S.SPHERE, np.zeros(3), params=(self.radius,))]
 
 
 def _center_extents_rotation(center, half_extents, rotation):
@@ -205,6 +250,11 @@ class Box(Collider):
         h3[:dim] = h
         super().__init__(dim, c, np.concatenate([c, r.reshape(-1), h3]), motion=motion)
 
+    def shape_rows(self):
+        Collider.shape_rows(self)
+        return [_row(_S.BOX, np.zeros(3), mat3_to_quat(np.ascontiguousarray(self.rotation)),
+                     params=self.half_extents)]
+
 
 class Capsule(Collider):
     """Solid capsule: all points within ``radius`` > 0 of the segment ``a``-``b`` (2-D: a
@@ -219,6 +269,14 @@ class Capsule(Collider):
             raise ValueError(f"a and b must have the same number of components; got {dim} and {bdim}")
         self.a, self.b, self.radius = pa[:dim].copy(), pb[:dim].copy(), _positive(radius, "radius")
         super().__init__(dim, 0.5 * (pa + pb), np.concatenate([pa, pb, [self.radius]]), motion=motion)
+
+    def shape_rows(self):
+        Collider.shape_rows(self)
+        axis = self.b - self.a
+        half = 0.5 * float(np.linalg.norm(axis))
+        if half == 0.0:                  # a ball
+            return [_row(_S.SPHERE, np.zeros(3), params=(self.radius,))]
+        return [_row(_S.CAPSULE, np.zeros(3), _quat_z_to(axis), params=(self.radius, half))]
 
 
 class Cylinder(Collider):
@@ -238,6 +296,10 @@ class Cylinder(Collider):
         self.center, self.axis = c.copy(), u
         self.radius, self.half_height = _positive(radius, "radius"), _positive(half_height, "half_height")
         super().__init__(3, c, np.concatenate([c, u, [self.radius, self.half_height]]), motion=motion)
+
+    def shape_rows(self):
+        Collider.shape_rows(self)
+        return [_row(_S.CYLINDER, np.zeros(3), _quat_z_to(self.axis), params=(self.radius, self.half_height))]
 
 
 class Container(Collider):
@@ -284,6 +346,13 @@ class Container(Collider):
         cf = np.concatenate([np.concatenate([n, [n @ p]]) for p, n in zip(points, normals, strict=True)])
         self.plane_points, self.plane_normals = points[:, :dim].copy(), normals[:, :dim].copy()
         Collider.__init__(self, dim, ref, cf, np.array([len(points)], np.int64), motion=motion)
+
+    def shape_rows(self):
+        """One PLANE row per wall (normal into the free space), so rigid bodies inside collide with
+        the walls. A plane is unbounded: a body outside the container is pushed in (limitation)."""
+        Collider.shape_rows(self)
+        return [_row(_S.PLANE, p - self._ref, _quat_z_to(n))
+                for p, n in zip(self.plane_points, self.plane_normals, strict=True)]
 
 
 class SDF(Collider):
@@ -383,3 +452,110 @@ class SDF(Collider):
         rel = np.zeros((points.shape[0], 3))
         rel[:, :dim] = points - p[:dim]
         velocity_out[:] = (v + np.cross(w, rel))[:, :dim]
+
+
+class BodyShape(Collider):
+    """A row of the Model's shape table as particles see it (built by the particle stage from the row).
+
+    The packed data (``_cf``, ``_ci``) is the row's geometry in its body's frame (reference point the
+    body-frame origin, the centre of mass); the particle stage is handed the body's pose at the start
+    and end of each step (``pose0``/``pose1`` rows written by the world from ``body_q``), so the kernels
+    treat it as a moving collider whose material moves with the body. Rows on body -1 and on static
+    bodies are packed once in world coordinates and are static colliders.
+
+    Mapping: SPHERE, BOX, CAPSULE, CYLINDER, PLANE to the closed-form kinds; CONVEX_HULL (its outward
+    triangulated hull) and TRIANGLE_MESH to a distance-grid ``Mesh`` (``inertia.collision.mesh``);
+    HEIGHTFIELD and SDF rows are not seen by particles (limitation).
+    """
+
+    def __init__(self, model, shape: int, body_pose=None):
+        from ..math import quat_to_mat3, transform_mul
+        self.shape, self.body = int(shape), int(model.shape_body[shape])
+        self.from_body = True
+        t = int(model.shape_type[shape])
+        local = np.ascontiguousarray(model.shape_local_pose[shape], dtype=np.float64)
+        self._moves = self.body >= 0 and int(model.body_type[self.body]) != _S.STATIC
+        if self.body >= 0 and not self._moves:        # a static body: bake its pose in
+            q0 = model.state().body_q[self.body] if body_pose is None else body_pose
+            local = transform_mul(np.ascontiguousarray(q0, dtype=np.float64), local)
+        p, r = local[:3].copy(), quat_to_mat3(np.ascontiguousarray(local[3:]))
+        par = model.shape_params[shape]
+        ci = None
+        if t == _S.SPHERE:
+            self.kind, cf = _d.SPHERE, [p[0], p[1], p[2], par[0]]
+        elif t == _S.BOX:
+            self.kind, cf = _d.BOX, np.concatenate([p, r.reshape(-1), par[:3]])
+        elif t == _S.CAPSULE:
+            a, b = p - par[1] * r[:, 2], p + par[1] * r[:, 2]
+            self.kind, cf = _d.CAPSULE, np.concatenate([a, b, [par[0]]])
+        elif t == _S.CYLINDER:
+            self.kind, cf = _d.CYLINDER, np.concatenate([p, r[:, 2], par[:2]])
+        elif t == _S.PLANE:
+            n = r[:, 2]
+            self.kind, cf = _d.PLANE, [n[0], n[1], n[2], float(n @ p)]
+        elif t in (_S.CONVEX_HULL, _S.TRIANGLE_MESH):
+            from .mesh import Mesh, _watertight
+            v0, nv = int(model.shape_vert_start[shape]), int(model.shape_vert_count[shape])
+            verts = model.geom_vertices[v0:v0 + nv]
+            if t == _S.CONVEX_HULL:
+                verts, faces = hull_triangles(verts)
+            else:
+                verts, inverse = np.unique(verts, axis=0, return_inverse=True)
+                faces = inverse.reshape(-1, 3).astype(np.int64)
+            mesh = Mesh((p + verts @ r.T, faces), signed=_watertight(faces))
+            self.kind, cf, ci = _d.GRID, mesh._cf, mesh._ci
+        else:
+            self.kind, cf = _d.CALLABLE, np.zeros(1)
+            self.unsupported = True
+        Collider.__init__(self, 3, np.zeros(3), cf, ci)
+
+    @property
+    def moving(self) -> bool:
+        return self._moves
+
+    def bind(self, body_pose, body_velocity) -> "BodyShape":
+        """Follow a live body: ``body_pose(t) -> (7,)`` pose and ``body_velocity(t) -> (6,)`` (angular,
+        linear) at time t (the world's `World.shape_collider` binds its rigid state). Then ``pose``,
+        ``query``, ``signed_distance``, ``normal`` and ``velocity`` (surface velocity v + w x r) answer
+        for the body where it is, so the shape serves as a boundary of curl-noise fields and the like."""
+        self._live = (body_pose, body_velocity)
+        return self
+
+    def pose(self, t: float = 0.0):
+        live = getattr(self, "_live", None)
+        if live is None or not self._moves:
+            return Collider.pose(self, t)
+        from ..math import quat_to_mat3
+        q = np.asarray(live[0](t), dtype=np.float64)
+        return q[:3].copy(), quat_to_mat3(np.ascontiguousarray(q[3:]))
+
+    def _rigid_velocity(self, t):
+        live = getattr(self, "_live", None)
+        if live is None or not self._moves:
+            return np.zeros(3), np.zeros(3)
+        qd = np.asarray(live[1](t), dtype=np.float64)
+        return qd[3:].copy(), qd[:3].copy()
+
+    def shape_rows(self):
+        raise ValueError("a BodyShape already is a shape-table row")
+
+    def __repr__(self):
+        return f"BodyShape(shape={self.shape}, body={self.body})"
+
+
+def hull_triangles(points):
+    """(vertices (V, 3), faces (F, 3) int64) of the convex hull of `points`, faces wound outward
+    (counter-clockwise seen from outside). Qhull (scipy.spatial.ConvexHull) gives the facets."""
+    from scipy.spatial import ConvexHull
+    pts = np.asarray(points, dtype=np.float64)
+    hull = ConvexHull(pts)
+    used = np.unique(hull.simplices)
+    remap = np.full(len(pts), -1, np.int64)
+    remap[used] = np.arange(len(used))
+    verts = pts[used]
+    faces = remap[hull.simplices].astype(np.int64)
+    centre = verts.mean(axis=0)
+    a, b, c = verts[faces[:, 0]], verts[faces[:, 1]], verts[faces[:, 2]]
+    flip = np.einsum("ij,ij->i", np.cross(b - a, c - a), a - centre) < 0
+    faces[flip] = faces[flip][:, ::-1]
+    return verts, faces

@@ -44,3 +44,9 @@ BODY_TYPE_NAMES = {"dynamic": DYNAMIC, "kinematic": KINEMATIC, "static": STATIC}
 
 __all__ = ["SPHERE", "BOX", "CAPSULE", "CYLINDER", "CONVEX_HULL", "TRIANGLE_MESH", "PLANE",
            "HEIGHTFIELD", "SHAPE_NAMES", "DYNAMIC", "KINEMATIC", "STATIC", "BODY_TYPE_NAMES"]
+
+#: particle-only shape type (after the rigid types): a user signed-distance collider
+#: (``inertia.colliders.SDF``) as a shape-table row. The rigid narrow phase pairs nothing with it;
+#: particles collide with it through the collider's packed data. ``shape_params`` unused.
+SDF = 8
+__all__ += ["SDF"]

@@ -9,6 +9,11 @@ A *state directory* that a run appends to, chunk by chunk::
                               metadata (scene text, scene path, seed, library versions, ...)
         static.npz            per-particle constants, each (N, ...): e.g. group (int32),
                               radius (float64), mass (float64)
+        model.npz             (optional) what the scene *is* beyond particles, arrays of any first
+                              axis: the shape table (shape_type, shape_body, shape_local_pose,
+                              shape_params, shape_vert_start/count, geom_vertices,
+                              shape_tri_start/count, geom_triangles, ...), spring_pairs (P, 2),
+                              surface_triangles (T, 3), fluid/<name>/<key> (see `inertia.world.Run`)
         chunk-00000000.npz    frames [start, start + count): times (k,), positions (k, N, D),
                               velocities (k, N, D), and one ``field.NAME`` (k, ...) per field
         chunk-00000001.npz    ...
@@ -39,6 +44,8 @@ Per-frame fields are any arrays whose first axis is the frame, e.g. ``active`` (
 ``radius`` (F, N) when radii change, ``kinetic_energy`` (F,), ``momentum`` (F, D).
 Per-particle constants live in ``static``: ``group`` (N,) int32 indexes
 ``metadata["groups"]`` (a list of group names), ``radius`` (N,) float64, ``mass`` (N,).
+``model`` (dict, arrays of any first axis) holds the scene's shape table and lines/surfaces; a
+world with bodies records ``body_q`` (F, B, 7) (position, quaternion w, x, y, z) per frame.
 
 Limitations: N cannot change during a run (use an ``active`` mask); one writer per
 directory at a time (no locking); the single-file form is not appendable.
@@ -69,6 +76,8 @@ FORMAT_VERSION = 1
 _HEADER = "header.json"
 _INDEX = "index.json"
 _STATIC = "static.npz"
+_MODEL = "model.npz"
+_MODEL_PREFIX = "model."
 _FIELD_PREFIX = "field."
 _STATIC_PREFIX = "static."
 
@@ -131,6 +140,8 @@ class States:
     static : dict[str, ndarray] -- per-particle constants, first axis N (``group``, ``radius``).
     metadata : dict -- header: ``scene`` (text), ``scene_path``, ``seed``, ``versions``,
         ``fps``, ``dim``, ``groups`` and whatever else the writer was given.
+    model : dict[str, ndarray] -- constant scene arrays of any shape (the shape table, ``spring_pairs``,
+        ``surface_triangles``, ``fluid/<name>/<key>``); empty when the run recorded none.
     """
 
     times: np.ndarray
@@ -139,6 +150,7 @@ class States:
     fields: dict[str, np.ndarray] = field(default_factory=dict)
     static: dict[str, np.ndarray] = field(default_factory=dict)
     metadata: dict[str, Any] = field(default_factory=dict)
+    model: dict[str, np.ndarray] = field(default_factory=dict)
 
     def __post_init__(self):
         self.times = np.asarray(self.times, dtype=np.float64)
@@ -220,6 +232,7 @@ class States:
             fields={k: v[frames] for k, v in self.fields.items()},
             static=dict(self.static),
             metadata=dict(self.metadata),
+            model=dict(self.model),
         )
 
     # -- single-file form ---------------------------------------------------------------------
@@ -233,6 +246,8 @@ class States:
             arrays[_FIELD_PREFIX + name] = np.asarray(value)
         for name, value in self.static.items():
             arrays[_STATIC_PREFIX + name] = np.asarray(value)
+        for name, value in self.model.items():
+            arrays[_MODEL_PREFIX + name] = np.asarray(value)
         header = dict(self.metadata)
         header.update(format=FORMAT_NAME, format_version=FORMAT_VERSION, dim=self.dim, particle_count=self.particle_count)
         _write_npz(path, arrays, compress=compress, extra_json={_HEADER: json.loads(_dumps(header))})
@@ -269,6 +284,7 @@ def _load_single_file(path: Path, frames) -> States:
         fields={k[len(_FIELD_PREFIX):]: v[sel] for k, v in arrays.items() if k.startswith(_FIELD_PREFIX)},
         static={k[len(_STATIC_PREFIX):]: v for k, v in arrays.items() if k.startswith(_STATIC_PREFIX)},
         metadata=header,
+        model={k[len(_MODEL_PREFIX):]: v for k, v in arrays.items() if k.startswith(_MODEL_PREFIX)},
     )
 
 
@@ -318,6 +334,7 @@ def _load_directory(path: Path, frames) -> States:
     _check_header(header, path)
     index = _check_index(_read_json(path / _INDEX), path / _INDEX) if (path / _INDEX).exists() else {"chunks": [], "fields": {}}
     static = _read_npz(path / _STATIC) if (path / _STATIC).exists() else {}
+    model = _read_npz(path / _MODEL) if (path / _MODEL).exists() else {}
     try:
         n, d = int(header["particle_count"]), int(header["dim"])
         dtype = np.dtype(header.get("position_dtype") or "float64")
@@ -360,6 +377,7 @@ def _load_directory(path: Path, frames) -> States:
         },
         static=static,
         metadata=header,
+        model=model,
     )
 
 
@@ -392,6 +410,8 @@ class StateWriter:
     dim, particle_count : D and N of every frame.
     fps : output frame rate (frames per second of simulated time), stored in the header.
     static : per-particle constants ({name: (N, ...) array}), e.g. ``group``, ``radius``.
+    model : constant scene arrays of any shape ({name: array}: the shape table, ``spring_pairs``,
+        ``surface_triangles``, ...), written once to ``model.npz``.
     metadata : JSON-able header entries. The conventional keys are ``scene`` (the scene text),
         ``scene_path``, ``seed`` and ``groups`` (list of group names, indexed by ``group``);
         ``versions`` is filled with `library_versions` unless given.
@@ -413,6 +433,7 @@ class StateWriter:
         fps: float | None = None,
         static: Mapping[str, np.ndarray] | None = None,
         metadata: Mapping[str, Any] | None = None,
+        model: Mapping[str, np.ndarray] | None = None,
         chunk_frames: int = 64,
         chunk_bytes: int = 64 << 20,
         compress: bool = True,
@@ -466,6 +487,12 @@ class StateWriter:
         self._last_time = -math.inf
         self._header["position_dtype"] = None
         _write_npz(self.path / _STATIC, self._static, compress=self.compress)
+        if model:
+            arrays = {k: np.asarray(v) for k, v in model.items()}
+            for name, value in arrays.items():
+                if value.dtype.hasobject:
+                    raise ValueError(f"StateWriter: model array {name!r} holds Python objects; numeric arrays only")
+            _write_npz(self.path / _MODEL, arrays, compress=self.compress)
         self._write_header()
         self._write_index()
 
@@ -644,6 +671,7 @@ def write_states(path: str | os.PathLike, states: States, **options) -> Path:
         particle_count=states.particle_count,
         fps=states.metadata.get("fps"),
         static=states.static,
+        model=states.model,
         metadata={k: v for k, v in states.metadata.items() if k not in ("format", "format_version", "dim", "particle_count", "fps", "position_dtype")},
         **options,
     ) as writer:

@@ -634,6 +634,9 @@ class Camera(_Model):
     distance: PositiveFloat | None = None
     fov: Annotated[float, Field(ge=1, le=170)] | None = Field(None, description="vertical field of view (degrees)")
     height: PositiveFloat | None = Field(None, description="2-D: world units visible vertically")
+    orbit: Annotated[float, Field(ge=-360, le=360)] | None = Field(
+        None, description="3-D: degrees the framed camera turns about the up axis over the run (0: still)")
+    follow: bool | None = Field(None, description="3-D: the framing follows the particles over the run")
 
 
 class Render(_Model):
@@ -643,6 +646,8 @@ class Render(_Model):
     theme: Literal["dark", "light"] = "dark"
     camera: Camera = Field(default_factory=Camera)
     draw_colliders: bool = True
+    trails: Annotated[int, Field(ge=0, le=100)] = Field(
+        0, description="3-D: draw each particle's path over this many previous frames (shows the flow)")
 
 
 # ----------------------------------------------------------------------------------------------

@@ -1,0 +1,292 @@
+"""inertia.world with rigid bodies: the shape table, recording (States.model, body_q), checkpoints
+and resume with bodies, fluids in the step, determinism."""
+
+import hashlib
+import os
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import inertia as ia
+from inertia.io import load_states
+from inertia.model import ModelBuilder
+from inertia.world import Run, World
+
+RAIN_ON_STACK = textwrap.dedent("""
+    import numpy as np
+    import inertia as ia
+    from inertia.model import ModelBuilder
+    from inertia.world import World
+
+    def rain_on_stack():
+        # particles raining on a stack of three boxes on the ground, and a static ground collider
+        b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+        b.add_plane()
+        for k in range(3):
+            body = b.add_body(position=(0.01 * k, 0.0, 0.1 + 0.2 * k), name=f"box{k}")
+            b.add_box(body, half_extents=(0.1, 0.1, 0.1), density=200.0, restitution=0.3)
+        world = World(dt=1 / 120, colliders=[ia.colliders.Plane()], model=b.finalize(),
+                      rigid_options={"substeps": 4})
+        rng = np.random.default_rng(7)
+        x = np.column_stack([rng.uniform(-0.08, 0.08, 40), rng.uniform(-0.08, 0.08, 40),
+                             rng.uniform(0.7, 1.1, 40)])
+        ps = ia.ParticleSystem(x, masses=0.02, radius=0.01)
+        ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+        ps.add_collider(world.colliders[0], restitution=0.2, friction=0.3)
+        world.add("rain", ps, integrator="semi_implicit_euler")
+        return world
+""")
+exec(RAIN_ON_STACK)   # noqa: S102 - defines rain_on_stack() here and in the thread subprocesses
+
+
+def _hash(world) -> str:
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(world["rain"].state).tobytes())
+    h.update(np.ascontiguousarray(world.rigid.state.body_q).tobytes())
+    h.update(np.ascontiguousarray(world.rigid.state.body_qd).tobytes())
+    return h.hexdigest()[:16]
+
+
+def test_rigid_bodies_and_particles_share_the_shape_table():
+    world = rain_on_stack()
+    m = world.model
+    # 1 builder plane + 3 boxes + the Plane collider's row (static, source 0)
+    assert m.shape_count == 5 and m.body_count == 3
+    assert list(m.shape_source) == [-1, -1, -1, -1, 0]
+    for _ in range(60):
+        world.step()
+    x = world["rain"].x
+    q = world.rigid.state.body_q
+    # no particle inside a box (signed distance >= -tolerance), none below the ground
+    for k in range(3):
+        local = x - q[k, :3]
+        inside = np.all(np.abs(local) < 0.1 - 2e-3, axis=1)
+        assert not inside.any()
+    assert x[:, 2].min() > 0.01 - 1e-3
+    assert set(world.profile) >= {"kinematics", "rigid", "fluids", "coupling", "rain"}
+
+
+def test_run_records_model_and_body_poses_and_resumes_bit_for_bit(tmp_path):
+    full = rain_on_stack()
+    Run(full, tmp_path / "full", duration=0.25, fps=40, handle_sigint=False).execute()
+    part = rain_on_stack()
+    res = Run(part, tmp_path / "part", duration=0.25, fps=40, handle_sigint=False, stop_after_frames=4).execute()
+    assert res.status == "interrupted"
+    resumed = rain_on_stack()
+    res = Run(resumed, tmp_path / "part", duration=0.25, fps=40, handle_sigint=False, resume=True).execute()
+    assert res.status == "completed"
+    assert _hash(resumed) == _hash(full)
+    a, b = load_states(tmp_path / "full" / "states"), load_states(tmp_path / "part" / "states")
+    assert a.fields["body_q"].shape == (a.frame_count, 3, 7)
+    np.testing.assert_array_equal(a.fields["body_q"], b.fields["body_q"])
+    np.testing.assert_array_equal(a.positions, b.positions)
+    model = a.model
+    for key in ("shape_type", "shape_body", "shape_local_pose", "shape_params", "shape_vert_start",
+                "shape_vert_count", "geom_vertices", "shape_tri_start", "shape_tri_count", "geom_triangles"):
+        assert key in model
+    assert model["shape_type"].dtype == np.int32 and model["shape_local_pose"].shape == (5, 7)
+
+
+def test_model_file_has_hull_triangles_springs_and_surfaces(tmp_path):
+    b = ModelBuilder()
+    body = b.add_body(position=(0.0, 0.0, 2.0))
+    cube = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * 0.1
+    b.add_convex_hull(body, cube)
+    world = World(dt=0.01, model=b.finalize())
+    x = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    cloth = ia.ParticleSystem(x + [5.0, 0.0, 0.0])
+    cloth.add_force(ia.forces.Springs([[0, 1], [1, 3], [3, 2], [2, 0]], stiffness=10.0))
+    world.add("other", ia.ParticleSystem(np.zeros((2, 3)) + [9.0, 9.0, 9.0]))
+    world.add("cloth", cloth, triangles=[[0, 1, 3], [0, 3, 2]])
+    Run(world, tmp_path, duration=0.02, fps=100, handle_sigint=False).execute()
+    model = load_states(tmp_path / "states").model
+    # a cube hull: 12 outward triangles of its 8 corners
+    tri = model["geom_triangles"][model["shape_tri_start"][0]:][:model["shape_tri_count"][0]]
+    assert tri.shape == (12, 3)
+    v = model["geom_vertices"]
+    a, b_, c = v[tri[:, 0]], v[tri[:, 1]], v[tri[:, 2]]
+    assert np.all(np.einsum("ij,ij->i", np.cross(b_ - a, c - a), a) > 0)   # outward (centre at 0)
+    np.testing.assert_array_equal(model["spring_pairs"], [[2, 3], [3, 5], [5, 4], [4, 2]])
+    np.testing.assert_array_equal(model["surface_triangles"], [[2, 3, 5], [2, 5, 4]])
+
+
+class _FakeFluid:
+    """A stand-in for the fluid protocol: a 'fluid' of 3 points carried up by 1 m/s, counting calls
+    and seeing the rigid world."""
+
+    def __init__(self):
+        self.x = np.zeros((3, 3))
+        self.calls = []
+
+    def advance(self, dt, rigid):
+        self.calls.append((dt, None if rigid is None else rigid.state.step_index[0]))
+        self.x[:, 2] += dt
+
+    def save_state(self):
+        return {"x": self.x.copy()}
+
+    def restore_state(self, state):
+        self.x[:] = state["x"]
+
+    def frame_arrays(self):
+        return {"x": self.x}
+
+    def static_arrays(self):
+        return {"origin": np.array([1.0, 2.0, 3.0])}
+
+
+def test_fluids_are_stepped_after_the_bodies_recorded_and_checkpointed(tmp_path):
+    def make():
+        b = ModelBuilder()
+        body = b.add_body(position=(0.0, 0.0, 1.0))
+        b.add_sphere(body, 0.1)
+        world = World(dt=0.01, model=b.finalize())
+        world.add_fluid("tank", _FakeFluid())
+        return world
+
+    world = make()
+    world.step()
+    # the fluid advanced once, by dt, after the rigid step (the rigid clock already counts 1 step)
+    assert world.fluids["tank"].calls == [(0.01, 1)]
+    with pytest.raises(ValueError, match="fluid protocol"):
+        world.add_fluid("bad", object())
+    res = Run(make(), tmp_path, duration=0.1, fps=50, handle_sigint=False, stop_after_frames=3).execute()
+    assert res.status == "interrupted"
+    resumed = make()
+    Run(resumed, tmp_path, duration=0.1, fps=50, handle_sigint=False, resume=True).execute()
+    states = load_states(tmp_path / "states")
+    z = states.fields["fluid/tank/x"][:, 0, 2]
+    np.testing.assert_allclose(z, states.times, atol=1e-12)      # z = t (1 m/s from 0)
+    np.testing.assert_array_equal(states.model["fluid/tank/origin"], [1.0, 2.0, 3.0])
+
+
+GOLDEN_HASH = "c8169eec6b5679ac"   # measured at 1 and 2 threads (this branch, numba 0.68)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_rain_on_stack_golden_hash_at_one_and_two_threads(threads):
+    script = RAIN_ON_STACK + textwrap.dedent("""
+        import hashlib
+        world = rain_on_stack()
+        for _ in range(60):
+            world.step()
+        h = hashlib.sha256()
+        h.update(np.ascontiguousarray(world["rain"].state).tobytes())
+        h.update(np.ascontiguousarray(world.rigid.state.body_q).tobytes())
+        h.update(np.ascontiguousarray(world.rigid.state.body_qd).tobytes())
+        print(h.hexdigest()[:16])
+    """)
+    env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == GOLDEN_HASH
+
+
+def test_emitted_particles_collide_with_a_dynamic_body():
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    b.add_plane()
+    body = b.add_body(position=(0.0, 0.0, 0.1))
+    b.add_box(body, half_extents=(0.1, 0.1, 0.1), density=300.0)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem.pool(60, 3, mass=0.01, radius=0.005)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    ps.add_emitter(ia.Emitter(120.0, ia.BoxSource((0.0, 0.0, 0.6), (0.05, 0.05, 0.01)),
+                              (0.0, 0.0, -1.0), seed=3))
+    world.add("rain", ps)
+    for _ in range(90):
+        world.step()
+        x, on = ps.x[ps.active], world.rigid.state.body_q[body, :3]
+        assert not np.any(np.all(np.abs(x - on) < 0.1 - 1e-3, axis=1))    # none inside the box
+    assert ps.active.sum() > 40 and np.all(ps.x[ps.active, 2] > 0.19)      # they landed on top
+
+
+def test_tracers_in_curl_noise_stay_outside_a_moving_body():
+    # a kinematic sphere moving through a curl-noise field that has its shape as a boundary:
+    # Bridson et al. (2007)'s moving-boundary potential makes the flow's normal velocity equal the
+    # body's, so tracers slide around it and never enter (within the integrator's error)
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    body = b.add_body(position=(-0.5, 0.0, 0.0), linear_velocity=(0.5, 0.0, 0.0), body_type="kinematic")
+    sphere = b.add_sphere(body, 0.25)
+    world = World(dt=1 / 60, model=b.finalize())
+    boundary = world.shape_collider(sphere)
+    field = ia.fields.CurlNoise(3, seed=1, frequency=1.0, speed=0.3, boundaries=[boundary], boundary_width=0.3)
+    g = np.linspace(-0.45, 0.95, 8)
+    pts = np.stack(np.meshgrid(g, g - 0.5, [-0.1, 0.1], indexing="ij"), -1).reshape(-1, 3)
+    keep = np.linalg.norm(pts - [-0.5, 0.0, 0.0], axis=1) > 0.3
+    tracers = ia.Tracers(pts[keep], field)
+    world.add("smoke", tracers, integrator="rk4")
+    for _ in range(60):
+        world.step()
+        d = boundary.signed_distance(tracers.x)
+        assert d.min() > -2e-3
+    assert world.rigid.state.body_q[body, 0] == pytest.approx(0.0, abs=1e-9)   # it moved 0.5 m
+
+
+def test_a_world_of_bodies_only_runs_and_records(tmp_path):
+    b = ModelBuilder()
+    b.add_plane()
+    body = b.add_body(position=(0.0, 0.0, 0.5))
+    b.add_sphere(body, 0.1)
+    world = World(dt=1 / 60, model=b.finalize())
+    assert world.dim == 3 and world.particle_count == 0
+    Run(world, tmp_path, duration=0.5, fps=10, handle_sigint=False).execute()
+    states = load_states(tmp_path / "states")
+    assert states.positions.shape == (6, 0, 3)
+    z = states.fields["body_q"][:, 0, 2]
+    # free fall from 0.5 m: z = 0.5 - g t^2 / 2 until the ball lands (first two frames, within the
+    # one-step lag of the semi-implicit integration, g dt t), then rest on the plane at its radius
+    np.testing.assert_allclose(z[:2], 0.5 - 0.5 * 9.81 * states.times[:2] ** 2, atol=9.81 / 60 * 0.1 + 1e-12)
+    assert z[-1] == pytest.approx(0.1, abs=2e-3)
+
+
+def test_bad_world_arguments_name_the_argument():
+    b = ModelBuilder()
+    body = b.add_body()
+    b.add_sphere(body, 0.1)
+    model = b.finalize()
+    with pytest.raises(ValueError, match="model must be"):
+        World(dt=0.01, model="scene.toml")
+    with pytest.raises(ValueError, match="rigid_options must be a dict"):
+        World(dt=0.01, model=model, rigid_options=4)
+    with pytest.raises(ValueError, match="must not set 'dt'"):
+        World(dt=0.01, model=model, rigid_options={"dt": 0.1})
+    world = World(dt=0.01, model=model)
+    with pytest.raises(ValueError, match="shape must be a row index"):
+        world.shape_collider(3)
+    with pytest.raises(ValueError, match="triangles must be"):
+        world.add("cloth", ia.ParticleSystem(np.zeros((3, 3))), triangles=[[0, 1, 5]])
+
+
+def test_particles_land_on_hull_and_mesh_bodies():
+    # convex-hull and triangle-mesh rows are packed for particles as distance-grid meshes: particles
+    # dropped on a hull cube (dynamic, on the ground) and on a static mesh ramp stop on their surfaces
+    # (within the grid's accuracy, a few mm at 64 cells)
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    b.add_plane()
+    cube = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float) * 0.1
+    hull = b.add_body(position=(0.0, 0.0, 0.1))
+    b.add_convex_hull(hull, cube, density=500.0)
+    ramp_v = np.array([[1.0, -0.2, 0.0], [1.6, -0.2, 0.0], [1.6, 0.2, 0.3], [1.0, 0.2, 0.3]])
+    b.add_triangle_mesh(ramp_v, np.array([[0, 1, 2], [0, 2, 3]]))
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    x = np.array([[0.0, 0.0, 0.5], [0.05, 0.05, 0.6], [1.3, 0.0, 0.6]])
+    ps = ia.ParticleSystem(x, masses=0.001, radius=0.005)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("drops", ps)
+    touched = 0
+    for _ in range(90):
+        world.step()
+        # the open mesh is a thin sheet: over the ramp (|y| < 0.2) the third drop stays above its
+        # plane z = 0.75 (y + 0.2) while it slides down it, never going through
+        xr = ps.x[2]
+        if abs(xr[1]) < 0.2:
+            height = xr[2] - 0.75 * (xr[1] + 0.2)
+            assert height > -4e-3
+            touched += height < 0.01
+    top = world.rigid.state.body_q[hull, 2] + 0.1
+    np.testing.assert_allclose(ps.x[:2, 2], top + 0.005, atol=4e-3)
+    assert touched > 5                                   # it slid along the ramp ...
+    assert ps.x[2, 1] < -0.2 and ps.x[2, 2] == pytest.approx(0.005, abs=1e-3)   # ... off it to the ground
