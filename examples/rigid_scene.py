@@ -5,7 +5,7 @@
 Shows the Python path of scene-file bodies: `read_scene` validates the TOML, `rigid_world` builds the
 `Model` (inertia.scene.rigid_builder) and a `RigidWorld`, and `inertia.io` writes the animated bodies
 (``bodies.usda``, ``obj/frame_NNNNN.obj``). Prints how many bodies fell over / moved and the deepest
-penetration. (Once `World(model=...)` lands, `inertia run NAME` records the same bodies in its state file.)
+penetration. (`inertia run NAME` records the same bodies in its state file.)
 """
 
 from __future__ import annotations

@@ -1,9 +1,10 @@
 """Build the rigid bodies of a scene (``[materials]``, ``[bodies]``, ``[rigid]``) into a `Model`.
 
 `build_rigid(scene_model, source=, base_dir=)` returns a `RigidScene` (the finalized Model, the
-RigidWorld options, per-body colours and the body names of every copy). `rigid_world(scene)` is the
-thin adapter that steps the bodies with `inertia.rigid.world.RigidWorld` until `World(model=...)`
-wires them into the coupled world (the lead switches `rigid_world` to `World(model=, rigid_options=)`).
+RigidWorld options, per-body colours, the vehicles). `inertia.scene.builder.build_world` passes the
+Model to ``World(model=, rigid_options=)``; `rigid_world(scene)` builds a bare `RigidWorld` of the bodies
+only, and `step_scene` runs the ``[vehicles]`` scripts before each of its steps (in the coupled World,
+`builder._drive_vehicles` wraps its ``step``).
 
 Copies of one ``[bodies.NAME]`` table are named ``NAME[k]`` (k in creation order: x fastest, then y,
 then z / layer). Static bodies become shapes of the world (body -1) at their world pose.
