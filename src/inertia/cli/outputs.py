@@ -25,6 +25,7 @@ __all__ = ["write_outputs", "render_frames", "plot_energy", "OUTPUT_NAMES", "ren
 OUTPUT_NAMES = {
     "mp4": "movie.mp4", "gif": "movie.gif", "frames": "frames", "plot": "energy.png",
     "ply": "ply", "usd": "points.usdc", "manifest": "manifest.json",
+    "usd_bodies": "bodies.usdc", "obj": "obj",
 }
 
 
@@ -192,9 +193,27 @@ def write_outputs(states, out_dir, output: dict, render: dict | None = None, col
         directory = out / OUTPUT_NAMES["ply"]
         write_ply_sequence(states, directory)
         written["ply"] = directory
-    if output.get("usd"):
+    bodies = _body_frames(states)
+    if output.get("usd") and (bodies is None or states.particle_count):
         written["usd"] = write_usd(states, out / OUTPUT_NAMES["usd"], up_axis="Z" if states.dim == 3 else "Y")
+    if bodies is not None and output.get("usd"):
+        from inertia.io import write_usd_bodies
+
+        written["usd_bodies"] = write_usd_bodies(out / OUTPUT_NAMES["usd_bodies"], bodies[0], bodies[1], fps=fps)
+    if bodies is not None and output.get("obj"):
+        from inertia.io import write_obj_sequence
+
+        written["obj"] = write_obj_sequence(out / OUTPUT_NAMES["obj"], bodies[0], bodies[1])
     return written
+
+
+def _body_frames(states):
+    """(model dict, body_q (F, B, 7)) when the state file recorded rigid bodies, else None."""
+    model = getattr(states, "model", None) or {}
+    body_q = (states.fields or {}).get("body_q") if hasattr(states, "fields") else None
+    if body_q is None or "shape_type" not in model:
+        return None
+    return model, np.asarray(body_q)
 
 
 def frame_count_for(duration: float, fps: float) -> int:

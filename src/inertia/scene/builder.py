@@ -12,6 +12,7 @@ and the same seed always gives the same run.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 import math
 import zlib
@@ -647,13 +648,36 @@ class _Builder:
             if spec.groups is not None:
                 self.check_group_names(spec.groups, f"colliders[{k}].groups", particle_names)
         self.build_colliders()
+        from .rigid_builder import build_rigid
+
+        rigid = build_rigid(m, source=self.source, base_dir=self.base)
+        kwargs = {}
+        if rigid is not None and "model" in inspect.signature(World).parameters:
+            kwargs = dict(model=rigid.model, rigid_options={k: v for k, v in rigid.options.items() if k != "dt"})
         world = World(dt=m.simulation.dt, substeps=m.simulation.substeps,
-                      colliders=[obj for _, obj, _ in self.colliders], name=m.name or "scene")
+                      colliders=[obj for _, obj, _ in self.colliders], name=m.name or "scene", **kwargs)
+        world.rigid_scene = rigid          # the bodies (RigidScene): colours, vehicles
+        if rigid is not None and rigid.vehicles and getattr(world, "rigid", None) is not None:
+            _drive_vehicles(world, rigid)
         for i, group in enumerate(m.particles):
             self.particle_group(world, i, group, names)
         for i, group in enumerate(m.tracers):
             self.tracer_group(world, i, group, names[len(m.particles) + i])
         return world
+
+
+def _drive_vehicles(world, rigid) -> None:
+    """Run the scene's vehicle scripts before each world step (the World has no pre-step hook yet: this
+    wraps the instance's ``step``). The script is re-applied from the clock, so a resumed run sets the same
+    controls; the wheels' spin is not in the checkpoint (a resumed vehicle run is not bit for bit)."""
+    rigid.attach(world.rigid)
+    step = world.step
+
+    def step_with_vehicles():
+        rigid.before_step(world.rigid.state.time)
+        step()
+
+    world.step = step_with_vehicles
 
 
 def build_world(model: M.SceneModel, *, source=None, base_dir=None) -> World:

@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
+from .rigid_models import Body, Material, Rigid, Vehicle
 
 __all__ = [
     "FORMAT_VERSION", "INTEGRATORS", "FIRST_ORDER_INTEGRATORS", "SceneModel", "Simulation",
@@ -612,7 +613,8 @@ class Output(_Model):
     frames: bool = Field(False, description="PNG image of every frame")
     plot: bool = Field(True, description="energy and momentum over time (PNG)")
     ply: bool = Field(False, description="PLY point file of every frame")
-    usd: bool = Field(False, description="animated USD points (.usdc)")
+    usd: bool = Field(False, description="animated USD points (.usdc); rigid bodies as animated transforms (bodies.usdc)")
+    obj: bool = Field(False, description="OBJ mesh of the rigid bodies per frame (obj/frame_NNNNN.obj)")
     checkpoint_interval: PositiveFloat = Field(10.0, description="wall-clock seconds between checkpoints")
 
     @field_validator("directory")
@@ -669,6 +671,10 @@ class SceneModel(_Model):
     fields: dict[str, FieldSpec] = Field(default_factory=dict, description="named vector fields")
     output: Output = Field(default_factory=Output)
     render: Render = Field(default_factory=Render)
+    materials: dict[str, Material] = Field(default_factory=dict, description="named rigid-body materials")
+    bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies (inertia.scene.rigid_models)")
+    rigid: Rigid = Field(default_factory=Rigid, description="rigid-body solver options")
+    vehicles: dict[str, Vehicle] = Field(default_factory=dict, description="ray-cast vehicles on bodies")
 
     @model_validator(mode="before")
     @classmethod
@@ -691,6 +697,6 @@ class SceneModel(_Model):
 
     @model_validator(mode="after")
     def _names(self):
-        if not self.particles and not self.tracers:
-            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group")
+        if not self.particles and not self.tracers and not self.bodies:
+            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group or [bodies.NAME] table")
         return self
