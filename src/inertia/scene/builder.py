@@ -46,6 +46,14 @@ def scene_fingerprint(model: M.SceneModel) -> str:
     return fingerprint(json.dumps(data, sort_keys=True))
 
 
+def cloth_triangles(nu: int, nv: int) -> np.ndarray:
+    """(2 (nu-1)(nv-1), 3) int64: two counter-clockwise triangles per quad of an nu x nv cloth grid
+    (particle ``j nu + i`` at column i, row j), the surface the renderer shades."""
+    idx = np.arange(nu * nv).reshape(nv, nu)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int64)
+
+
 class _Builder:
     def __init__(self, model: M.SceneModel, source, base_dir: Path):
         self.m = model
@@ -518,6 +526,7 @@ class _Builder:
         name = names[index]
         springs = None
         pinned = list(group.pinned)
+        surface = None
         if group.positions is not None:
             x = self.points(group.positions, f"{path}.positions")
         elif group.lattice is not None:
@@ -530,6 +539,7 @@ class _Builder:
         elif group.cloth is not None:
             x, pairs, k, c, pins = self.cloth(group.cloth, f"{path}.cloth")
             springs, pinned = (pairs, k, c), pinned + pins
+            surface = cloth_triangles(*group.cloth.counts)
         else:
             x = np.zeros((0, self.dim))
         n_layout = len(x)
@@ -608,7 +618,8 @@ class _Builder:
                     configure_contacts(system, **options)
         integrator, options = self.integrator(group, path)
         with self.at(f"{path}.integrator"):
-            g = world.add(name, system, integrator=integrator, color=group.color, kind="particles", **options)
+            g = world.add(name, system, integrator=integrator, color=group.color, kind="particles",
+                          triangles=surface, **options)
         g.colliders = attached
 
     def tracer_group(self, world: World, index: int, group: M.TracerGroup, name: str):
