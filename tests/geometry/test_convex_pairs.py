@@ -217,3 +217,48 @@ def test_hull_tetrahedron_resting_on_a_hull_cube():
     # the body frame sits at the centre of mass: base plane + 0.15 / 4
     assert w.state.body_q[body, 2] == pytest.approx(0.1 + 0.15 / 4, abs=5e-4)
     assert np.abs(w.state.body_qd[body]).max() < 1e-2
+
+
+# ------------------------------------------------------------------------------ box-capsule, exact
+def _box_capsule(pos, q, r=0.05, hl=0.1, box=(0.2, 0.2, 0.1), margin=0.1):
+    b = ModelBuilder(default_margin=margin)
+    b.add_box(b.add_body(position=(0, 0, 0)), box)
+    b.add_capsule(b.add_body(position=pos, orientation=q), r, hl)
+    return _only(_manifolds(b)[0])
+
+
+def test_box_capsule_parallel_to_a_face_gives_the_two_segment_ends():
+    shp, n, p, s, f = _box_capsule((0.03, 0.02, 0.1 + 0.05 - 0.0015), _rot((0, 1, 0), math.pi / 2))
+    assert n == pytest.approx([0, 0, 1], abs=1e-12)
+    assert s == pytest.approx([-0.0015, -0.0015], abs=1e-12)
+    assert sorted(p[:, 0]) == pytest.approx([0.03 - 0.1, 0.03 + 0.1], abs=1e-12)
+    assert p[:, 2] == pytest.approx([0.1 - 0.00075] * 2, abs=1e-12)
+
+
+def test_box_capsule_tilted_end_above_the_face():
+    """Tilted 40 deg about y, lower end over the face: gap = c_z - hl cos(40) - hz - r (closed form)."""
+    th = math.radians(40)
+    cz = 0.1 + 0.05 + 0.1 * math.cos(th) + 0.004
+    shp, n, p, s, f = _box_capsule((0.05, 0.0, cz), _rot((0, 1, 0), th))
+    assert len(s) == 1 and s[0] == pytest.approx(0.004, abs=1e-9)
+    assert n == pytest.approx([0, 0, 1], abs=1e-9)
+    assert p[0] == pytest.approx([0.05 - 0.1 * math.sin(th), 0.0, 0.1 + 0.002], abs=1e-9)
+
+
+@pytest.mark.parametrize("a", [0.05, 0.03])
+def test_box_capsule_across_an_edge(a):
+    """Segment in the plane y = 0 crossing the box's top +x edge at right angles, at distance sqrt(2) a from
+    it: gap sqrt(2) a - r (separated for a = 0.05, overlapping for a = 0.03), normal (1, 0, 1)/sqrt(2)."""
+    shp, n, p, s, f = _box_capsule((0.2 + a, 0.0, 0.1 + a), _rot((0, 1, 0), math.radians(135)))
+    gap = math.sqrt(2.0) * a - 0.05
+    assert len(s) == 1 and s[0] == pytest.approx(gap, abs=1e-9)
+    assert n == pytest.approx([2 ** -0.5, 0, 2 ** -0.5], abs=1e-9)
+    edge = np.array([0.2, 0.0, 0.1])
+    assert p[0] == pytest.approx(edge + 0.5 * gap * n, abs=1e-9)
+
+
+def test_box_capsule_segment_inside_the_box():
+    """Core 2 cm under the top face: the shortest way out is up, depth 0.02 + r = 0.07 (closed form)."""
+    shp, n, p, s, f = _box_capsule((0.0, 0.0, 0.08), _rot((0, 1, 0), math.pi / 2))
+    assert n == pytest.approx([0, 0, 1], abs=1e-12)
+    assert s == pytest.approx([-0.07, -0.07], abs=1e-12)
