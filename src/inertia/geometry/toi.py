@@ -96,7 +96,9 @@ def _pose_at(pose0, pose1, axis, angle, t, out):
 @njit(cache=True)
 def toi_kernel(type_a, params_a, start_a, count_a, pose_a0, pose_a1, type_b, params_b, start_b, count_b,
                pose_b0, pose_b1, verts, target, tolerance, max_iterations):
-    """Conservative advancement (module docstring). Returns (toi, normal (3,), point (3,), iterations)."""
+    """Conservative advancement (module docstring). Returns (toi, normal (3,), point (3,), witness_b (3,),
+    hit): ``point`` midway between the surfaces, ``witness_b`` on B's surface, ``hit`` False when the shapes
+    do not come within ``target + tolerance`` in the step (then toi = 1.0 and zero vectors)."""
     axis_a, ang_a = _rotation_step(pose_a0[3:7], pose_a1[3:7])
     axis_b, ang_b = _rotation_step(pose_b0[3:7], pose_b1[3:7])
     va = pose_a1[0:3] - pose_a0[0:3]
@@ -108,7 +110,8 @@ def toi_kernel(type_a, params_a, start_a, count_a, pose_a0, pose_a1, type_b, par
     t = 0.0
     normal = np.zeros(3)
     point = np.zeros(3)
-    for it in range(max_iterations):
+    witness_b = np.zeros(3)
+    for _ in range(max_iterations):
         _pose_at(pose_a0, pose_a1, axis_a, ang_a, t, pa)
         _pose_at(pose_b0, pose_b1, axis_b, ang_b, t, pb)
         d, wa, wb, n, separated = CV.gjk_distance(type_a, params_a, pa, start_a, count_a, type_b, params_b, pb,
@@ -117,6 +120,7 @@ def toi_kernel(type_a, params_a, start_a, count_a, pose_a0, pose_a1, type_b, par
             if separated:
                 normal[:] = n
                 point[:] = 0.5 * (wa + wb)
+                witness_b[:] = wb
             else:
                 # cores overlap (only at t = 0, or a deep start): report the shape centres' direction
                 c = pb[0:3] - pa[0:3]
@@ -124,14 +128,19 @@ def toi_kernel(type_a, params_a, start_a, count_a, pose_a0, pose_a1, type_b, par
                 if ln > 0.0:
                     normal[:] = c / ln
                 point[:] = 0.5 * (pa[0:3] + pb[0:3])
-            return t, normal, point, it
+                witness_b[:] = point
+            return t, normal, point, witness_b, True
         approach = -((vb[0] - va[0]) * n[0] + (vb[1] - va[1]) * n[1] + (vb[2] - va[2]) * n[2]) + spin
         if approach <= 0.0:
             break
-        t += (d - target) / approach
-        if t >= 1.0:
+        t_next = t + (d - target) / approach
+        if t_next > 1.0:
             break
-    return 1.0, normal, point, max_iterations
+        t = t_next
+    else:
+        # out of iterations: the last t is safe (the shapes do not touch before it)
+        return t, normal, point, witness_b, True
+    return 1.0, normal, point, witness_b, False
 
 
 def _shape_args(shape, name):
@@ -185,7 +194,7 @@ def time_of_impact(shape_a, pose_a0, pose_a1, shape_b, pose_b0, pose_b1, *, targ
     verts = np.concatenate([va, vb]) if (va.size or vb.size) else np.zeros((1, 3))
     if target < 0.0 or tolerance <= 0.0:
         raise ValueError(f"target must be >= 0 and tolerance > 0; got target={target}, tolerance={tolerance}")
-    toi, n, p, _ = toi_kernel(ta, pa, 0, va.shape[0], _pose_arg(pose_a0, "pose_a0"), _pose_arg(pose_a1, "pose_a1"),
+    toi, n, p, _, _ = toi_kernel(ta, pa, 0, va.shape[0], _pose_arg(pose_a0, "pose_a0"), _pose_arg(pose_a1, "pose_a1"),
                               tb, pb, va.shape[0], vb.shape[0], _pose_arg(pose_b0, "pose_b0"),
                               _pose_arg(pose_b1, "pose_b1"), verts, float(target), float(tolerance),
                               int(max_iterations))
@@ -202,7 +211,7 @@ def time_of_impact_batch(pairs, npairs, shape_type, shape_params, shape_vert_sta
     for i in prange(npairs):
         sa = pairs[i, 0]
         sb = pairs[i, 1]
-        toi, n, p, _ = toi_kernel(shape_type[sa], shape_params[sa], shape_vert_start[sa], shape_vert_count[sa],
+        toi, n, p, _, _ = toi_kernel(shape_type[sa], shape_params[sa], shape_vert_start[sa], shape_vert_count[sa],
                                   pose0[sa], pose1[sa], shape_type[sb], shape_params[sb], shape_vert_start[sb],
                                   shape_vert_count[sb], pose0[sb], pose1[sb], geom_vertices, target, tolerance,
                                   TOI_MAX_ITERATIONS)
