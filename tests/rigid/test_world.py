@@ -301,8 +301,8 @@ def _pile_hash_script(threads):
 # measured at NUMBA_NUM_THREADS=1 (and reproduced at 2) on the x86-64 reference machine; re-measured when
 # the builder moved onto geometry.mass and inertia.math (mass properties and poses differ in the last bit),
 # and again when the solver gained twisting friction (twist_radius) and the sleep test its per-body
-# angular tolerance (intended physics changes)
-GOLDEN_PILE_HASH = "9f150e5d586473692bcee6464efbe1becf36cd91861232641757d94170e70588"
+# angular tolerance, and when box-capsule pairs became exact (GJK/EPA + clipping instead of end spheres)
+GOLDEN_PILE_HASH = "172a4668fafe972d665f1a49c4bd8b9da67d924b2911fa131b6c55f37ce37a5e"
 
 
 def test_deterministic_at_1_and_2_threads():
