@@ -336,6 +336,7 @@ class SPHFluid:
         self._boundary_parts = []  # (x (M, D), body, noslip nu, local (M, D))
         self._bodies = []          # (initial centre (3,), initial rotation (3, 3)) per body
         self._B = None
+        self._rigid_model = None
         self.body_force = np.zeros((0, 3))
         self.body_torque = np.zeros((0, 3))
 
@@ -434,6 +435,98 @@ class SPHFluid:
                 o[:body] for o in old)
         self._B = None
         return body
+
+    def add_rigid_model(self, model, body_q=None, *, slip=False, boundary_viscosity=None) -> int:
+        """Sample every shape row of a rigid ``Model`` (``inertia.model``) with boundary particles
+        (``coupling.sample_model``; Akinci et al. 2012): static geometry on the world lattice,
+        shapes of dynamic/kinematic bodies in their body frame, posed at ``body_q`` (default the
+        model's initial state). Fluid body k is rigid body k. Returns the number of particles.
+        Called by ``advance`` on first use with the RigidWorld's model."""
+        from . import coupling
+        if self.dim != 3:
+            raise ValueError("a rigid Model couples with a 3-D fluid only (make a 2-D scene a thin 3-D fluid, "
+                             "periodic across its depth)")
+        if self._bodies:
+            raise ValueError("the fluid already has bodies; add_rigid_model must be the only source of bodies")
+        if body_q is None:
+            body_q = model.state().body_q
+        grow = np.where(self.periodic, 0.0, self.support)
+        parts = coupling.sample_model(model, body_q, self.spacing, self.support, _lattice,
+                                      self.domain_lo - grow, self.domain_hi + grow, self.domain_lo)
+        noslip = self._noslip(slip, boundary_viscosity)
+        count = 0
+        for world, body, local in parts:
+            self._add_part(np.ascontiguousarray(world), body, noslip, np.ascontiguousarray(local))
+            count += world.shape[0]
+        nbody = int(model.body_count)
+        rot = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
+        self._bodies = [(np.asarray(body_q[k, :3], float).copy(), rot[k]) for k in range(nbody)]
+        self._body_x = np.array(body_q[:, :3], float).reshape(nbody, 3)
+        self._body_rot = rot.reshape(nbody, 3, 3).copy()
+        self._body_v = np.zeros((nbody, 3))
+        self._body_w = np.zeros((nbody, 3))
+        self.body_force = np.zeros((nbody, 3))
+        self.body_torque = np.zeros((nbody, 3))
+        self._rigid_model = model
+        self._B = None
+        return count
+
+    def _pose_from_rigid(self, state):
+        from . import coupling
+        if not len(self._bodies):
+            return
+        self._body_x[:] = state.body_q[:, :3]
+        self._body_rot[:] = coupling.quat_to_matrices(state.body_q[:, 3:7])
+        self._body_w[:] = state.body_qd[:, 0:3]
+        self._body_v[:] = state.body_qd[:, 3:6]
+        self._bodies_moved = True
+
+    def _extrapolate_bodies(self, dt):
+        # move the bands with the bodies' velocities between the fluid sub-steps of one world step
+        if not len(self._bodies):
+            return
+        from . import coupling
+        self._body_x += dt * self._body_v
+        w = self._body_w
+        angle = np.linalg.norm(w, axis=1) * dt
+        axis = w / np.maximum(np.linalg.norm(w, axis=1), 1e-300)[:, None]
+        q = np.concatenate([np.cos(0.5 * angle)[:, None], axis * np.sin(0.5 * angle)[:, None]], axis=1)
+        self._body_rot[:] = coupling.quat_to_matrices(q) @ self._body_rot
+        self._bodies_moved = True
+
+    def advance(self, dt, rigid=None) -> int:
+        """The World protocol: advance the fluid by ``dt`` [s] in fluid steps no longer than its
+        own limit (adaptive or fixed dt), coupled with ``rigid`` (a RigidWorld or None): the bands
+        follow ``rigid.state.body_q/body_qd`` and the fluid's impulse on every dynamic body over dt
+        is written into ``body_qd`` (``coupling.apply_body_impulses``). Returns the number of
+        fluid steps taken; ``body_force`` / ``body_torque`` then hold the mean force [N] and
+        torque [N m] over dt."""
+        from . import coupling
+        dt = _validate.positive_scalar(dt, "dt")
+        if rigid is not None:
+            if self._rigid_model is None:
+                self.add_rigid_model(rigid.model, rigid.state.body_q)
+            elif self._rigid_model is not rigid.model:
+                raise ValueError("rigid must be the RigidWorld whose model this fluid sampled")
+            self._pose_from_rigid(rigid.state)
+        nbody = len(self._bodies)
+        impulse = np.zeros((nbody, 3))
+        angular = np.zeros((nbody, 3))
+        left, steps = dt, 0
+        while left > 1e-12 * dt:
+            if steps:
+                self._extrapolate_bodies(self.last_dt)
+            taken = self.step(at_most=left)
+            impulse += taken * self.body_force
+            angular += taken * self.body_torque
+            left -= taken
+            steps += 1
+        if nbody:
+            self.body_force[:] = impulse / dt
+            self.body_torque[:] = angular / dt
+            if rigid is not None:
+                coupling.apply_body_impulses(rigid.model, rigid.state, impulse, angular)
+        return steps
 
     def set_body_state(self, body: int, position, rotation, velocity, angular_velocity):
         """Pose of a body for the next step: centre position (D,), rotation (D, D), velocity (D,)
@@ -651,9 +744,9 @@ class SPHFluid:
         return t1
 
     # ------------------------------------------------------------------ the step
-    def step(self, dt=None) -> float:
+    def step(self, dt=None, *, at_most=None) -> float:
         """Advance by one step; returns the dt taken (``dt`` overrides the fixed/adaptive step
-        for this call, checked against the same limits)."""
+        for this call; ``at_most`` caps it, e.g. to end exactly at a frame time)."""
         if self._B is None:
             self._finalize_boundary()
         F, m = self._F, self.mass
@@ -684,6 +777,9 @@ class SPHFluid:
             dt = self.fixed_dt if self.fixed_dt is not None else min(self.dt_max, limit)
         else:
             dt = _validate.positive_scalar(dt, "dt")
+        if at_most is not None:
+            # split what is left evenly into steps no longer than dt (no sliver step at the end)
+            dt = at_most / max(1, math.ceil(at_most / dt - 1e-9))
         self.stats["max_speed"] = vmax
         # 5. divergence solve
         if self.method == "dfsph" and self.divergence_solve and n:
