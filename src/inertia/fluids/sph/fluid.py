@@ -291,7 +291,7 @@ class SPHFluid:
         lo3[:dim] = lo
         length[:dim] = hi - lo
         for d in range(dim):
-            cells = max(1, int(math.floor(length[d] / self.support)))
+            cells = max(1, int(math.floor(length[d] / self.support + 1e-9)))
             if periodic[d] and cells < 3:
                 raise ValueError(f"periodic axis {d} must be at least 3 kernel supports long "
                                  f"({3 * self.support:g} m); the domain is {length[d]:g} m")
@@ -337,6 +337,7 @@ class SPHFluid:
         self._bodies = []          # (initial centre (3,), initial rotation (3, 3)) per body
         self._B = None
         self._rigid_model = None
+        self._pending_state = None
         self.body_force = np.zeros((0, 3))
         self.body_torque = np.zeros((0, 3))
 
@@ -506,6 +507,9 @@ class SPHFluid:
         if rigid is not None:
             if self._rigid_model is None:
                 self.add_rigid_model(rigid.model, rigid.state.body_q)
+                if self._pending_state is not None:
+                    pending, self._pending_state = self._pending_state, None
+                    self.restore_state(pending)
             elif self._rigid_model is not rigid.model:
                 raise ValueError("rigid must be the RigidWorld whose model this fluid sampled")
             self._pose_from_rigid(rigid.state)
@@ -527,6 +531,107 @@ class SPHFluid:
             if rigid is not None:
                 coupling.apply_body_impulses(rigid.model, rigid.state, impulse, angular)
         return steps
+
+    # ------------------------------------------------------------------ World protocol: state
+    _SCALARS = ("time", "step_count", "last_dt", "_n", "_next_id")
+
+    def save_state(self) -> dict:
+        """Everything the next step reads, as arrays (copies): the fluid rows (all capacity rows,
+        in their current cell order, with the warm-start pressures), particle ids, the boundary
+        particles in their sorted order with the bodies' poses, emitter progress, clock and
+        counters. ``restore_state`` of it continues bit for bit."""
+        if self._B is None:
+            self._finalize_boundary()
+        out = {f"fluid_{k}": getattr(self._F, k).copy() for k in self._F._fields}
+        out.update({f"boundary_{k}": getattr(self._B, k).copy() for k in self._B._fields})
+        out["particle_id"] = self._id.copy()
+        out["boundary_rest"] = self._b_rest.copy()
+        out["boundary_local"] = self._b_local.copy()
+        out["boundary_cell_start"] = self._b_start.copy()
+        out["bodies_moved"] = np.array(self._bodies_moved)
+        if len(self._bodies):
+            for k in ("_body_x", "_body_rot", "_body_v", "_body_w"):
+                out["body" + k[5:]] = getattr(self, k).copy()
+            out["body_force"], out["body_torque"] = self.body_force.copy(), self.body_torque.copy()
+        out["emitter_travel"] = np.array([e["travel"] for e in self._emitters], float)
+        out["counters"] = np.array([self.time, self.step_count, self.last_dt, self._n, self._next_id,
+                                    self.stats.get("removed", 0), self.stats.get("emitter_dropped", 0)], float)
+        return out
+
+    def restore_state(self, state: dict) -> None:
+        """Continue from ``save_state``'s arrays (same fluid set-up: capacity, boundaries, bodies,
+        emitters); raises ValueError naming the first key that is missing or has the wrong shape.
+        A fluid coupled to a RigidWorld samples its bodies on the first ``advance``: restoring
+        before that keeps the state and applies it right after the sampling."""
+        if "body_x" in state and not self._bodies:
+            self._pending_state = state
+            return
+        if self._B is None:
+            self._finalize_boundary()
+
+        def put(key, dst):
+            if key not in state:
+                raise ValueError(f"state is missing {key!r} (not saved by this fluid's save_state)")
+            src = np.asarray(state[key])
+            if src.shape != dst.shape:
+                raise ValueError(f"state[{key!r}] has shape {src.shape}; this fluid needs {dst.shape}")
+            dst[...] = src
+
+        for k in self._F._fields:
+            put(f"fluid_{k}", getattr(self._F, k))
+        for k in self._B._fields:
+            put(f"boundary_{k}", getattr(self._B, k))
+        put("particle_id", self._id)
+        put("boundary_rest", self._b_rest)
+        put("boundary_local", self._b_local)
+        put("boundary_cell_start", self._b_start)
+        self._bodies_moved = bool(np.asarray(state["bodies_moved"]))
+        if len(self._bodies):
+            for k in ("_body_x", "_body_rot", "_body_v", "_body_w"):
+                put("body" + k[5:], getattr(self, k))
+            put("body_force", self.body_force)
+            put("body_torque", self.body_torque)
+        travel = np.asarray(state["emitter_travel"], float)
+        if travel.shape != (len(self._emitters),):
+            raise ValueError(f"state['emitter_travel'] has {travel.shape} entries; this fluid has "
+                             f"{len(self._emitters)} emitters")
+        for e, t in zip(self._emitters, travel):
+            e["travel"] = float(t)
+        c = np.asarray(state["counters"], float)
+        self.time, self.step_count, self.last_dt = float(c[0]), int(c[1]), float(c[2])
+        self._n, self._next_id = int(c[3]), int(c[4])
+        if c[5]:
+            self.stats["removed"] = int(c[5])
+        if self._emitters:
+            self.stats["emitter_dropped"] = int(c[6])
+
+    def frame_arrays(self) -> dict:
+        """What a run records per frame, fixed shapes: ``x`` (capacity, D) float32 [m], ``v``
+        (capacity, D) float32 [m/s], ``speed`` (capacity,) float32 [m/s], ``particle_id``
+        (capacity,) int64 (-1 for dead rows), ``active`` (capacity,) bool. Rows are in the solver's
+        cell order (use ``particle_id`` to follow a particle)."""
+        n, cap = self._n, self.capacity
+        active = np.zeros(cap, bool)
+        active[:n] = True
+        x = self._F.x.astype(np.float32)
+        v = self._F.v.astype(np.float32)
+        x[n:] = np.nan
+        v[n:] = 0.0
+        ids = self._id.copy()
+        ids[n:] = -1
+        return {"x": x, "v": v, "speed": np.linalg.norm(v, axis=1).astype(np.float32), "particle_id": ids,
+                "active": active}
+
+    def static_arrays(self) -> dict:
+        """Constant per run: ``domain`` (2, D) [m], ``spacing`` (1,) [m], ``smoothing_length`` (1,) [m],
+        ``rest_density`` (1,) [kg/m^3], ``boundary_x`` (Nb, D) float32 [m] of the static boundary
+        particles (walls; moving bodies are drawn from their shapes)."""
+        if self._B is None:
+            self._finalize_boundary()
+        static = self._B.body < 0
+        return {"domain": np.stack([self.domain_lo, self.domain_hi]), "spacing": np.array([self.spacing]),
+                "smoothing_length": np.array([self.h]), "rest_density": np.array([self.rest_density]),
+                "boundary_x": self._B.x[static].astype(np.float32)}
 
     def set_body_state(self, body: int, position, rotation, velocity, angular_velocity):
         """Pose of a body for the next step: centre position (D,), rotation (D, D), velocity (D,)
