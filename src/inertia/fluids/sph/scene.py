@@ -58,7 +58,7 @@ class SPHTable(_Strict):
     domain: tuple[list[float], list[float]]
     fluid: list[FluidBlock]
     method: Literal[METHODS] = "dfsph"  # type: ignore[valid-type]
-    kernel: Literal[KERNELS] = "cubic_spline"  # type: ignore[valid-type]
+    kernel: Literal[tuple(KERNELS)] = "cubic_spline"  # type: ignore[valid-type]
     smoothing_length: float | None = None
     rest_density: float = 1000.0
     gravity: list[float] | None = None
