@@ -50,7 +50,8 @@ def main():
             rigid.step()
             fluid.advance(rigid.dt, rigid)
         walls = fluid.boundary_x
-        shown = np.vstack([fluid.x, walls[np.abs(walls[:, 0] - 0.25) < 0.2]])
+        walls = walls[(np.abs(walls[:, 0] - 0.25) < 0.2) & (walls[:, 1] > 0.2) & (walls[:, 2] > 0.001)]  # glass, front cut away
+        shown = np.vstack([fluid.x, walls])
         colors = np.vstack([speed_colors(fluid.v, vmax=2.0), np.tile([[0.7, 0.8, 0.9]], (len(shown) - fluid.particle_count, 1))])
         images.append(renderer.frame(shown, radius=0.5 * dx, colors=colors))
     out = Path(a.out)
