@@ -79,18 +79,24 @@ def test_bodies_move_with_body_q_and_the_ground_plane_comes_from_the_model():
 
 
 def test_cloth_is_a_surface_and_springs_are_lines():
-    # A 5 x 5 sheet of particles: surface triangles hide the particles; spring pairs give lines.
+    # A 5 x 5 sheet of particles and a 3-particle rope: surface triangles hide the sheet's particles;
+    # the rope's springs are lines, the sheet's springs are shown by its surface (no lines).
     n = 5
     g = np.stack(np.meshgrid(np.linspace(-1, 1, n), np.linspace(-1, 1, n), indexing="ij"), -1).reshape(-1, 2)
-    pos = np.concatenate([g, np.full((n * n, 1), 0.5)], axis=1)[None].repeat(2, axis=0)
+    sheet = np.concatenate([g, np.full((n * n, 1), 0.5)], axis=1)
+    rope = np.array([[1.5, -1.0, 0.5], [1.5, 0.0, 0.5], [1.5, 1.0, 0.5]])
+    pos = np.concatenate([sheet, rope])[None].repeat(2, axis=0)
     i, j = np.meshgrid(np.arange(n - 1), np.arange(n - 1), indexing="ij")
     a = (i * n + j).ravel()
     tris = np.concatenate([np.stack([a, a + n, a + n + 1], 1), np.stack([a, a + n + 1, a + 1], 1)])
-    springs = np.concatenate([np.stack([a, a + 1], 1), np.stack([a, a + n], 1)])
+    rope_springs = np.array([[n * n, n * n + 1], [n * n + 1, n * n + 2]])
+    springs = np.concatenate([np.stack([a, a + 1], 1), np.stack([a, a + n], 1), rope_springs])
     states = _states(2, model={"surface_triangles": tris, "spring_pairs": springs}, positions=pos)
     drawables = ModelDrawables.from_states(states)
+    np.testing.assert_array_equal(drawables.spring_pairs, rope_springs)
     options = frame_options(drawables, states, 0, None)
-    assert not options["active"].any()  # every particle is a cloth vertex
+    assert not options["active"][: n * n].any()  # every sheet particle is a cloth vertex
+    assert options["active"][n * n:].all()       # the rope's particles stay spheres
     assert len(options["meshes"]) == 1 and len(options["lines"]) == 1
     top = Camera(position=(0, 0, 8), target=(0, 0, 0), up=(0, 1, 0), projection="orthographic", ortho_height=4.0)
     image = Renderer(200, 200, camera=top, shadows=False).frame(pos[0], radius=0.05, **options)

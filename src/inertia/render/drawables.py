@@ -11,7 +11,8 @@
 - ``surface_triangles (T, 3)`` global particle indices -> a cloth surface over the particle
   positions of each frame (smooth normals per frame); its particles are not also drawn as
   spheres (`hidden`);
-- ``spring_pairs (P, 2)`` global particle indices -> lines.
+- ``spring_pairs (P, 2)`` global particle indices -> lines (except springs between two particles of a
+  surface, which the surface shows).
 
 `frame(positions, body_q)` returns the ``meshes=`` and ``lines=`` of `Renderer.frame` for one
 frame: the shapes moved by ``body_q (B, 7)`` (the body frame's position and orientation;
@@ -141,6 +142,12 @@ class ModelDrawables:
         self.spring_pairs = model.get("spring_pairs")
         if self.spring_pairs is not None:
             self.spring_pairs = np.ascontiguousarray(self.spring_pairs, dtype=np.int64).reshape(-1, 2)
+            if self.surface_triangles is not None and self.surface_triangles.size and self.spring_pairs.size:
+                # springs inside a shaded surface (cloth) are the surface: draw only the others as lines
+                covered = np.zeros(int(max(self.spring_pairs.max(), self.surface_triangles.max())) + 1, bool)
+                covered[self.surface_triangles.reshape(-1)] = True
+                keep = ~(covered[self.spring_pairs[:, 0]] & covered[self.spring_pairs[:, 1]])
+                self.spring_pairs = np.ascontiguousarray(self.spring_pairs[keep])
         self.particle_colors = None if particle_colors is None else np.asarray(particle_colors, np.float32)
 
     @classmethod
