@@ -11,13 +11,15 @@ measured in the same run.
 2. pressure: MGPCG iterations and time per solve at 64^2 .. 1024^2 (closed box, rhs = the
    peers' bench_pressure.py make_rhs: divergence of a seeded random face field), next to the
    peers' own Numba MGPCG on the same right-hand side.
+5. ghia: lid-driven cavity at Re 400 and 1000 on 64^2 and 128^2 against Ghia et al. (1982).
+4. liquid: a 2-D FLIP (and APIC) dam break with 100,000 particles, ms per 60 Hz frame.
 3. smoke3d: a 128^3 smoke step (buoyant plume from a source box, MacCormack and
    semi-Lagrangian, MGPCG 1e-4 and 1e-6): seconds per step. Aim: < 0.5 s on 2 cores.
 
 Timings are medians of repeated steps after warm-up (JIT excluded); the foreign load (other
 processes' CPU use) during each measurement is printed, since the machine may be shared.
 
-Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d]
+Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d liquid ghia]
      [--sizes 64 128 256 512 1024] [--reps 5]
 """
 
@@ -91,11 +93,12 @@ def ref_divergence_ratio(sim, n, steps=30):
     return after / before
 
 
-def our_plume(n, advection, tolerance):
+def our_plume(n, advection, tolerance, parallel=None):
     from inertia.fluids.grid import GridFluid
     fg = sys.modules["bench_fluid_grid"]
     h = 1.0 / n
     f = GridFluid((n, n), h, advection=advection, tolerance=tolerance, scalars=("density",),
+                  parallel=parallel,
                   boundaries={s: "slip" for s in ("x-", "x+", "y-", "y+")})
     c = n // 2
     f.add_source(((c - 8) * h, 4 * h), ((c + 8) * h, 20 * h), density_rate=100.0,
@@ -123,13 +126,13 @@ def bench_smoke256(reps, load_cls):
     ref_numba = rows[1][1]
     ref_numpy = rows[0][1]
     for advection in ("semi-lagrangian", "maccormack"):
-        for tol in (r_ref, 1e-6):
-            f, dt = our_plume(n, advection, tol)
+        for tol, par in ((r_ref, False), (r_ref, True), (1e-6, False), (1e-6, True)):
+            f, dt = our_plume(n, advection, tol, par)
             for _ in range(30):
                 f.step(dt)
             med, mn, load = median_time(lambda: f.step(dt), reps, load_cls=load_cls)
             it = f.last_pressure_iterations
-            print(f"  GridFluid {advection:15s} MGPCG tol {tol:8.2e} ({it} it)      "
+            print(f"  GridFluid {advection:15s} {'2 threads' if par else 'serial   '} tol {tol:8.2e} ({it} it) "
                   f"{med*1e3:9.2f} ms/step (min {mn*1e3:.2f}) [foreign {load:.2f}]  "
                   f"x{med/ref_numba:.2f} of peer numba, x{med/ref_numpy:.3f} of peer numpy",
                   flush=True)
@@ -189,6 +192,86 @@ def bench_smoke3d(reps, load_cls, n=128):
               f"[foreign {load:.2f}], MGPCG {f.last_pressure_iterations} it", flush=True)
 
 
+# ----------------------------------------------------------------------------- 4. liquid
+def bench_liquid(reps, load_cls, particles=100_000):
+    """2-D FLIP dam break (column a x 2a against the left wall of a 4a x 4a tank, the peers'
+    SPH scene scaled to a = 1 m) with about `particles` particles (4 per cell): ms per 60 Hz
+    frame (CFL-1 substeps) inside t = 0.1 .. 0.3 s, and the front position."""
+    from inertia.fluids.grid.liquid import LiquidFluid
+    cells_a = int(round(np.sqrt(particles / 8)))  # a x 2a column at 4 particles per cell
+    a = 1.0
+    h = a / cells_a
+    print(f"\n== 4. liquid: 2-D FLIP dam break, column {cells_a} x {2 * cells_a} cells, "
+          f"tank {4 * cells_a}^2, h = {h:.4f} m ==")
+    for method in ("flip", "apic"):
+        f = LiquidFluid((4 * cells_a, 4 * cells_a), h, method=method)
+        f.add_block((0.0, 0.0), (a, 2 * a))
+        frame = 1.0 / 60.0
+        t0 = time.perf_counter()
+        f.advance(frame)  # JIT + first frame
+        first = time.perf_counter() - t0
+        while f.time < 0.1:
+            f.advance(frame)
+        samples = []
+        subs = []
+        iters = []
+        ctx = load_cls() if load_cls else None
+        if ctx:
+            ctx.__enter__()
+        while f.time < 0.3 - 1e-9:
+            t0 = time.perf_counter()
+            subs.append(f.advance(frame))
+            samples.append(time.perf_counter() - t0)
+            iters.append(f.last_pressure_iterations)
+        load = float("nan")
+        if ctx:
+            ctx.__exit__(None, None, None)
+            load = ctx.foreign_cores
+        print(f"  {method}: {f.particle_count} particles, {np.median(samples)*1e3:8.1f} ms/frame "
+              f"(min {min(samples)*1e3:.1f}, max {max(samples)*1e3:.1f}) [foreign {load:.2f}], "
+              f"{np.mean(subs):.1f} substeps/frame, ~{np.mean(iters):.0f} CG it; "
+              f"front at t = {f.time:.2f} s: {f.x[:, 0].max():.2f} m (Koshizuka & Oka 1.68 m at 0.3 s); "
+              f"first frame incl. JIT {first:.1f} s", flush=True)
+
+
+# ----------------------------------------------------------------------------- 5. Ghia
+GHIA_Y = np.array([1.0, 0.9766, 0.9688, 0.9609, 0.9531, 0.8516, 0.7344, 0.6172, 0.5, 0.4531,
+                   0.2813, 0.1719, 0.1016, 0.0703, 0.0625, 0.0547, 0.0])
+GHIA_X = np.array([1.0, 0.9688, 0.9609, 0.9531, 0.9453, 0.9063, 0.8594, 0.8047, 0.5, 0.2344,
+                   0.2266, 0.1563, 0.0938, 0.0781, 0.0703, 0.0625, 0.0])
+# Ghia, Ghia and Shin (1982), J. Comput. Phys. 48, Tables I (u on x = 0.5) and II (v on y = 0.5)
+GHIA = {
+    400: ([1.0, 0.75837, 0.68439, 0.61756, 0.55892, 0.29093, 0.16256, 0.02135, -0.11477,
+           -0.17119, -0.32726, -0.24299, -0.14612, -0.10338, -0.09266, -0.08186, 0.0],
+          [0.0, -0.12146, -0.15663, -0.19254, -0.22847, -0.23827, -0.44993, -0.38598, 0.05186,
+           0.30174, 0.30203, 0.28124, 0.22965, 0.20920, 0.19713, 0.18360, 0.0]),
+    1000: ([1.0, 0.65928, 0.57492, 0.51117, 0.46604, 0.33304, 0.18719, 0.05702, -0.06080,
+            -0.10648, -0.27805, -0.38289, -0.29730, -0.22220, -0.20196, -0.18109, 0.0],
+           [0.0, -0.21388, -0.27669, -0.33714, -0.39188, -0.51550, -0.42665, -0.31966, 0.02526,
+            0.32235, 0.33075, 0.37095, 0.32627, 0.30353, 0.29012, 0.27485, 0.0]),
+}
+
+
+def bench_ghia(sizes=(64, 128), t_end=40.0):
+    """Lid-driven cavity at Re 400 and 1000 on finer grids than the tests: max centre-line
+    errors against Ghia et al. (1982) (fraction of the lid speed) and wall time."""
+    from inertia.fluids.grid import GridFluid, Wall
+    print(f"\n== 5. lid-driven cavity vs Ghia et al. (1982), MacCormack, CFL 2, t = {t_end:.0f} ==")
+    for re in (400, 1000):
+        for n in sizes:
+            t0 = time.perf_counter()
+            f = GridFluid((n, n), 1.0 / n, boundaries={"y+": Wall(velocity=(1.0, 0.0))},
+                          viscosity=1.0 / re, cfl=2.0, scalars=())
+            for _ in range(int(t_end)):
+                f.advance(1.0)
+            u = f.sample_velocity(np.stack([np.full_like(GHIA_Y, 0.5), GHIA_Y], 1))[:, 0]
+            v = f.sample_velocity(np.stack([GHIA_X, np.full_like(GHIA_X, 0.5)], 1))[:, 1]
+            eu = np.max(np.abs(u - GHIA[re][0]))
+            ev = np.max(np.abs(v - GHIA[re][1]))
+            print(f"  Re {re:5d} {n:4d}^2: max |u - Ghia| {eu:.4f}, max |v - Ghia| {ev:.4f} "
+                  f"({time.perf_counter() - t0:.0f} s)", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--parts", nargs="+", default=["smoke256", "pressure", "smoke3d"])
@@ -206,6 +289,10 @@ def main():
         bench_pressure(a.sizes, a.reps, load_cls)
     if "smoke3d" in a.parts:
         bench_smoke3d(max(2, a.reps // 2), load_cls)
+    if "liquid" in a.parts:
+        bench_liquid(a.reps, load_cls)
+    if "ghia" in a.parts:
+        bench_ghia()
 
 
 if __name__ == "__main__":

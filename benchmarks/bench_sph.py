@@ -13,16 +13,18 @@ step (median, min, max over samples), ms per simulated second, mean dt and DFSPH
 the neighbour search's share (sort + neighbour lists), and the surge front at 0.1 / 0.2 / 0.3 s.
 
 Peers in the same run: the Numba WCSPH reference of the peers' script (imported from
-``/work/shared/peers/bench_sph.py``, run in this process with the same window; 2D only).
-PySPH and SPlisHSPlasH are not installed here (PySPH builds from source for ~6 min,
-SPlisHSPlasH's wheel needs a libGL preload): their figures from ``BASELINES.md`` (same kind of
-2-core machine, measured separately) are printed for reference, marked as such.
+``/work/shared/peers/bench_sph.py``, run in this process with the same window; 2D only), and
+SPlisHSPlasH (``pip install pysplishsplash``) and PySPH (``pip install pysph``, builds from source)
+through the peers' script's ``--worker`` subprocesses (their own window t = 0.05-0.30 s), when they
+are installed; a peer that is missing or fails is reported and skipped. Their figures from
+``BASELINES.md`` (same kind of 2-core machine, measured separately) are printed too, marked as such.
 
 Scaling: the 2D dam break at 10^4 and 10^5 particles (10^6 with ``--million``): ms per step and
 ns per particle-step over ``--scale-steps`` steps after 5 warm-up steps.
 
-Run:  PYTHONPATH=src python benchmarks/bench_sph.py [--cases dfsph:2d numba:2d dfsph:3d scaling]
-          [--steps3d 10] [--million]
+Run:  PYTHONPATH=src python benchmarks/bench_sph.py [--cases dfsph:2d numba:2d splishsplash:2d dfsph:3d
+          splishsplash:3d pysph:2d scaling] [--steps3d 10] [--million] [--t-stop 0.3]
+      (defaults: all cases, about 10 min on 2 cores; --million adds the 10^6 scaling point)
 """
 
 from __future__ import annotations
@@ -119,6 +121,22 @@ def run_numba_peer():
     return peer.run_numba(2)
 
 
+def run_peer_worker(case, timeout):
+    """One case of the peers' script (``--worker``: its own subprocess, its own timing window);
+    returns its RESULT dict or raises RuntimeError (not installed, crashed, timed out)."""
+    import json
+    import subprocess
+    try:
+        p = subprocess.run([sys.executable, os.path.join(PEERS, "bench_sph.py"), "--worker", case],
+                           capture_output=True, text=True, timeout=timeout, cwd=PEERS)
+    except subprocess.TimeoutExpired:
+        raise RuntimeError(f"timed out after {timeout} s") from None
+    lines = [ln for ln in p.stdout.splitlines() if ln.startswith("RESULT ")]
+    if p.returncode != 0 or not lines:
+        raise RuntimeError("exit code %d: %s" % (p.returncode, " | ".join((p.stdout + p.stderr).splitlines()[-3:])))
+    return json.loads(lines[-1][7:])
+
+
 def report_inertia(name, r, dim):
     ps = r["per_step"]
     med = float(np.median(ps))
@@ -165,21 +183,23 @@ def scaling(million, steps):
 def main():
     global T_STOP
     ap = argparse.ArgumentParser()
-    ap.add_argument("--cases", nargs="+", default=["dfsph:2d", "numba:2d", "dfsph:3d", "scaling"])
+    ap.add_argument("--cases", nargs="+", default=["dfsph:2d", "numba:2d", "splishsplash:2d", "dfsph:3d",
+                                                   "splishsplash:3d", "pysph:2d", "scaling"])
     ap.add_argument("--steps3d", type=int, default=10)
     ap.add_argument("--scale-steps", type=int, default=10)
     ap.add_argument("--million", action="store_true")
+    ap.add_argument("--peer-timeout", type=float, default=600.0, help="seconds per peer subprocess")
     ap.add_argument("--t-stop", type=float, default=T_STOP, help="end of the 2D timing window (s); 0.30 = the peers'")
     a = ap.parse_args()
     T_STOP = a.t_stop
     import numba
     print(f"numba {numba.__version__}, {numba.get_num_threads()} threads, {os.cpu_count()} cpus")
-    ours = None
+    ours = ours3 = None
     for case in a.cases:
         if case == "dfsph:2d":
             ours = report_inertia("inertia 2D", run_inertia(2, 0.01, a.steps3d), 2)
         elif case == "dfsph:3d":
-            report_inertia("inertia 3D", run_inertia(3, 0.027, a.steps3d), 3)
+            ours3 = report_inertia("inertia 3D", run_inertia(3, 0.027, a.steps3d), 3)
         elif case == "numba:2d":
             try:
                 r = run_numba_peer()
@@ -194,6 +214,21 @@ def main():
             if ours:
                 print(f"{'':12s} inertia DFSPH vs numba WCSPH (same run): per step x{med / ours[0]:.2f}, "
                       f"per simulated s x{per_sim_s / ours[1]:.2f} (>1 = Inertia faster)")
+        elif case.startswith(("splishsplash:", "pysph:")):
+            try:
+                r = run_peer_worker(case, a.peer_timeout)
+            except RuntimeError as e:
+                print(f"{case:12s} peer not run: {e}")
+                continue
+            med = float(np.median(r["per_step"]))
+            per_sim_s = r["wall"] / r["sim_t"]
+            print(f"{case:12s} {r['n']:7d} fluid particles (peer, this run, window t = 0.05-0.30 s): per step median "
+                  f"{med * 1e3:.2f} ms, dt {r['dt_mean'] * 1e3:.3f} ms, {per_sim_s:.1f} s per simulated s; "
+                  f"{r.get('version', '')}")
+            mine = ours if case.endswith("2d") else ours3
+            if mine:
+                print(f"{'':12s} inertia vs {case} (same run): per step x{med / mine[0]:.2f}, per simulated s "
+                      f"x{per_sim_s / mine[1]:.2f} (>1 = Inertia faster)")
         elif case == "scaling":
             scaling(a.million, a.scale_steps)
         else:

@@ -7,14 +7,21 @@
     u, v = fluid.u, fluid.v            # face velocities (views)
     tracers_field = fluid.velocity_field()
 
-Modules: ``solver`` (the step, smoke, references and limitations), ``pressure`` (MGPCG, CG,
-Jacobi), ``kernels`` (Numba), ``boundaries``, ``obstacles`` (face fractions), ``field``.
+    from inertia.fluids.grid import LiquidFluid
+    liquid = LiquidFluid((80, 48), 0.0125, method="apic")    # FLIP/PIC/APIC particles
+    liquid.add_block((0, 0), (0.2, 0.4))
+    liquid.advance(1 / 60)
+
+Modules: ``solver`` (the step, smoke, references and limitations), ``liquid`` (free-surface
+liquids), ``pressure`` (MGPCG, CG, Jacobi), ``kernels`` (Numba), ``boundaries``, ``obstacles``
+(face fractions), ``field``, ``vtk`` (.vti export).
 """
 
 from .boundaries import Inflow, Outflow, Periodic, Wall
 from .field import FluidVelocityField
+from .liquid import LiquidFluid
 from .pressure import PoissonSolver
 from .solver import ADVECTION, GridFluid, MACGrid
 
-__all__ = ["GridFluid", "MACGrid", "Wall", "Inflow", "Outflow", "Periodic", "FluidVelocityField",
+__all__ = ["GridFluid", "LiquidFluid", "MACGrid", "Wall", "Inflow", "Outflow", "Periodic", "FluidVelocityField",
            "PoissonSolver", "ADVECTION"]

@@ -67,13 +67,16 @@ def _resolve(m, size, ncell, kind_lo, kind_hi, val_lo, val_hi):
 @njit(cache=True)
 def fetch(a, slot, i, j, k, g):
     """a[i, j, k] with the slot's ghost rules for indices outside the array."""
-    gk = g.ghost_kind
-    gv = g.ghost_value
-    ii, mi, ai = _resolve(i, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1],
+    return _fetch_rules(a, slot, i, j, k, g.ghost_kind, g.ghost_value, g.n)
+
+
+@njit(cache=True, inline="always")
+def _fetch_rules(a, slot, i, j, k, gk, gv, n):
+    ii, mi, ai = _resolve(i, a.shape[0], n[0], gk[slot, 0, 0], gk[slot, 0, 1],
                           gv[slot, 0, 0], gv[slot, 0, 1])
-    jj, mj, aj = _resolve(j, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1],
+    jj, mj, aj = _resolve(j, a.shape[1], n[1], gk[slot, 1, 0], gk[slot, 1, 1],
                           gv[slot, 1, 0], gv[slot, 1, 1])
-    kk, mk, ak = _resolve(k, a.shape[2], g.n[2], gk[slot, 2, 0], gk[slot, 2, 1],
+    kk, mk, ak = _resolve(k, a.shape[2], n[2], gk[slot, 2, 0], gk[slot, 2, 1],
                           gv[slot, 2, 0], gv[slot, 2, 1])
     return ai + mi * (aj + mj * (ak + mk * a[ii, jj, kk]))
 
@@ -99,33 +102,65 @@ def _clamp_domain(p, axis, g):
 
 @njit(cache=True)
 def sample(a, slot, px, py, pz, g):
-    """Linear interpolation of the slot's array at physical point (px, py, pz)."""
-    gk = g.ghost_kind
-    gv = g.ghost_value
+    """Linear interpolation of the slot's array at physical point (px, py, pz).
+
+    Interior points (every node of the stencil inside the array) read the nodes directly; the
+    rest go through the ghost rules (`_sample_ghost`). Both paths evaluate the same expression,
+    so the result does not depend on which one ran."""
     x = (_clamp_domain(px, 0, g) - g.origin[0]) / g.h - _offset(slot, 0)
     y = (_clamp_domain(py, 1, g) - g.origin[1]) / g.h - _offset(slot, 1)
     i0 = int(math.floor(x))
     j0 = int(math.floor(y))
     fx = x - i0
     fy = y - j0
-    # resolve the two nodes per axis once: value = add + mult * a[index]
-    ia, mia, aia = _resolve(i0, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
-    ib, mib, aib = _resolve(i0 + 1, a.shape[0], g.n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
-    ja, mja, aja = _resolve(j0, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
-    jb, mjb, ajb = _resolve(j0 + 1, a.shape[1], g.n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
     if g.dim == 2:
+        if 0 <= i0 and i0 + 1 < a.shape[0] and 0 <= j0 and j0 + 1 < a.shape[1]:
+            c00 = a[i0, j0, 0]
+            c10 = a[i0 + 1, j0, 0]
+            c01 = a[i0, j0 + 1, 0]
+            c11 = a[i0 + 1, j0 + 1, 0]
+            return (1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11)
+        return _sample_ghost(a, slot, i0, j0, fx, fy, 0.0, g.ghost_kind, g.ghost_value, g.n, g.dim)
+    z = (_clamp_domain(pz, 2, g) - g.origin[2]) / g.h - _offset(slot, 2)
+    k0 = int(math.floor(z))
+    fz = z - k0
+    if (0 <= i0 and i0 + 1 < a.shape[0] and 0 <= j0 and j0 + 1 < a.shape[1]
+            and 0 <= k0 and k0 + 1 < a.shape[2]):
+        r = 0.0
+        for dk in range(2):
+            wz = fz if dk else 1.0 - fz
+            kk = k0 + dk
+            c00 = a[i0, j0, kk]
+            c10 = a[i0 + 1, j0, kk]
+            c01 = a[i0, j0 + 1, kk]
+            c11 = a[i0 + 1, j0 + 1, kk]
+            r += wz * ((1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11))
+        return r
+    return _sample_ghost(a, slot, i0, j0, fx, fy, z, g.ghost_kind, g.ghost_value, g.n, g.dim)
+
+
+@njit(cache=True)
+def _sample_ghost(a, slot, i0, j0, fx, fy, z, gk, gv, n, dim):
+    """`sample` for stencils that reach outside the array (ghost rules per node). Takes the
+    context's arrays one by one: passing the whole context to a call in a hot loop costs a
+    reference-count update per member and blocks optimisation of the fast path."""
+    # resolve the two nodes per axis once: value = add + mult * a[index]
+    ia, mia, aia = _resolve(i0, a.shape[0], n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
+    ib, mib, aib = _resolve(i0 + 1, a.shape[0], n[0], gk[slot, 0, 0], gk[slot, 0, 1], gv[slot, 0, 0], gv[slot, 0, 1])
+    ja, mja, aja = _resolve(j0, a.shape[1], n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
+    jb, mjb, ajb = _resolve(j0 + 1, a.shape[1], n[1], gk[slot, 1, 0], gk[slot, 1, 1], gv[slot, 1, 0], gv[slot, 1, 1])
+    if dim == 2:
         c00 = aia + mia * (aja + mja * a[ia, ja, 0])
         c10 = aib + mib * (aja + mja * a[ib, ja, 0])
         c01 = aia + mia * (ajb + mjb * a[ia, jb, 0])
         c11 = aib + mib * (ajb + mjb * a[ib, jb, 0])
         return (1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11)
-    z = (_clamp_domain(pz, 2, g) - g.origin[2]) / g.h - _offset(slot, 2)
     k0 = int(math.floor(z))
     fz = z - k0
     r = 0.0
     for dk in range(2):
         wz = fz if dk else 1.0 - fz
-        kk, mk, ak = _resolve(k0 + dk, a.shape[2], g.n[2], gk[slot, 2, 0], gk[slot, 2, 1], gv[slot, 2, 0], gv[slot, 2, 1])
+        kk, mk, ak = _resolve(k0 + dk, a.shape[2], n[2], gk[slot, 2, 0], gk[slot, 2, 1], gv[slot, 2, 0], gv[slot, 2, 1])
         c00 = aia + mia * (aja + mja * (ak + mk * a[ia, ja, kk]))
         c10 = aib + mib * (aja + mja * (ak + mk * a[ib, ja, kk]))
         c01 = aia + mia * (ajb + mjb * (ak + mk * a[ia, jb, kk]))
@@ -143,7 +178,7 @@ def sample_range(a, slot, px, py, pz, g):
     j0 = int(math.floor(y))
     nk = 1
     k0 = 0
-    if g.dim == 3:
+    if dim == 3:
         z = (_clamp_domain(pz, 2, g) - g.origin[2]) / g.h - _offset(slot, 2)
         k0 = int(math.floor(z))
         nk = 2
@@ -212,36 +247,256 @@ def sample_scalar_points(a, slot, points, g, out):
 
 
 # ----------------------------------------------------------------------------- advection
+# Advection samples *padded* copies of the fields: one ghost layer on every side of the grid's
+# axes (not along z in 2-D) filled once per field and step from the ghost rules (`pad`), so
+# the sampling loop has no boundary cases, no calls and no context lookups: a call with arrays
+# inside a Numba loop costs reference-count updates and blocks optimisation (measured 10x
+# slower per interpolation). Positions are in index space: X = (position - origin) / h, cell
+# corners at integers, node (i, j, k) of slot s at X = (i, j, k) + offset(s); padded index =
+# node index + 1 along padded axes.
+@njit(cache=True)
+def pad(a, slot, g, out):
+    """out = a with one ghost layer (slot's ghost rules) along x, y (and z in 3-D).
+    out: (a.shape[0] + 2, a.shape[1] + 2, a.shape[2] + 2 in 3-D or 1 in 2-D)."""
+    px, py, pz = out.shape
+    kz = 1 if g.dim == 3 else 0
+    out[1:px - 1, 1:py - 1, kz:pz - kz] = a
+    for I in range(px):
+        for J in range(py):
+            edge = I == 0 or I == px - 1 or J == 0 or J == py - 1
+            if edge:
+                for K in range(pz):
+                    out[I, J, K] = fetch(a, slot, I - 1, J - 1, K - kz, g)
+            elif kz == 1:
+                out[I, J, 0] = fetch(a, slot, I - 1, J - 1, -1, g)
+                out[I, J, pz - 1] = fetch(a, slot, I - 1, J - 1, pz - 2, g)
+
+
+@njit(cache=True, inline="always")
+def _place(x, n, periodic):
+    """An index-space coordinate mapped into the domain: wrapped onto [0, n) on a periodic
+    axis, clamped to [0, n] otherwise."""
+    if periodic:
+        return x - n * math.floor(x / n)
+    if x < 0.0:
+        return 0.0
+    if x > n:
+        return float(n)
+    return x
+
+
+# Interpolation is written out in the loop body (no helper taking arrays: see above).
 @njit(cache=True, parallel=True)
-def advect(src, u, v, w, dt, slot, g, dst):
-    """Semi-Lagrangian advection (Stam 1999) with an RK2 back-trace: dst(x) = src(x_back)."""
-    nx, ny, nz = src.shape
+def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_range):
+    """Semi-Lagrangian advection (Stam 1999) with an RK2 (midpoint) back-trace in index space,
+    X_back = X - s u(X - s/2 u(X)), s = dt / h: dst(X) = src(X_back), (bi/tri)linear
+    interpolation. src, u, v, w are padded (`pad`); dst, lo, hi are unpadded like the field.
+    With `want_range` also the minimum and maximum of the src nodes interpolated at X_back go
+    into lo, hi (MacCormack's limiter)."""
+    nx, ny, nz = dst.shape
+    ox, oy, oz = offset[0], offset[1], offset[2]
+    gx, gy, gz = n[0], n[1], n[2]
+    qx, qy, qz = periodic[0], periodic[1], periodic[2]
     for i_ in prange(nx):
         i = np.int64(i_)
         for j in range(ny):
             for k in range(nz):
-                px, py, pz = _node_position(slot, i, j, k, g)
-                bx, by, bz = _backtrace(px, py, pz, u, v, w, dt, g)
-                dst[i, j, k] = sample(src, slot, bx, by, bz, g)
+                x = i + ox
+                y = j + oy
+                if dim == 2:
+                    xx = x + 1.0
+                    yy = y + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vx = ((1 - fy) * ((1 - fx) * u[i0, j0, 0] + fx * u[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, 0] + fx * u[i0 + 1, j0 + 1, 0]))
+                    xx = x + 0.5
+                    yy = y + 1.0
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vy = ((1 - fy) * ((1 - fx) * v[i0, j0, 0] + fx * v[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, 0] + fx * v[i0 + 1, j0 + 1, 0]))
+                    mx = _place(x - 0.5 * s * vx, gx, qx)
+                    my = _place(y - 0.5 * s * vy, gy, qy)
+                    xx = mx + 1.0
+                    yy = my + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vx = ((1 - fy) * ((1 - fx) * u[i0, j0, 0] + fx * u[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, 0] + fx * u[i0 + 1, j0 + 1, 0]))
+                    xx = mx + 0.5
+                    yy = my + 1.0
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vy = ((1 - fy) * ((1 - fx) * v[i0, j0, 0] + fx * v[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, 0] + fx * v[i0 + 1, j0 + 1, 0]))
+                    bx = _place(x - s * vx, gx, qx) - ox + 1.0
+                    by = _place(y - s * vy, gy, qy) - oy + 1.0
+                    xx = bx
+                    yy = by
+                    i0 = min(int(xx), src.shape[0] - 2)
+                    j0 = min(int(yy), src.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    val = ((1 - fy) * ((1 - fx) * src[i0, j0, 0] + fx * src[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, 0] + fx * src[i0 + 1, j0 + 1, 0]))
+                    dst[i, j, k] = val
+                    if want_range:
+                        c0 = src[i0, j0, 0]
+                        c1 = src[i0 + 1, j0, 0]
+                        c2 = src[i0, j0 + 1, 0]
+                        c3 = src[i0 + 1, j0 + 1, 0]
+                        lo[i, j, k] = min(min(c0, c1), min(c2, c3))
+                        hi[i, j, k] = max(max(c0, c1), max(c2, c3))
+                else:
+                    z = k + oz
+                    xx = x + 1.0
+                    yy = y + 0.5
+                    zz = z + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    k0 = min(int(zz), u.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                    vx = (1 - fz) * b0 + fz * b1
+                    xx = x + 0.5
+                    yy = y + 1.0
+                    zz = z + 0.5
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    k0 = min(int(zz), v.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                    vy = (1 - fz) * b0 + fz * b1
+                    xx = x + 0.5
+                    yy = y + 0.5
+                    zz = z + 1.0
+                    i0 = min(int(xx), w.shape[0] - 2)
+                    j0 = min(int(yy), w.shape[1] - 2)
+                    k0 = min(int(zz), w.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                    vz = (1 - fz) * b0 + fz * b1
+                    mx = _place(x - 0.5 * s * vx, gx, qx)
+                    my = _place(y - 0.5 * s * vy, gy, qy)
+                    mz = _place(z - 0.5 * s * vz, gz, qz)
+                    xx = mx + 1.0
+                    yy = my + 0.5
+                    zz = mz + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    k0 = min(int(zz), u.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                    vx = (1 - fz) * b0 + fz * b1
+                    xx = mx + 0.5
+                    yy = my + 1.0
+                    zz = mz + 0.5
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    k0 = min(int(zz), v.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                    vy = (1 - fz) * b0 + fz * b1
+                    xx = mx + 0.5
+                    yy = my + 0.5
+                    zz = mz + 1.0
+                    i0 = min(int(xx), w.shape[0] - 2)
+                    j0 = min(int(yy), w.shape[1] - 2)
+                    k0 = min(int(zz), w.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                    vz = (1 - fz) * b0 + fz * b1
+                    bx = _place(x - s * vx, gx, qx) - ox + 1.0
+                    by = _place(y - s * vy, gy, qy) - oy + 1.0
+                    bz = _place(z - s * vz, gz, qz) - oz + 1.0
+                    xx = bx
+                    yy = by
+                    zz = bz
+                    i0 = min(int(xx), src.shape[0] - 2)
+                    j0 = min(int(yy), src.shape[1] - 2)
+                    k0 = min(int(zz), src.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * src[i0, j0, k0] + fx * src[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, k0] + fx * src[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * src[i0, j0, k1] + fx * src[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, k1] + fx * src[i0 + 1, j0 + 1, k1]))
+                    val = (1 - fz) * b0 + fz * b1
+                    dst[i, j, k] = val
+                    if want_range:
+                        a = src[i0, j0, k0]
+                        b = a
+                        for dk in range(2):
+                            for dj in range(2):
+                                for di in range(2):
+                                    c = src[i0 + di, j0 + dj, k0 + dk]
+                                    a = min(a, c)
+                                    b = max(b, c)
+                        lo[i, j, k] = a
+                        hi[i, j, k] = b
 
 
 @njit(cache=True, parallel=True)
-def maccormack_correct(src, forward, backward, u, v, w, dt, slot, g, dst):
-    """MacCormack step (Selle et al. 2008): dst = forward + (src - backward) / 2, clamped to the
-    range of the src nodes the forward step interpolated (keeps the scheme bounded)."""
+def maccormack_combine(src, forward, backward, lo, hi, dst):
+    """MacCormack step (Selle et al. 2008): dst = forward + (src - backward) / 2, clamped to
+    [lo, hi], the range of the src nodes the forward step interpolated (keeps it bounded)."""
     nx, ny, nz = src.shape
     for i_ in prange(nx):
         i = np.int64(i_)
         for j in range(ny):
             for k in range(nz):
                 val = forward[i, j, k] + 0.5 * (src[i, j, k] - backward[i, j, k])
-                px, py, pz = _node_position(slot, i, j, k, g)
-                bx, by, bz = _backtrace(px, py, pz, u, v, w, dt, g)
-                lo, hi = sample_range(src, slot, bx, by, bz, g)
-                if val < lo:
-                    val = lo
-                elif val > hi:
-                    val = hi
+                if val < lo[i, j, k]:
+                    val = lo[i, j, k]
+                elif val > hi[i, j, k]:
+                    val = hi[i, j, k]
                 dst[i, j, k] = val
 
 
@@ -308,23 +563,57 @@ def _cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz):
 @njit(cache=True, parallel=True)
 def subtract_gradient(phi, fu, fv, fw, g, u, v, w):
     """u -= grad(phi) on faces open to the fluid (phi = p dt / rho, m^2/s; outside an outflow
-    face phi = 0)."""
+    face phi = 0; a periodic axis wraps)."""
     nx, ny, nz = phi.shape
     px, py, pz = g.periodic[0], g.periodic[1], g.periodic[2]
     inv_h = 1.0 / g.h
+    dim = g.dim
     for i_ in prange(nx + 1):
         i = np.int64(i_)
+        # x-faces: cells i - 1 and i (wrapped or outside)
+        il = i - 1
+        ir = i
+        il_ok = il >= 0
+        ir_ok = ir < nx
+        if px:
+            il = il % nx
+            ir = ir % nx
+            il_ok = True
+            ir_ok = True
         for j in range(ny + 1):
             for k in range(nz + 1):
                 if j < ny and k < nz and fu[i, j, k] > 0.0:
-                    u[i, j, k] -= (_cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz)
-                                   - _cell_or_ghost(phi, i - 1, j, k, nx, ny, nz, px, py, pz)) * inv_h
+                    a = phi[ir, j, k] if ir_ok else 0.0
+                    b = phi[il, j, k] if il_ok else 0.0
+                    u[i, j, k] -= (a - b) * inv_h
                 if i < nx and k < nz and fv[i, j, k] > 0.0:
-                    v[i, j, k] -= (_cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz)
-                                   - _cell_or_ghost(phi, i, j - 1, k, nx, ny, nz, px, py, pz)) * inv_h
-                if g.dim == 3 and i < nx and j < ny and fw[i, j, k] > 0.0:
-                    w[i, j, k] -= (_cell_or_ghost(phi, i, j, k, nx, ny, nz, px, py, pz)
-                                   - _cell_or_ghost(phi, i, j, k - 1, nx, ny, nz, px, py, pz)) * inv_h
+                    jl = j - 1
+                    jr = j
+                    a = 0.0
+                    b = 0.0
+                    if py:
+                        a = phi[i, jr % ny, k]
+                        b = phi[i, jl % ny, k]
+                    else:
+                        if jr < ny:
+                            a = phi[i, jr, k]
+                        if jl >= 0:
+                            b = phi[i, jl, k]
+                    v[i, j, k] -= (a - b) * inv_h
+                if dim == 3 and i < nx and j < ny and fw[i, j, k] > 0.0:
+                    kl = k - 1
+                    kr = k
+                    a = 0.0
+                    b = 0.0
+                    if pz:
+                        a = phi[i, j, kr % nz]
+                        b = phi[i, j, kl % nz]
+                    else:
+                        if kr < nz:
+                            a = phi[i, j, kr]
+                        if kl >= 0:
+                            b = phi[i, j, kl]
+                    w[i, j, k] -= (a - b) * inv_h
 
 
 # ----------------------------------------------------------------------------- forces
@@ -414,25 +703,35 @@ def _mag(vort, i, j, k):
 
 @njit(cache=True, parallel=True)
 def add_cell_force(force, dt, axis, open_frac, g, vel):
-    """vel += dt * (average of the two cells' force component `axis`) on open faces."""
+    """vel += dt * (average of the two cells' force component `axis`) on open faces; a cell
+    index one outside wraps on a periodic axis and clamps to the edge cell otherwise (written
+    out: a helper taking the force array would cost a reference-count update per face)."""
     nx, ny, nz = force.shape[0], force.shape[1], force.shape[2]
     fx, fy, fz = vel.shape
+    per = g.periodic[axis]
+    na = nx if axis == 0 else (ny if axis == 1 else nz)
     for i_ in prange(fx):
         i = np.int64(i_)
         for j in range(fy):
             for k in range(fz):
                 if open_frac[i, j, k] == 0.0:
                     continue
-                i0, j0, k0 = i, j, k
-                i1, j1, k1 = i, j, k
+                m = i if axis == 0 else (j if axis == 1 else k)
+                lo = m - 1
+                hi = m
+                if lo < 0:
+                    lo = lo % na if per else 0
+                if hi >= na:
+                    hi = hi % na if per else na - 1
                 if axis == 0:
-                    i0 = i - 1
+                    a = force[lo, j, k, 0]
+                    b = force[hi, j, k, 0]
                 elif axis == 1:
-                    j0 = j - 1
+                    a = force[i, lo, k, 1]
+                    b = force[i, hi, k, 1]
                 else:
-                    k0 = k - 1
-                a = _cell_force(force, i0, j0, k0, axis, nx, ny, nz, g)
-                b = _cell_force(force, i1, j1, k1, axis, nx, ny, nz, g)
+                    a = force[i, j, lo, 2]
+                    b = force[i, j, hi, 2]
                 vel[i, j, k] += dt * 0.5 * (a + b)
 
 

@@ -59,202 +59,301 @@ class Level(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- kernels
-@njit(cache=True)
-def _nbsum(phi, lv, i, j, k, nx, ny, nz):
-    s = 0.0
-    a = lv.ax[i, j, k]
-    if a != 0.0:
-        if i > 0:
-            s += a * phi[i - 1, j, k]
-        elif lv.px:
-            s += a * phi[nx - 1, j, k]
-    a = lv.ax[i + 1, j, k]
-    if a != 0.0:
-        if i < nx - 1:
-            s += a * phi[i + 1, j, k]
-        elif lv.px:
-            s += a * phi[0, j, k]
-    a = lv.ay[i, j, k]
-    if a != 0.0:
-        if j > 0:
-            s += a * phi[i, j - 1, k]
-        elif lv.py:
-            s += a * phi[i, ny - 1, k]
-    a = lv.ay[i, j + 1, k]
-    if a != 0.0:
-        if j < ny - 1:
-            s += a * phi[i, j + 1, k]
-        elif lv.py:
-            s += a * phi[i, 0, k]
-    a = lv.az[i, j, k]
-    if a != 0.0:
-        if k > 0:
-            s += a * phi[i, j, k - 1]
-        elif lv.pz:
-            s += a * phi[i, j, nz - 1]
-    a = lv.az[i, j, k + 1]
-    if a != 0.0:
-        if k < nz - 1:
-            s += a * phi[i, j, k + 1]
-        elif lv.pz:
-            s += a * phi[i, j, 0]
-    return s
+# Each kernel unpacks the Level bundle once and runs a loop without calls: a 2-D grid
+# (nz = 1) loops over (i, j) with j innermost, a 3-D grid over (i, j, k) with k innermost
+# (contiguous). Neighbours across a periodic side wrap; across a non-periodic side they do not
+# exist (walls have a zero face coefficient; outflow faces see phi = 0 outside).
+@njit(cache=True, inline="always")
+def _nb(i, n, periodic, d):
+    """Index of the neighbour i + d (d = +-1) along an axis of n cells, or -1 if none."""
+    m = i + d
+    if m < 0:
+        return n - 1 if periodic else -1
+    if m >= n:
+        return 0 if periodic else -1
+    return m
 
 
+# The neighbour sum s = sum_f a_f phi_nb(f) is written out in each loop body: a helper
+# function taking arrays, even inlined, costs reference-count updates per call (measured 5x
+# slower than the written-out loop).
 @njit(cache=True, parallel=True)
-def apply_operator(phi, lv, out):
-    """out = L phi."""
+def operator_kernel(phi, rhs, lv, out, mode):
+    """mode 0: out = L phi; mode 1: out = rhs - L phi (the residual)."""
     nx, ny, nz = phi.shape
+    ax, ay, az, diag = lv.ax, lv.ay, lv.az, lv.diag
+    px, py, pz = lv.px, lv.py, lv.pz
     for i_ in prange(nx):
         i = np.int64(i_)
+        im = _nb(i, nx, px, -1)
+        ip = _nb(i, nx, px, 1)
         for j in range(ny):
+            jm = _nb(j, ny, py, -1)
+            jp = _nb(j, ny, py, 1)
+            if nz == 1:
+                s = 0.0
+                if im >= 0:
+                    s += ax[i, j, 0] * phi[im, j, 0]
+                if ip >= 0:
+                    s += ax[i + 1, j, 0] * phi[ip, j, 0]
+                if jm >= 0:
+                    s += ay[i, j, 0] * phi[i, jm, 0]
+                if jp >= 0:
+                    s += ay[i, j + 1, 0] * phi[i, jp, 0]
+                lp = diag[i, j, 0] * phi[i, j, 0] - s
+                out[i, j, 0] = lp if mode == 0 else rhs[i, j, 0] - lp
+                continue
             for k in range(nz):
-                out[i, j, k] = lv.diag[i, j, k] * phi[i, j, k] - _nbsum(phi, lv, i, j, k, nx, ny, nz)
-
-
-@njit(cache=True, parallel=True)
-def residual(phi, rhs, lv, out):
-    """out = rhs - L phi."""
-    nx, ny, nz = phi.shape
-    for i_ in prange(nx):
-        i = np.int64(i_)
-        for j in range(ny):
-            for k in range(nz):
-                out[i, j, k] = rhs[i, j, k] - (lv.diag[i, j, k] * phi[i, j, k]
-                                               - _nbsum(phi, lv, i, j, k, nx, ny, nz))
+                km = _nb(k, nz, pz, -1)
+                kp = _nb(k, nz, pz, 1)
+                s = 0.0
+                if im >= 0:
+                    s += ax[i, j, k] * phi[im, j, k]
+                if ip >= 0:
+                    s += ax[i + 1, j, k] * phi[ip, j, k]
+                if jm >= 0:
+                    s += ay[i, j, k] * phi[i, jm, k]
+                if jp >= 0:
+                    s += ay[i, j + 1, k] * phi[i, jp, k]
+                if km >= 0:
+                    s += az[i, j, k] * phi[i, j, km]
+                if kp >= 0:
+                    s += az[i, j, k + 1] * phi[i, j, kp]
+                lp = diag[i, j, k] * phi[i, j, k] - s
+                out[i, j, k] = lp if mode == 0 else rhs[i, j, k] - lp
 
 
 @njit(cache=True, parallel=True)
 def gauss_seidel_colour(phi, rhs, lv, colour):
     """One red-black Gauss-Seidel half sweep over cells with (i + j + k) % 2 == colour."""
     nx, ny, nz = phi.shape
+    ax, ay, az, diag = lv.ax, lv.ay, lv.az, lv.diag
+    px, py, pz = lv.px, lv.py, lv.pz
     for i_ in prange(nx):
         i = np.int64(i_)
-        for j in range(ny):
-            k0 = (colour + i + j) % 2
-            for k in range(k0, nz, 2):
-                d = lv.diag[i, j, k]
+        im = _nb(i, nx, px, -1)
+        ip = _nb(i, nx, px, 1)
+        if nz == 1:
+            for j in range((colour + i) % 2, ny, 2):
+                jm = _nb(j, ny, py, -1)
+                jp = _nb(j, ny, py, 1)
+                d = diag[i, j, 0]
                 if d > 0.0:
-                    phi[i, j, k] = (rhs[i, j, k] + _nbsum(phi, lv, i, j, k, nx, ny, nz)) / d
+                    s = 0.0
+                    if im >= 0:
+                        s += ax[i, j, 0] * phi[im, j, 0]
+                    if ip >= 0:
+                        s += ax[i + 1, j, 0] * phi[ip, j, 0]
+                    if jm >= 0:
+                        s += ay[i, j, 0] * phi[i, jm, 0]
+                    if jp >= 0:
+                        s += ay[i, j + 1, 0] * phi[i, jp, 0]
+                    phi[i, j, 0] = (rhs[i, j, 0] + s) / d
+            continue
+        for j in range(ny):
+            jm = _nb(j, ny, py, -1)
+            jp = _nb(j, ny, py, 1)
+            for k in range((colour + i + j) % 2, nz, 2):
+                km = _nb(k, nz, pz, -1)
+                kp = _nb(k, nz, pz, 1)
+                d = diag[i, j, k]
+                if d > 0.0:
+                    s = 0.0
+                    if im >= 0:
+                        s += ax[i, j, k] * phi[im, j, k]
+                    if ip >= 0:
+                        s += ax[i + 1, j, k] * phi[ip, j, k]
+                    if jm >= 0:
+                        s += ay[i, j, k] * phi[i, jm, k]
+                    if jp >= 0:
+                        s += ay[i, j + 1, k] * phi[i, jp, k]
+                    if km >= 0:
+                        s += az[i, j, k] * phi[i, j, km]
+                    if kp >= 0:
+                        s += az[i, j, k + 1] * phi[i, j, kp]
+                    phi[i, j, k] = (rhs[i, j, k] + s) / d
+
+
+def apply_operator(phi, lv, out):
+    """out = L phi (Python wrapper kept for callers; see `operator_kernel`)."""
+    operator_kernel(phi, phi, lv, out, 0)
+
+
+def residual(phi, rhs, lv, out):
+    """out = rhs - L phi."""
+    operator_kernel(phi, rhs, lv, out, 1)
 
 
 @njit(cache=True, parallel=True)
 def jacobi_sweep(phi, rhs, lv, omega, out):
     """Damped Jacobi: out = phi + omega (rhs - L phi) / diag."""
     nx, ny, nz = phi.shape
+    ax, ay, az, diag = lv.ax, lv.ay, lv.az, lv.diag
+    px, py, pz = lv.px, lv.py, lv.pz
     for i_ in prange(nx):
         i = np.int64(i_)
+        im = _nb(i, nx, px, -1)
+        ip = _nb(i, nx, px, 1)
         for j in range(ny):
+            jm = _nb(j, ny, py, -1)
+            jp = _nb(j, ny, py, 1)
             for k in range(nz):
-                d = lv.diag[i, j, k]
+                km = _nb(k, nz, pz, -1)
+                kp = _nb(k, nz, pz, 1)
+                d = diag[i, j, k]
                 if d > 0.0:
-                    r = rhs[i, j, k] - (d * phi[i, j, k] - _nbsum(phi, lv, i, j, k, nx, ny, nz))
+                    s = 0.0
+                    if im >= 0:
+                        s += ax[i, j, k] * phi[im, j, k]
+                    if ip >= 0:
+                        s += ax[i + 1, j, k] * phi[ip, j, k]
+                    if jm >= 0:
+                        s += ay[i, j, k] * phi[i, jm, k]
+                    if jp >= 0:
+                        s += ay[i, j + 1, k] * phi[i, jp, k]
+                    if km >= 0:
+                        s += az[i, j, k] * phi[i, j, km]
+                    if kp >= 0:
+                        s += az[i, j, k + 1] * phi[i, j, kp]
+                    r = rhs[i, j, k] - (d * phi[i, j, k] - s)
                     out[i, j, k] = phi[i, j, k] + omega * r / d
                 else:
                     out[i, j, k] = 0.0
 
 
-@njit(cache=True)
-def _p1d(f, c, nc, coarsen, periodic):
-    """Prolongation weight of coarse cell c into fine cell f along one axis."""
+def transfer_tables(n_fine, coarsen, periodic):
+    """1-D transfer weights between a fine axis of n_fine cells and its coarse axis.
+
+    Prolongation (cell-centred linear, Briggs et al. 2000): fine cell f takes 3/4 of its parent
+    coarse cell f // 2 and 1/4 of the coarse neighbour on f's side; at a wall the missing
+    neighbour's share goes to the parent. Returns (pro_idx (n_fine, 2) int64, pro_w (n_fine, 2),
+    res_idx (n_coarse, 4) int64, res_w (n_coarse, 4)) with the restriction the exact transpose
+    of the prolongation (before the 1/2^d scale). A non-coarsened axis maps f to f with weight 1."""
     if not coarsen:
-        return 1.0 if f == c else 0.0
-    near = f // 2
-    other = near - 1 if f % 2 == 0 else near + 1
-    if other < 0 or other >= nc:
-        if periodic:
-            other = other % nc
-        else:
-            other = near
-    w = 0.0
-    if near == c:
-        w += 0.75
-    if other == c:
-        w += 0.25
-    return w
+        idx = np.zeros((n_fine, 2), dtype=np.int64)
+        idx[:, 0] = np.arange(n_fine)
+        idx[:, 1] = np.arange(n_fine)
+        w = np.zeros((n_fine, 2))
+        w[:, 0] = 1.0
+        ridx = np.zeros((n_fine, 4), dtype=np.int64)
+        ridx[:, 0] = np.arange(n_fine)
+        rw = np.zeros((n_fine, 4))
+        rw[:, 0] = 1.0
+        return idx, w, ridx, rw
+    nc = n_fine // 2
+    pro_idx = np.zeros((n_fine, 2), dtype=np.int64)
+    pro_w = np.zeros((n_fine, 2))
+    for f in range(n_fine):
+        near = f // 2
+        other = near - 1 if f % 2 == 0 else near + 1
+        if other < 0 or other >= nc:
+            other = other % nc if periodic else near
+        pro_idx[f] = (near, other)
+        pro_w[f] = (0.75, 0.25)
+    res_idx = np.zeros((nc, 4), dtype=np.int64)
+    res_w = np.zeros((nc, 4))
+    fill = np.zeros(nc, dtype=np.int64)
+    for f in range(n_fine):
+        for c, w in zip(pro_idx[f], pro_w[f]):
+            # merge repeated (f, c) pairs (a wall cell's two shares go to one coarse cell)
+            row = res_idx[c, :fill[c]]
+            hit = np.flatnonzero(row == f)
+            if hit.size:
+                res_w[c, hit[0]] += w
+            else:
+                res_idx[c, fill[c]] = f
+                res_w[c, fill[c]] = w
+                fill[c] += 1
+    return pro_idx, pro_w, res_idx, res_w
 
 
 @njit(cache=True, parallel=True)
-def restrict(fine, cx, cy, cz, px, py, pz, coarse):
-    """coarse = P^T fine / 2^d (full weighting, exact transpose of `prolong_add`)."""
+def restrict(fine, ti, tw, tj, uw, tk, vw, scale, coarse):
+    """coarse = P^T fine * scale from the 1-D restriction tables (`transfer_tables`) per axis
+    (zero weights pad a table row; they add exact zeros)."""
     ncx, ncy, ncz = coarse.shape
-    nfx, nfy, nfz = fine.shape
-    d = (1 if cx else 0) + (1 if cy else 0) + (1 if cz else 0)
-    scale = 1.0 / (1 << d)
     for I_ in prange(ncx):
         I = np.int64(I_)
         for J in range(ncy):
+            if ncz == 1 and fine.shape[2] == 1:
+                s = 0.0
+                for a in range(4):
+                    fi = ti[I, a]
+                    wa = tw[I, a]
+                    s += wa * (uw[J, 0] * fine[fi, tj[J, 0], 0] + uw[J, 1] * fine[fi, tj[J, 1], 0]
+                               + uw[J, 2] * fine[fi, tj[J, 2], 0] + uw[J, 3] * fine[fi, tj[J, 3], 0])
+                coarse[I, J, 0] = s * scale
+                continue
             for Kc in range(ncz):
                 s = 0.0
-                for di in range(-1, 3) if cx else range(0, 1):
-                    fi = 2 * I + di if cx else I
-                    if fi < 0 or fi >= nfx:
-                        if not px:
-                            continue
-                        fi = fi % nfx
-                    wi = _p1d(fi, I, ncx, cx, px)
-                    if wi == 0.0:
-                        continue
-                    for dj in range(-1, 3) if cy else range(0, 1):
-                        fj = 2 * J + dj if cy else J
-                        if fj < 0 or fj >= nfy:
-                            if not py:
-                                continue
-                            fj = fj % nfy
-                        wj = _p1d(fj, J, ncy, cy, py)
-                        if wj == 0.0:
-                            continue
-                        for dk in range(-1, 3) if cz else range(0, 1):
-                            fk = 2 * Kc + dk if cz else Kc
-                            if fk < 0 or fk >= nfz:
-                                if not pz:
-                                    continue
-                                fk = fk % nfz
-                            wk = _p1d(fk, Kc, ncz, cz, pz)
-                            s += wi * wj * wk * fine[fi, fj, fk]
+                for a in range(4):
+                    fi = ti[I, a]
+                    wa = tw[I, a]
+                    for b in range(4):
+                        fj = tj[J, b]
+                        wab = wa * uw[J, b]
+                        s += wab * (vw[Kc, 0] * fine[fi, fj, tk[Kc, 0]]
+                                    + vw[Kc, 1] * fine[fi, fj, tk[Kc, 1]]
+                                    + vw[Kc, 2] * fine[fi, fj, tk[Kc, 2]]
+                                    + vw[Kc, 3] * fine[fi, fj, tk[Kc, 3]])
                 coarse[I, J, Kc] = s * scale
 
 
+gauss_seidel_colour_serial_body = K.version(gauss_seidel_colour, False)
+
+
+@njit(cache=True)
+def smooth_serial(phi, rhs, lv, first, sweeps):
+    """`sweeps` red-black Gauss-Seidel sweeps, colour `first` then the other, in one call
+    (a Python-level call per half sweep costs more than the sweep on small levels)."""
+    for _ in range(sweeps):
+        gauss_seidel_colour_serial_body(phi, rhs, lv, first)
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 1 - first)
+
+
+@njit(cache=True)
+def smooth_parallel(phi, rhs, lv, first, sweeps):
+    """`smooth_serial` with the parallel half sweeps."""
+    for _ in range(sweeps):
+        gauss_seidel_colour(phi, rhs, lv, first)
+        gauss_seidel_colour(phi, rhs, lv, 1 - first)
+
+
+@njit(cache=True)
+def coarse_solve(phi, rhs, lv, sweeps):
+    """`sweeps` symmetric red-black Gauss-Seidel sweeps (red-black, then black-red) on the
+    coarsest level, in one call."""
+    for _ in range(sweeps):
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 0)
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 1)
+    for _ in range(sweeps):
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 1)
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 0)
+
+
 @njit(cache=True, parallel=True)
-def prolong_add(coarse, cx, cy, cz, px, py, pz, fine):
-    """fine += P coarse (trilinear at cell centres; walls copy the edge cell)."""
-    ncx, ncy, ncz = coarse.shape
+def prolong_add(coarse, ti, tw, tj, uw, tk, vw, fine):
+    """fine += P coarse from the 1-D prolongation tables (`transfer_tables`) per axis."""
     nfx, nfy, nfz = fine.shape
     for i_ in prange(nfx):
         i = np.int64(i_)
+        ci0, ci1 = ti[i, 0], ti[i, 1]
+        wi0, wi1 = tw[i, 0], tw[i, 1]
         for j in range(nfy):
+            cj0, cj1 = tj[j, 0], tj[j, 1]
+            wj0, wj1 = uw[j, 0], uw[j, 1]
+            if nfz == 1:
+                fine[i, j, 0] += (wi0 * (wj0 * coarse[ci0, cj0, 0] + wj1 * coarse[ci0, cj1, 0])
+                                  + wi1 * (wj0 * coarse[ci1, cj0, 0] + wj1 * coarse[ci1, cj1, 0]))
+                continue
             for k in range(nfz):
-                s = 0.0
-                ci0 = i // 2 if cx else i
-                cj0 = j // 2 if cy else j
-                ck0 = k // 2 if cz else k
-                for di in range(-1, 2) if cx else range(0, 1):
-                    ci = ci0 + di
-                    if ci < 0 or ci >= ncx:
-                        if not px:
-                            continue
-                        ci = ci % ncx
-                    wi = _p1d(i, ci, ncx, cx, px)
-                    if wi == 0.0:
-                        continue
-                    for dj in range(-1, 2) if cy else range(0, 1):
-                        cj = cj0 + dj
-                        if cj < 0 or cj >= ncy:
-                            if not py:
-                                continue
-                            cj = cj % ncy
-                        wj = _p1d(j, cj, ncy, cy, py)
-                        if wj == 0.0:
-                            continue
-                        for dk in range(-1, 2) if cz else range(0, 1):
-                            ck = ck0 + dk
-                            if ck < 0 or ck >= ncz:
-                                if not pz:
-                                    continue
-                                ck = ck % ncz
-                            wk = _p1d(k, ck, ncz, cz, pz)
-                            s += wi * wj * wk * coarse[ci, cj, ck]
-                fine[i, j, k] += s
+                ck0, ck1 = tk[k, 0], tk[k, 1]
+                wk0, wk1 = vw[k, 0], vw[k, 1]
+                fine[i, j, k] += (
+                    wi0 * (wj0 * (wk0 * coarse[ci0, cj0, ck0] + wk1 * coarse[ci0, cj0, ck1])
+                           + wj1 * (wk0 * coarse[ci0, cj1, ck0] + wk1 * coarse[ci0, cj1, ck1]))
+                    + wi1 * (wj0 * (wk0 * coarse[ci1, cj0, ck0] + wk1 * coarse[ci1, cj0, ck1])
+                             + wj1 * (wk0 * coarse[ci1, cj1, ck0] + wk1 * coarse[ci1, cj1, ck1])))
 
 
 @njit(cache=True)
@@ -361,6 +460,16 @@ class PoissonSolver:
             x, y, z = s
             self.levels.append(Level(np.zeros((x + 1, y, z)), np.zeros((x, y + 1, z)),
                                      np.zeros((x, y, z + 1)), np.zeros(s), px, py, pz))
+        # 1-D transfer tables per level below the finest: (prolongation x, y, z, restriction
+        # x, y, z), each (idx, w)
+        self.transfer = []
+        for lvl, axes in enumerate(self.coarsen_axes):
+            fine = shapes[lvl]
+            tabs = [transfer_tables(fine[a], axes[a], self.periodic[a]) for a in range(3)]
+            pro = tuple(x for t in tabs for x in t[:2])
+            res = tuple(x for t in tabs for x in t[2:])
+            scale = 1.0 / (1 << sum(1 for c in axes if c))
+            self.transfer.append((pro, res, scale))
         self.phi = [np.zeros(s) for s in shapes]
         self.rhs = [np.zeros(s) for s in shapes]
         self.res = [np.zeros(s) for s in shapes]
@@ -414,6 +523,11 @@ class PoissonSolver:
             return getattr(self._kp, name)
         return getattr(self._ks, name)
 
+    def _smooth(self, cells):
+        if self.parallel and cells >= K.PARALLEL_CELLS // 4:
+            return smooth_parallel
+        return smooth_serial
+
     def _dot(self, a, b):
         return self._vk.dot(a, b, self.partial)
 
@@ -430,32 +544,19 @@ class PoissonSolver:
             lv, phi, rhs, res = self.levels[lvl], self.phi[lvl], self.rhs[lvl], self.res[lvl]
             n = phi.size
             phi[...] = 0.0
-            gs = self._k("gauss_seidel_colour", n)
             if lvl == L - 1:
-                sweeps = max(20, 2 * max(phi.shape))
-                for _ in range(sweeps):
-                    gs(phi, rhs, lv, 0)
-                    gs(phi, rhs, lv, 1)
-                for _ in range(sweeps):
-                    gs(phi, rhs, lv, 1)
-                    gs(phi, rhs, lv, 0)
+                coarse_solve(phi, rhs, lv, max(20, 2 * max(phi.shape)))
                 break
-            for _ in range(2):
-                gs(phi, rhs, lv, 0)
-                gs(phi, rhs, lv, 1)
-            self._k("residual", n)(phi, rhs, lv, res)
-            cx, cy, cz = self.coarsen_axes[lvl]
-            self._k("restrict", self.rhs[lvl + 1].size)(res, cx, cy, cz, lv.px, lv.py, lv.pz,
-                                                   self.rhs[lvl + 1])
+            self._smooth(n)(phi, rhs, lv, 0, 2)
+            self._k("operator_kernel", n)(phi, rhs, lv, res, 1)
+            pro, rtab, scale = self.transfer[lvl]
+            self._k("restrict", self.rhs[lvl + 1].size)(res, *rtab, scale, self.rhs[lvl + 1])
         for lvl in range(L - 2, -1, -1):
             lv, phi, rhs = self.levels[lvl], self.phi[lvl], self.rhs[lvl]
             n = phi.size
-            cx, cy, cz = self.coarsen_axes[lvl]
-            self._k("prolong_add", n)(self.phi[lvl + 1], cx, cy, cz, lv.px, lv.py, lv.pz, phi)
-            gs = self._k("gauss_seidel_colour", n)
-            for _ in range(2):
-                gs(phi, rhs, lv, 1)
-                gs(phi, rhs, lv, 0)
+            pro, rtab, scale = self.transfer[lvl]
+            self._k("prolong_add", n)(self.phi[lvl + 1], *pro, phi)
+            self._smooth(n)(phi, rhs, lv, 1, 2)
         out[...] = self.phi[0]
 
     # -- solve -------------------------------------------------------------------------------
@@ -474,7 +575,7 @@ class PoissonSolver:
             return self._jacobi(b, phi, bnorm, tol)
         r, z, p, q = self.r, self.z, self.p, self.q
         rf, zf, pf, qf, phif = (a.reshape(-1) for a in (r, z, p, q, phi))
-        self._k("residual", r.size)(phi, b, lv, r)
+        self._k("operator_kernel", r.size)(phi, b, lv, r, 1)
         self._remove_mean(r)
         rnorm = math.sqrt(self._dot(r, r))
         it = 0
@@ -484,7 +585,7 @@ class PoissonSolver:
             rz = self._dot(r, z)
             while it < self.max_iterations:
                 it += 1
-                self._k("apply_operator", r.size)(p, lv, q)
+                self._k("operator_kernel", r.size)(p, p, lv, q, 0)
                 alpha = rz / self._dot(p, q)
                 self._vk.axpy(alpha, pf, phif)
                 self._vk.axpy(-alpha, qf, rf)
@@ -518,7 +619,7 @@ class PoissonSolver:
                 sweep(cur, b, lv, 2.0 / 3.0, nxt)
                 cur, nxt = nxt, cur
                 it += 1
-            self._k("residual", b.size)(cur, b, lv, self.r)
+            self._k("operator_kernel", b.size)(cur, b, lv, self.r, 1)
             self._remove_mean(self.r)
             rnorm = math.sqrt(self._dot(self.r, self.r))
             if rnorm <= tol:

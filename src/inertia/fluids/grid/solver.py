@@ -223,6 +223,17 @@ class GridFluid:
         self._vel_tmp = [np.zeros(s) for s in fs]   # advect output
         self._vel_fwd = [np.zeros(s) for s in fs]   # MacCormack scratch
         self._vel_bwd = [np.zeros(s) for s in fs]
+        # MacCormack limiter bounds per node (u, v, w faces, cells): advect
+        self._range_lo = [np.zeros(s) for s in fs] + [np.zeros((nx, ny, nz))]
+        self._range_hi = [np.zeros(s) for s in fs] + [np.zeros((nx, ny, nz))]
+        # padded copies (one ghost layer along the grid's axes) read by the advection
+        padz = 2 if dim == 3 else 0
+        pshape = [(a + 2, b + 2, c + padz) for a, b, c in fs + [(nx, ny, nz)]]
+        self._vel_pad = [np.zeros(s) for s in pshape[:3]]
+        self._cell_pad = np.zeros(pshape[3])
+        self._fwd_pad = [np.zeros(s) for s in pshape]
+        self._offsets = [np.array([0.0 if a == c else 0.5 for c in range(3)]) for a in range(3)]
+        self._offsets.append(np.full(3, 0.5))
         # cell scalars: advect, forces (sources), dissipate
         self._scal = [np.zeros((nx, ny, nz)) for _ in names]
         self._scal_tmp = [np.zeros((nx, ny, nz)) for _ in names]
@@ -458,12 +469,17 @@ class GridFluid:
 
     def _advect(self, dt):
         g = self.ctx
-        u, v, w = self._vel
+        k = self._k
+        for a in range(3):
+            if a < self.dim:
+                k.pad(self._vel[a], a, g, self._vel_pad[a])
+        up, vp, wp = self._vel_pad
         for a in range(self.dim):
-            self._advect_one(self._vel[a], a, u, v, w, dt, self._vel_tmp[a], self._vel_fwd[a],
-                             self._vel_bwd[a])
+            self._advect_one(self._vel[a], self._vel_pad[a], a, up, vp, wp, dt, self._vel_tmp[a],
+                             self._vel_fwd[a], self._vel_bwd[a])
         for s in range(len(self._scal)):
-            self._advect_one(self._scal[s], 3 + s, u, v, w, dt, self._scal_tmp[s],
+            k.pad(self._scal[s], 3 + s, g, self._cell_pad)
+            self._advect_one(self._scal[s], self._cell_pad, 3 + s, up, vp, wp, dt, self._scal_tmp[s],
                              self._cell_fwd, self._cell_bwd)
         for a in range(self.dim):
             self._vel[a], self._vel_tmp[a] = self._vel_tmp[a], self._vel[a]
@@ -471,14 +487,24 @@ class GridFluid:
             self._scal[s], self._scal_tmp[s] = self._scal_tmp[s], self._scal[s]
         self._enforce()
 
-    def _advect_one(self, src, slot, u, v, w, dt, dst, fwd, bwd):
+    def _advect_one(self, src, src_pad, slot, up, vp, wp, dt, dst, fwd, bwd):
+        """Advect the padded field `src_pad` of `slot` into dst (fwd, bwd: MacCormack scratch)."""
         g = self.ctx
+        k = self._k
+        h = self.grid.cell_size
+        off = self._offsets[min(slot, 3)]
         if self.advection == "semi-lagrangian":
-            self._k.advect(src, u, v, w, dt, slot, g, dst)
+            k.advect_padded(src_pad, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, dst,
+                            dst, dst, False)
             return
-        self._k.advect(src, u, v, w, dt, slot, g, fwd)
-        self._k.advect(fwd, u, v, w, -dt, slot, g, bwd)
-        self._k.maccormack_correct(src, fwd, bwd, u, v, w, dt, slot, g, dst)
+        i = min(slot, 3)
+        lo, hi, fwd_pad = self._range_lo[i], self._range_hi[i], self._fwd_pad[i]
+        k.advect_padded(src_pad, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, fwd,
+                        lo, hi, True)
+        k.pad(fwd, slot, g, fwd_pad)
+        k.advect_padded(fwd_pad, up, vp, wp, -dt / h, off, g.n, g.periodic, self.dim, bwd,
+                        bwd, bwd, False)
+        k.maccormack_combine(src, fwd, bwd, lo, hi, dst)
 
     def _forces(self, dt):
         f = self._force
@@ -601,8 +627,12 @@ class GridFluid:
             return self.max_dt if np.isfinite(self.max_dt) else self.grid.cell_size
         return min(self.cfl * self.grid.cell_size / vmax, self.max_dt)
 
-    def advance(self, frame_dt):
-        """Advance by frame_dt seconds in CFL-limited substeps; returns the substep count."""
+    def advance(self, frame_dt, rigid=None):
+        """Advance by frame_dt seconds in CFL-limited substeps; returns the substep count.
+
+        `rigid` is the World protocol's RigidWorld argument (docs/contracts.md); rigid bodies
+        are not coupled to the grid yet, so it is accepted and ignored (colliders passed as
+        ``obstacles`` still act, moving ones included)."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
         done = 0.0
         n = 0
@@ -664,6 +694,51 @@ class GridFluid:
                 x = x[tuple(idx)]
             e += float(np.sum(x * x))
         return 0.5 * e * vol
+
+    # ------------------------------------------------------------------------ World protocol
+    def save_state(self):
+        """The state a bit-for-bit resume needs: face velocities, scalars, the last pressure
+        (the next solve's initial guess), time and step index (copies)."""
+        st = {f"vel{a}": self._vel[a].copy() for a in range(self.dim)}
+        for name, a in zip(self.scalar_names, self._scal):
+            st[f"scalar/{name}"] = a.copy()
+        st["phi"] = self.phi.copy()
+        st["time"] = np.array(self.time)
+        st["step_index"] = np.array(self.step_index)
+        return st
+
+    def restore_state(self, state):
+        """Restore a `save_state` dict (same grid and scalars)."""
+        for a in range(self.dim):
+            self._vel[a][...] = state[f"vel{a}"]
+        for name, a in zip(self.scalar_names, self._scal):
+            a[...] = state[f"scalar/{name}"]
+        self.phi[...] = state["phi"]
+        self.time = float(state["time"])
+        self.step_index = int(state["step_index"])
+        if self._moving:
+            self._update_solids(self.time)
+
+    def frame_arrays(self):
+        """Per-frame arrays for a recorded run (fixed shapes): every scalar and ``speed`` (|u|
+        at cell centres, m/s) as float32 (nx, ny[, nz])."""
+        u, v, w = self._vel
+        s2 = (0.5 * (u[1:] + u[:-1])) ** 2 + (0.5 * (v[:, 1:] + v[:, :-1])) ** 2
+        if self.dim == 3:
+            s2 += (0.5 * (w[:, :, 1:] + w[:, :, :-1])) ** 2
+        out = {name: self._view(a).astype(np.float32) for name, a in zip(self.scalar_names, self._scal)}
+        out["speed"] = self._view(np.sqrt(s2)).astype(np.float32)
+        return out
+
+    def static_arrays(self):
+        """Grid description for a recorded run: origin (dim,), cell_size (), shape (dim,)."""
+        return {"origin": self.grid.origin.copy(), "cell_size": np.array(self.grid.cell_size),
+                "shape": np.array(self.grid.shape, dtype=np.int64)}
+
+    def write_vti(self, path):
+        """Export the current frame as VTK image data (see `inertia.fluids.grid.vtk`)."""
+        from .vtk import write_vti
+        return write_vti(path, self)
 
     def state_hash(self):
         """SHA-256 of the velocity and scalar arrays (determinism checks)."""

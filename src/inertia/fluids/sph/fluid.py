@@ -291,7 +291,7 @@ class SPHFluid:
         lo3[:dim] = lo
         length[:dim] = hi - lo
         for d in range(dim):
-            cells = max(1, int(math.floor(length[d] / self.support)))
+            cells = max(1, int(math.floor(length[d] / self.support + 1e-9)))
             if periodic[d] and cells < 3:
                 raise ValueError(f"periodic axis {d} must be at least 3 kernel supports long "
                                  f"({3 * self.support:g} m); the domain is {length[d]:g} m")
@@ -336,6 +336,8 @@ class SPHFluid:
         self._boundary_parts = []  # (x (M, D), body, noslip nu, local (M, D))
         self._bodies = []          # (initial centre (3,), initial rotation (3, 3)) per body
         self._B = None
+        self._rigid_model = None
+        self._pending_state = None
         self.body_force = np.zeros((0, 3))
         self.body_torque = np.zeros((0, 3))
 
@@ -434,6 +436,202 @@ class SPHFluid:
                 o[:body] for o in old)
         self._B = None
         return body
+
+    def add_rigid_model(self, model, body_q=None, *, slip=False, boundary_viscosity=None) -> int:
+        """Sample every shape row of a rigid ``Model`` (``inertia.model``) with boundary particles
+        (``coupling.sample_model``; Akinci et al. 2012): static geometry on the world lattice,
+        shapes of dynamic/kinematic bodies in their body frame, posed at ``body_q`` (default the
+        model's initial state). Fluid body k is rigid body k. Returns the number of particles.
+        Called by ``advance`` on first use with the RigidWorld's model."""
+        from . import coupling
+        if self.dim != 3:
+            raise ValueError("a rigid Model couples with a 3-D fluid only (make a 2-D scene a thin 3-D fluid, "
+                             "periodic across its depth)")
+        if self._bodies:
+            raise ValueError("the fluid already has bodies; add_rigid_model must be the only source of bodies")
+        if body_q is None:
+            body_q = model.state().body_q
+        grow = np.where(self.periodic, 0.0, self.support)
+        parts = coupling.sample_model(model, body_q, self.spacing, self.support, _lattice,
+                                      self.domain_lo - grow, self.domain_hi + grow, self.domain_lo)
+        noslip = self._noslip(slip, boundary_viscosity)
+        count = 0
+        for world, body, local in parts:
+            self._add_part(np.ascontiguousarray(world), body, noslip, np.ascontiguousarray(local))
+            count += world.shape[0]
+        nbody = int(model.body_count)
+        rot = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
+        self._bodies = [(np.asarray(body_q[k, :3], float).copy(), rot[k]) for k in range(nbody)]
+        self._body_x = np.array(body_q[:, :3], float).reshape(nbody, 3)
+        self._body_rot = rot.reshape(nbody, 3, 3).copy()
+        self._body_v = np.zeros((nbody, 3))
+        self._body_w = np.zeros((nbody, 3))
+        self.body_force = np.zeros((nbody, 3))
+        self.body_torque = np.zeros((nbody, 3))
+        self._rigid_model = model
+        self._B = None
+        return count
+
+    def _pose_from_rigid(self, state):
+        from . import coupling
+        if not len(self._bodies):
+            return
+        self._body_x[:] = state.body_q[:, :3]
+        self._body_rot[:] = coupling.quat_to_matrices(state.body_q[:, 3:7])
+        self._body_w[:] = state.body_qd[:, 0:3]
+        self._body_v[:] = state.body_qd[:, 3:6]
+        self._bodies_moved = True
+
+    def _extrapolate_bodies(self, dt):
+        # move the bands with the bodies' velocities between the fluid sub-steps of one world step
+        if not len(self._bodies):
+            return
+        from . import coupling
+        self._body_x += dt * self._body_v
+        w = self._body_w
+        angle = np.linalg.norm(w, axis=1) * dt
+        axis = w / np.maximum(np.linalg.norm(w, axis=1), 1e-300)[:, None]
+        q = np.concatenate([np.cos(0.5 * angle)[:, None], axis * np.sin(0.5 * angle)[:, None]], axis=1)
+        self._body_rot[:] = coupling.quat_to_matrices(q) @ self._body_rot
+        self._bodies_moved = True
+
+    def advance(self, dt, rigid=None) -> int:
+        """The World protocol: advance the fluid by ``dt`` [s] in fluid steps no longer than its
+        own limit (adaptive or fixed dt), coupled with ``rigid`` (a RigidWorld or None): the bands
+        follow ``rigid.state.body_q/body_qd`` and the fluid's impulse on every dynamic body over dt
+        is written into ``body_qd`` (``coupling.apply_body_impulses``). Returns the number of
+        fluid steps taken; ``body_force`` / ``body_torque`` then hold the mean force [N] and
+        torque [N m] over dt."""
+        from . import coupling
+        dt = _validate.positive_scalar(dt, "dt")
+        if rigid is not None:
+            if self._rigid_model is None:
+                self.add_rigid_model(rigid.model, rigid.state.body_q)
+                if self._pending_state is not None:
+                    pending, self._pending_state = self._pending_state, None
+                    self.restore_state(pending)
+            elif self._rigid_model is not rigid.model:
+                raise ValueError("rigid must be the RigidWorld whose model this fluid sampled")
+            self._pose_from_rigid(rigid.state)
+        nbody = len(self._bodies)
+        impulse = np.zeros((nbody, 3))
+        angular = np.zeros((nbody, 3))
+        left, steps = dt, 0
+        while left > 1e-12 * dt:
+            if steps:
+                self._extrapolate_bodies(self.last_dt)
+            taken = self.step(at_most=left)
+            impulse += taken * self.body_force
+            angular += taken * self.body_torque
+            left -= taken
+            steps += 1
+        if nbody:
+            self.body_force[:] = impulse / dt
+            self.body_torque[:] = angular / dt
+            if rigid is not None:
+                coupling.apply_body_impulses(rigid.model, rigid.state, impulse, angular)
+        return steps
+
+    # ------------------------------------------------------------------ World protocol: state
+    _SCALARS = ("time", "step_count", "last_dt", "_n", "_next_id")
+
+    def save_state(self) -> dict:
+        """Everything the next step reads, as arrays (copies): the fluid rows (all capacity rows,
+        in their current cell order, with the warm-start pressures), particle ids, the boundary
+        particles in their sorted order with the bodies' poses, emitter progress, clock and
+        counters. ``restore_state`` of it continues bit for bit."""
+        if self._B is None:
+            self._finalize_boundary()
+        out = {f"fluid_{k}": getattr(self._F, k).copy() for k in self._F._fields}
+        out.update({f"boundary_{k}": getattr(self._B, k).copy() for k in self._B._fields})
+        out["particle_id"] = self._id.copy()
+        out["boundary_rest"] = self._b_rest.copy()
+        out["boundary_local"] = self._b_local.copy()
+        out["boundary_cell_start"] = self._b_start.copy()
+        out["bodies_moved"] = np.array(self._bodies_moved)
+        if len(self._bodies):
+            for k in ("_body_x", "_body_rot", "_body_v", "_body_w"):
+                out["body" + k[5:]] = getattr(self, k).copy()
+            out["body_force"], out["body_torque"] = self.body_force.copy(), self.body_torque.copy()
+        out["emitter_travel"] = np.array([e["travel"] for e in self._emitters], float)
+        out["counters"] = np.array([self.time, self.step_count, self.last_dt, self._n, self._next_id,
+                                    self.stats.get("removed", 0), self.stats.get("emitter_dropped", 0)], float)
+        return out
+
+    def restore_state(self, state: dict) -> None:
+        """Continue from ``save_state``'s arrays (same fluid set-up: capacity, boundaries, bodies,
+        emitters); raises ValueError naming the first key that is missing or has the wrong shape.
+        A fluid coupled to a RigidWorld samples its bodies on the first ``advance``: restoring
+        before that keeps the state and applies it right after the sampling."""
+        if "body_x" in state and not self._bodies:
+            self._pending_state = state
+            return
+        if self._B is None:
+            self._finalize_boundary()
+
+        def put(key, dst):
+            if key not in state:
+                raise ValueError(f"state is missing {key!r} (not saved by this fluid's save_state)")
+            src = np.asarray(state[key])
+            if src.shape != dst.shape:
+                raise ValueError(f"state[{key!r}] has shape {src.shape}; this fluid needs {dst.shape}")
+            dst[...] = src
+
+        for k in self._F._fields:
+            put(f"fluid_{k}", getattr(self._F, k))
+        for k in self._B._fields:
+            put(f"boundary_{k}", getattr(self._B, k))
+        put("particle_id", self._id)
+        put("boundary_rest", self._b_rest)
+        put("boundary_local", self._b_local)
+        put("boundary_cell_start", self._b_start)
+        self._bodies_moved = bool(np.asarray(state["bodies_moved"]))
+        if len(self._bodies):
+            for k in ("_body_x", "_body_rot", "_body_v", "_body_w"):
+                put("body" + k[5:], getattr(self, k))
+            put("body_force", self.body_force)
+            put("body_torque", self.body_torque)
+        travel = np.asarray(state["emitter_travel"], float)
+        if travel.shape != (len(self._emitters),):
+            raise ValueError(f"state['emitter_travel'] has {travel.shape} entries; this fluid has "
+                             f"{len(self._emitters)} emitters")
+        for e, t in zip(self._emitters, travel):
+            e["travel"] = float(t)
+        c = np.asarray(state["counters"], float)
+        self.time, self.step_count, self.last_dt = float(c[0]), int(c[1]), float(c[2])
+        self._n, self._next_id = int(c[3]), int(c[4])
+        if c[5]:
+            self.stats["removed"] = int(c[5])
+        if self._emitters:
+            self.stats["emitter_dropped"] = int(c[6])
+
+    def frame_arrays(self) -> dict:
+        """What a run records per frame, fixed shapes: ``x`` (capacity, D) float32 [m], ``v``
+        (capacity, D) float32 [m/s], ``speed`` (capacity,) float32 [m/s], ``particle_id``
+        (capacity,) int64 (-1 for dead rows), ``active`` (capacity,) bool. Rows are in the solver's
+        cell order (use ``particle_id`` to follow a particle)."""
+        n, cap = self._n, self.capacity
+        active = np.zeros(cap, bool)
+        active[:n] = True
+        x = self._F.x.astype(np.float32)
+        v = self._F.v.astype(np.float32)
+        x[n:] = np.nan
+        v[n:] = 0.0
+        ids = self._id.copy()
+        ids[n:] = -1
+        return {"x": x, "v": v, "speed": np.linalg.norm(v, axis=1).astype(np.float32), "particle_id": ids,
+                "active": active}
+
+    def static_arrays(self) -> dict:
+        """Constant per run: ``domain`` (2, D) [m], ``spacing`` (1,) [m], ``smoothing_length`` (1,) [m],
+        ``rest_density`` (1,) [kg/m^3], ``boundary_x`` (Nb, D) float32 [m] of the static boundary
+        particles (walls; moving bodies are drawn from their shapes)."""
+        if self._B is None:
+            self._finalize_boundary()
+        static = self._B.body < 0
+        return {"domain": np.stack([self.domain_lo, self.domain_hi]), "spacing": np.array([self.spacing]),
+                "smoothing_length": np.array([self.h]), "rest_density": np.array([self.rest_density]),
+                "boundary_x": self._B.x[static].astype(np.float32)}
 
     def set_body_state(self, body: int, position, rotation, velocity, angular_velocity):
         """Pose of a body for the next step: centre position (D,), rotation (D, D), velocity (D,)
@@ -651,9 +849,9 @@ class SPHFluid:
         return t1
 
     # ------------------------------------------------------------------ the step
-    def step(self, dt=None) -> float:
+    def step(self, dt=None, *, at_most=None) -> float:
         """Advance by one step; returns the dt taken (``dt`` overrides the fixed/adaptive step
-        for this call, checked against the same limits)."""
+        for this call; ``at_most`` caps it, e.g. to end exactly at a frame time)."""
         if self._B is None:
             self._finalize_boundary()
         F, m = self._F, self.mass
@@ -684,6 +882,9 @@ class SPHFluid:
             dt = self.fixed_dt if self.fixed_dt is not None else min(self.dt_max, limit)
         else:
             dt = _validate.positive_scalar(dt, "dt")
+        if at_most is not None:
+            # split what is left evenly into steps no longer than dt (no sliver step at the end)
+            dt = at_most / max(1, math.ceil(at_most / dt - 1e-9))
         self.stats["max_speed"] = vmax
         # 5. divergence solve
         if self.method == "dfsph" and self.divergence_solve and n:
