@@ -26,6 +26,7 @@ from ..particles.tracers import Tracers
 from ..world import World, fingerprint
 from . import models as M
 from .errors import Issue, SceneError, did_you_mean
+from .fluids import add_sph_fluids
 
 __all__ = ["build_world", "derive_seed", "scene_fingerprint", "build_colliders"]
 
@@ -653,6 +654,7 @@ class _Builder:
             self.particle_group(world, i, group, names)
         for i, group in enumerate(m.tracers):
             self.tracer_group(world, i, group, names[len(m.particles) + i])
+        add_sph_fluids(self, world)
         return world
 
 

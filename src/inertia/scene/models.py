@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
+from .fluids import SPHTable
 
 __all__ = [
     "FORMAT_VERSION", "INTEGRATORS", "FIRST_ORDER_INTEGRATORS", "SceneModel", "Simulation",
@@ -664,6 +665,7 @@ class SceneModel(_Model):
     fields: dict[str, FieldSpec] = Field(default_factory=dict, description="named vector fields")
     output: Output = Field(default_factory=Output)
     render: Render = Field(default_factory=Render)
+    sph: dict[str, SPHTable] = Field(default_factory=dict, description="SPH fluids (inertia.fluids.sph.scene)")
 
     @model_validator(mode="before")
     @classmethod
@@ -686,6 +688,6 @@ class SceneModel(_Model):
 
     @model_validator(mode="after")
     def _names(self):
-        if not self.particles and not self.tracers:
-            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group")
+        if not self.particles and not self.tracers and not self.sph:
+            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group or a fluid")
         return self

@@ -201,6 +201,13 @@ def estimate_resources(model: M.SceneModel) -> ResourceEstimate:
             key = f"colliders[{i}].resolution"
             est.memory += cells * BYTES_PER_GRID_CELL
             est.items[key] = (cells * BYTES_PER_GRID_CELL, f"a distance grid of {int(cells):,} cells")
+    for name, table in model.sph.items():
+        from .fluids import sph_memory
+
+        n, cost = sph_memory(table)
+        est.memory += cost
+        est.particles += n
+        est.items[f"sph.{name}.spacing"] = (cost, f"an SPH fluid of {n:,} particles")
     est.groups = len(model.particles) + len(model.tracers)
     est.duration, est.substeps = sim.duration, sim.substeps
     est.steps = math.ceil(sim.duration / sim.dt - 1e-9) * float(sim.substeps)
