@@ -87,12 +87,16 @@ def _group_colors(states, renderer):
 
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
+    from inertia.render.fluid_particles import fluid_legend, with_fluid_particles
+
+    states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
     legend = _legend(states, renderer, render)
+    legend = fluid_legend(states, renderer, render) if legend is None else legend
     indices = range(states.frame_count) if frames is None else frames
     for f in indices:
         image = renderer.frame(
