@@ -16,7 +16,9 @@ Peers in the same run: the Numba WCSPH reference of the peers' script (imported 
 ``/work/shared/peers/bench_sph.py``, run in this process with the same window; 2D only), and
 SPlisHSPlasH (``pip install pysplishsplash``) and PySPH (``pip install pysph``, builds from source)
 through the peers' script's ``--worker`` subprocesses (their own window t = 0.05-0.30 s), when they
-are installed; a peer that is missing or fails is reported and skipped. Their figures from
+are installed; a peer that is missing or fails is reported and skipped. (On the project's
+machine, 2026-11-23: ``pip install pysplishsplash`` installs the 2.19.0 wheel; ``pip install pysph``
+builds from source and did not finish within a 400 s timeout under load.) Their figures from
 ``BASELINES.md`` (same kind of 2-core machine, measured separately) are printed too, marked as such.
 
 Scaling: the 2D dam break at 10^4 and 10^5 particles (10^6 with ``--million``): ms per step and

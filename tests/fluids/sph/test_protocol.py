@@ -78,3 +78,13 @@ def test_frame_and_static_arrays_have_fixed_shapes():
     static = fluid.static_arrays()
     assert static["domain"].shape == (2, 3) and static["boundary_x"].shape[1] == 3
     assert frame["x"].shape == (fluid.capacity, 3)
+
+
+def test_advance_covers_the_world_step_exactly():
+    # advance(dt) splits dt into equal fluid steps no longer than the fluid's own limit (here the
+    # fixed dt_max 2 ms): 0.005 s -> 3 steps of 1.667 ms; the clock ends at the frame time.
+    fluid = SPHFluid(sample_block((0.0, 0.0), (0.2, 0.2), 0.02), spacing=0.02, domain=((0, 0), (1, 1)), dt_max=0.002)
+    assert fluid.advance(0.005) == 3
+    assert abs(fluid.time - 0.005) < 1e-15 and abs(fluid.last_dt - 0.005 / 3) < 1e-15
+    with pytest.raises(ValueError, match="dt"):
+        fluid.advance(-1.0)

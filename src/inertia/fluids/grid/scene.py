@@ -1,0 +1,161 @@
+"""The ``[fluids.NAME]`` scene table for grid fluids: a strict pydantic model and a builder.
+
+    [fluids.plume]
+    kind = "smoke"                       # or "liquid"
+    shape = [128, 128]
+    cell_size = 0.0078125
+    advection = "maccormack"
+    buoyancy = [0.1, 1.0]
+    vorticity_confinement = 2.0
+    obstacles = ["ball"]                 # names of the scene's colliders
+    [fluids.plume.boundaries]
+    "y+" = { type = "outflow" }
+    [[fluids.plume.sources]]
+    lower = [0.45, 0.02]
+    upper = [0.55, 0.08]
+    density_rate = 5.0
+    temperature_rate = 5.0
+
+``build(table, world=None, colliders=None)`` returns a `GridFluid` or `LiquidFluid`. Every
+error is a ``ValueError`` whose message starts with the key path (``fluids.plume.shape``) and
+names the allowed values. The lead wires the model into ``scene/models.py`` and the builder
+into ``scene/builder.py`` (``world.add_fluid(name, fluid)``).
+
+Limitations: liquids take only ``blocks`` (boxes of particles) and a closed slip box; rigid
+bodies of the world are not coupled (``world`` is accepted for the protocol and unused).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from .boundaries import Inflow, Outflow, Periodic, Wall
+from .liquid import LiquidFluid
+from .solver import GridFluid
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+class BoundaryTable(_Strict):
+    """One side of the domain."""
+    type: Literal["wall", "slip", "no-slip", "inflow", "outflow", "periodic"] = Field(
+        description="wall = no-slip wall (velocity optional: a moving lid), slip, inflow, outflow, periodic")
+    velocity: list[float] | None = Field(None, description="wall or inflow velocity, m/s")
+    density: float = Field(0.0, description="inflow density")
+    temperature: float | None = Field(None, description="inflow temperature (default ambient)")
+
+
+class SourceTable(_Strict):
+    """A box that adds density/temperature per second and an acceleration, every step."""
+    lower: list[float]
+    upper: list[float]
+    density_rate: float = 0.0
+    temperature_rate: float = 0.0
+    acceleration: list[float] | None = None
+
+
+class BlockTable(_Strict):
+    """A box of liquid particles (2 per cell per axis)."""
+    lower: list[float]
+    upper: list[float]
+    velocity: list[float] | None = None
+
+
+class GridFluidTable(_Strict):
+    """``[fluids.NAME]``: a MAC-grid smoke/viscous fluid or a particle liquid."""
+    kind: Literal["smoke", "liquid"] = "smoke"
+    shape: list[int] = Field(description="cells per axis, 2 or 3 entries, each >= 4")
+    cell_size: float = Field(gt=0, description="cell size h, m")
+    origin: list[float] | None = None
+    # smoke / viscous flow
+    boundaries: dict[Literal["x-", "x+", "y-", "y+", "z-", "z+"], BoundaryTable] = Field(default_factory=dict)
+    viscosity: float = Field(0.0, ge=0)
+    advection: Literal["maccormack", "semi-lagrangian"] = "maccormack"
+    pressure_solver: Literal["mgpcg", "cg", "jacobi"] = "mgpcg"
+    tolerance: float = Field(1e-6, gt=0, lt=1)
+    scalars: list[str] = Field(default_factory=lambda: ["density", "temperature"])
+    buoyancy: list[float] = Field(default_factory=lambda: [0.0, 0.0], min_length=2, max_length=2)
+    ambient_temperature: float = 0.0
+    vorticity_confinement: float = Field(0.0, ge=0)
+    dissipation: dict[str, float] = Field(default_factory=dict)
+    body_acceleration: list[float] | None = None
+    cfl: float = Field(1.0, gt=0, le=5)
+    sources: list[SourceTable] = Field(default_factory=list)
+    obstacles: list[str] = Field(default_factory=list, description="names of scene colliders")
+    # liquid
+    method: Literal["apic", "flip", "pic"] = "apic"
+    flip_ratio: float = Field(0.95, ge=0, le=1)
+    gravity: list[float] | None = None
+    density: float = Field(1000.0, gt=0)
+    blocks: list[BlockTable] = Field(default_factory=list)
+
+
+def _boundary(b: BoundaryTable):
+    if b.type == "slip":
+        return Wall(slip=True)
+    if b.type in ("wall", "no-slip"):
+        return Wall(slip=False, velocity=b.velocity)
+    if b.type == "inflow":
+        if b.velocity is None:
+            raise ValueError("velocity is required for an inflow boundary")
+        return Inflow(velocity=b.velocity, density=b.density, temperature=b.temperature)
+    if b.type == "outflow":
+        return Outflow()
+    return Periodic()
+
+
+def build(table, world=None, colliders=None, name="fluid"):
+    """A GridFluid or LiquidFluid from a ``[fluids.NAME]`` table (dict or GridFluidTable).
+    `colliders`: dict name -> collider for ``obstacles``. Errors name the key path."""
+    prefix = f"fluids.{name}"
+    if not isinstance(table, GridFluidTable):
+        try:
+            table = GridFluidTable.model_validate(dict(table))
+        except ValidationError as e:
+            err = e.errors()[0]
+            key = ".".join(str(p) for p in err["loc"])
+            raise ValueError(f"{prefix}.{key}: {err['msg']}") from None
+    t = table
+    try:
+        if t.kind == "liquid":
+            fluid = LiquidFluid(t.shape, t.cell_size, origin=t.origin, gravity=t.gravity,
+                                method=t.method, flip_ratio=t.flip_ratio, density=t.density,
+                                cfl=t.cfl)
+            for i, b in enumerate(t.blocks):
+                try:
+                    fluid.add_block(b.lower, b.upper, velocity=b.velocity)
+                except ValueError as e:
+                    raise ValueError(f"blocks[{i}]: {e}") from None
+            return fluid
+        obstacles = []
+        for i, o in enumerate(t.obstacles):
+            if colliders is None or o not in colliders:
+                known = sorted(colliders) if colliders else []
+                raise ValueError(f"obstacles[{i}]: unknown collider {o!r}; the scene's colliders are {known}")
+            obstacles.append(colliders[o])
+        sides = {}
+        for side, b in t.boundaries.items():
+            try:
+                sides[side] = _boundary(b)
+            except ValueError as e:
+                raise ValueError(f"boundaries.{side}: {e}") from None
+        fluid = GridFluid(t.shape, t.cell_size, origin=t.origin, boundaries=sides or None,
+                          viscosity=t.viscosity, advection=t.advection,
+                          pressure_solver=t.pressure_solver, tolerance=t.tolerance,
+                          scalars=tuple(t.scalars), ambient_temperature=t.ambient_temperature,
+                          buoyancy=tuple(t.buoyancy), body_acceleration=t.body_acceleration,
+                          dissipation=t.dissipation, vorticity_confinement=t.vorticity_confinement,
+                          cfl=t.cfl, obstacles=obstacles)
+        for i, s in enumerate(t.sources):
+            try:
+                fluid.add_source(s.lower, s.upper, density_rate=s.density_rate,
+                                 temperature_rate=s.temperature_rate, acceleration=s.acceleration)
+            except ValueError as e:
+                raise ValueError(f"sources[{i}]: {e}") from None
+        return fluid
+    except ValueError as e:
+        raise ValueError(f"{prefix}.{e}") from None
