@@ -1,7 +1,8 @@
-"""Fluids in scene files: ``[sph.NAME]`` tables (and ``[fluids.NAME]`` grid tables when present).
+"""Fluids in scene files: ``[sph.NAME]`` tables and ``[fluids.NAME]`` grid-fluid tables.
 
 The table models and builders belong to the fluid packages (``inertia.fluids.sph.scene``: the
-strict pydantic ``SPHTable`` and ``build(table, world, colliders)``); this module only wires them
+strict pydantic ``SPHTable`` and ``build(table, world, colliders)``; ``inertia.fluids.grid.scene``:
+``GridFluidTable`` and its ``build``); this module only wires them
 into a scene: the table type used by ``SceneModel.sph``, the builder step that adds each fluid to
 the `World` (``world.add_fluid(name, fluid)``) with errors re-raised as `SceneError` at the key
 path ``sph.NAME...``, and the memory estimate of `inertia.scene.resources`.
@@ -21,10 +22,12 @@ from __future__ import annotations
 
 import math
 
+from ..fluids.grid.scene import GridFluidTable
+from ..fluids.grid.scene import build as build_grid
 from ..fluids.sph.scene import SPHTable
 from ..fluids.sph.scene import build as build_sph
 
-__all__ = ["SPHTable", "add_sph_fluids", "sph_particle_count", "sph_memory", "BYTES_PER_SPH_PARTICLE"]
+__all__ = ["SPHTable", "GridFluidTable", "add_sph_fluids", "add_grid_fluids", "grid_memory", "sph_particle_count", "sph_memory", "BYTES_PER_SPH_PARTICLE"]
 
 #: per-particle state besides the neighbour list: positions, velocities, densities, pressures,
 #: DFSPH factors, sort scratch, and a share of the boundary particles and the cell grid (tracemalloc
@@ -70,6 +73,37 @@ def add_sph_fluids(builder, world) -> None:
             message = str(exc)
             key = path
             # The fluid package names the key as "sph.NAME.key: message": keep its path.
+            if message.startswith(path):
+                key, _, message = message.partition(": ")
+            builder.fail(key, message)
+        with builder.at(path):
+            world.add_fluid(name, fluid)
+
+
+def grid_memory(table: GridFluidTable) -> tuple[int, float]:
+    """(cells, bytes) of a grid fluid: about 40 float64 values per cell (velocity faces, pressure,
+    multigrid levels, scalars and their advection scratch); liquids add their particles (4 per cell
+    of each block, 200 bytes each)."""
+    cells = math.prod(table.shape)
+    cost = cells * 40 * 8
+    if table.kind == "liquid":
+        for b in table.blocks:
+            cost += 4 * math.prod(max(0.0, (hi - lo) / table.cell_size) for lo, hi in zip(b.lower, b.upper)) * 200
+    return cells, cost
+
+
+def add_grid_fluids(builder, world) -> None:
+    """Build each ``[fluids.NAME]`` table of the builder's scene and add it to ``world``."""
+    for name, table in builder.m.fluids.items():
+        path = f"fluids.{name}"
+        if len(table.shape) != builder.dim:
+            builder.fail(f"{path}.shape", f"the grid is {len(table.shape)}-D but simulation.dim is {builder.dim}")
+        if name in builder.m.sph:
+            builder.fail(path, f"the name {name!r} is taken by [sph.{name}]; fluid names must be unique")
+        try:
+            fluid = build_grid(table, world, dict(builder.collider_names), name=name)
+        except ValueError as exc:
+            message, key = str(exc), path
             if message.startswith(path):
                 key, _, message = message.partition(": ")
             builder.fail(key, message)

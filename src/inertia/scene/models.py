@@ -34,7 +34,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
-from .fluids import SPHTable
+from .fluids import GridFluidTable, SPHTable
 
 __all__ = [
     "FORMAT_VERSION", "INTEGRATORS", "FIRST_ORDER_INTEGRATORS", "SceneModel", "Simulation",
@@ -666,6 +666,7 @@ class SceneModel(_Model):
     output: Output = Field(default_factory=Output)
     render: Render = Field(default_factory=Render)
     sph: dict[str, SPHTable] = Field(default_factory=dict, description="SPH fluids (inertia.fluids.sph.scene)")
+    fluids: dict[str, GridFluidTable] = Field(default_factory=dict, description="grid fluids (inertia.fluids.grid.scene)")
 
     @model_validator(mode="before")
     @classmethod
@@ -688,6 +689,6 @@ class SceneModel(_Model):
 
     @model_validator(mode="after")
     def _names(self):
-        if not self.particles and not self.tracers and not self.sph:
+        if not self.particles and not self.tracers and not self.sph and not self.fluids:
             raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group or a fluid")
         return self
