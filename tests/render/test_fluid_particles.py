@@ -4,7 +4,7 @@ particles with their speed, active mask and radius; drawn coloured by speed with
 import numpy as np
 import pytest
 
-from inertia.cli.outputs import render_frames
+from inertia.cli.outputs import render_frames, renderer_for
 from inertia.io.states import States
 from inertia.render.colormaps import DEFAULT_SPEED_MAP, colormap
 from inertia.render.fluid_particles import particle_fluids, speed_colorbar, with_fluid_particles
@@ -55,3 +55,20 @@ def test_colour_bar_runs_through_the_speed_map():
     assert bar.ndim == 3 and bar.shape[2] == 4 and bar.shape[1] > 100
     with pytest.raises(ValueError, match="vmax"):
         speed_colorbar(0.0)
+
+
+def test_recorded_2d_grid_is_painted_the_right_way_up():
+    # A 4 x 4 grid on [0, 1]^2 whose top row (j = 3) moves at 1 m/s and the rest rests: the top
+    # quarter of the painted square takes the speed map's top colour, the bottom its bottom colour.
+    speed = np.zeros((1, 4, 4), np.float32)
+    speed[0, :, 3] = 1.0
+    s = States(np.array([0.0]), np.zeros((1, 0, 3)), fields={"fluid/lid/speed": speed},
+               model={"fluid/lid/origin": np.zeros(2), "fluid/lid/cell_size": np.array(0.25)})
+    (_, image), = list(render_frames(s, {"width": 200, "height": 200}, frames=[0]))
+    r = renderer_for(with_fluid_particles(s), {"width": 200, "height": 200})
+    from inertia.render.fluid_particles import frame_grids
+    frame_grids(r, with_fluid_particles(s))
+    px, py, _ = r.camera.project(np.array([[0.5, 0.875], [0.5, 0.125]]), 200, 200)
+    top, bottom = (image[int(py[k]), int(px[k])].astype(float) for k in (0, 1))
+    lo, hi = (np.asarray(colormap(DEFAULT_SPEED_MAP, np.array([t]), vmin=0.0, vmax=1.0))[0, :3] * 255 for t in (0.0, 1.0))
+    assert np.abs(top - hi).max() <= 1 and np.abs(bottom - lo).max() <= 1

@@ -87,10 +87,11 @@ def _group_colors(states, renderer):
 
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
-    from inertia.render.fluid_particles import fluid_legend, with_fluid_particles
+    from inertia.render.fluid_particles import fluid_legend, frame_grids, paint_grids, with_fluid_particles
 
     states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
+    frame_grids(renderer, states)  # 2-D grid fluids: framed when there is no particle, painted below
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     colors = _group_colors(states, renderer)
     groups = states.groups()
@@ -104,6 +105,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             velocities=None if states.velocities is None else states.velocities[f],
             colors=colors, groups=groups, active=states.active(f), colliders=draw,
             t=float(states.times[f]))
+        paint_grids(image, states, f, renderer)
         if legend is not None:
             from inertia.render.legend import overlay
 

@@ -16,7 +16,14 @@ draws them unchanged:
 ``speed_colorbar(vmax)`` draws the colour bar (matplotlib's Agg canvas) laid over every frame with
 `inertia.render.legend.overlay`.
 
-Limitations: when the groups and the fluid differ in dimension (a 3-D group with a 2-D fluid)
+Recorded 2-D grid fluids (``fluid/<name>/speed`` (F, nx, ny) with ``origin``, ``cell_size`` in
+``States.model``) are painted as colour maps under the particles: ``density`` in "magma" when
+recorded (smoke), else ``speed`` in the speed map, each on one scale for the whole run (the maps of
+`inertia.render.fluid_grid`); ``frame_grids`` frames the camera on them when there is no particle.
+
+Limitations: grid colour maps are pasted over the frame's background (nearest cell per pixel,
+2-D orthographic cameras only) before nothing else is drawn: particles of the same frame are not
+drawn over them (a fluid-only scene shows the grid alone); 3-D grids are not drawn. When the groups and the fluid differ in dimension (a 3-D group with a 2-D fluid)
 the fluid is not drawn; fluids are spheres/discs (no liquid surface: that is
 `inertia.fluids.sph.surface` through marching cubes, not wired into `inertia run` yet); grid
 fluids (no ``x``) are left to `inertia.render.fluid_grid`.
@@ -28,7 +35,8 @@ import numpy as np
 
 from ..io.states import States
 
-__all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend"]
+__all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
+           "frame_grids", "paint_grids"]
 
 
 def particle_fluids(states) -> list[str]:
@@ -47,6 +55,10 @@ def with_fluid_particles(states) -> States:
     names = particle_fluids(states)
     frames, n = states.frame_count, states.particle_count
     dims = {states.fields[f"fluid/{name}/x"].shape[2] for name in names}
+    if not names and n == 0 and states.dim != 2 and grid_fluids(states):
+        # a run of 2-D grid fluids alone: a 2-D view (worlds without groups record 3-D positions)
+        return States(states.times, np.zeros((frames, 0, 2)), np.zeros((frames, 0, 2)), dict(states.fields),
+                      {}, dict(states.metadata, dim=2), states.model)
     if not names or len(dims) != 1 or (n > 0 and dims != {states.dim}):
         return states
     dim = dims.pop()
@@ -127,3 +139,66 @@ def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | N
                               theme=(render or {}).get("theme", "dark"), cmap=renderer.colormap)
     except ImportError:  # pragma: no cover - matplotlib is in the [cli] extra
         return None
+
+
+def grid_fluids(states) -> list[tuple[str, str]]:
+    """(name, quantity) of the recorded 2-D grid fluids: ``density`` when recorded, else ``speed``."""
+    out = []
+    for key, value in states.fields.items():
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == "fluid" and parts[2] == "speed" and np.ndim(value) == 3 \
+                and f"fluid/{parts[1]}/origin" in states.model and f"fluid/{parts[1]}/cell_size" in states.model:
+            quantity = "density" if f"fluid/{parts[1]}/density" in states.fields else "speed"
+            out.append((parts[1], quantity))
+    return out
+
+
+def _extent(states, name):
+    origin = np.asarray(states.model[f"fluid/{name}/origin"], np.float64).ravel()[:2]
+    shape = np.asarray(states.fields[f"fluid/{name}/speed"].shape[1:3], np.float64)
+    return origin, origin + shape * float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+
+
+def frame_grids(renderer, states) -> None:
+    """A 2-D orthographic camera on the grids when the run has grids and no particle to frame."""
+    from .camera import Camera
+
+    grids = grid_fluids(states)
+    if not grids or renderer.dim != 2 or states.particle_count > 0:
+        return
+    lo = np.min([_extent(states, n)[0] for n, _ in grids], axis=0)
+    hi = np.max([_extent(states, n)[1] for n, _ in grids], axis=0)
+    aspect = renderer.width / renderer.height
+    height = 1.1 * max(hi[1] - lo[1], (hi[0] - lo[0]) / aspect)
+    renderer.camera = Camera.plane_2d(0.5 * (lo + hi), height)
+
+
+def paint_grids(image, states, frame: int, renderer, scales: dict | None = None) -> np.ndarray:
+    """Paint every recorded 2-D grid fluid of ``frame`` into ``image`` (H, W, 3) uint8 in place
+    (nearest cell per pixel inside the grid's rectangle); ``scales``: name -> colour-map maximum
+    (default: the run's 99th percentile)."""
+    from .colormaps import colormap
+
+    if renderer.dim != 2 or renderer.camera is None:
+        return image
+    h, w = image.shape[:2]
+    for name, quantity in grid_fluids(states):
+        data = np.asarray(states.fields[f"fluid/{name}/{quantity}"])
+        vmax = (scales or {}).get(name)
+        if vmax is None:
+            finite = data[:: max(1, data.shape[0] // 50)]
+            vmax = float(np.percentile(finite[np.isfinite(finite)], 99.0)) if np.isfinite(finite).any() else 1.0
+            vmax = vmax if vmax > 0 else 1.0
+        lo, hi = _extent(states, name)
+        px, py, _ = renderer.camera.project(np.array([lo, hi]), w, h)
+        x0, x1 = int(np.clip(np.ceil(min(px)), 0, w)), int(np.clip(np.floor(max(px)), 0, w))
+        y0, y1 = int(np.clip(np.ceil(min(py)), 0, h)), int(np.clip(np.floor(max(py)), 0, h))
+        if x1 <= x0 or y1 <= y0:
+            continue
+        nx, ny = data.shape[1:3]
+        ci = np.clip(((np.arange(x0, x1) + 0.5 - min(px)) / (max(px) - min(px)) * nx).astype(int), 0, nx - 1)
+        cj = np.clip(((max(py) - np.arange(y0, y1) - 0.5) / (max(py) - min(py)) * ny).astype(int), 0, ny - 1)
+        values = data[frame][ci[None, :], cj[:, None]]
+        rgb = colormap("magma" if quantity == "density" else "speed", values, vmin=0.0, vmax=vmax)
+        image[y0:y1, x0:x1] = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
+    return image
