@@ -60,3 +60,26 @@ def test_resume_of_a_scene_with_a_fluid_is_bit_for_bit(tmp_path):
     assert sorted(a) == sorted(b)
     for key in a:
         assert np.array_equal(np.asarray(a[key]), np.asarray(b[key])), key
+
+
+def test_an_interrupted_run_resumes_to_the_same_fluid_frames(tmp_path):
+    # The user's path (`inertia run`, Ctrl-C, `inertia run --resume`): the state file records the
+    # fluid's frames as fields fluid/water/<key>, and the resumed run's equal the straight run's.
+    from inertia.io.states import load_states
+    from inertia.world import Run
+
+    path = EXAMPLES / "sph_dam_break.toml"
+
+    def run(out, **kw):
+        world = load_scene(path, duration=0.1, fps=50)
+        return Run(world, out, duration=0.1, fps=50, fingerprint="dam", handle_sigint=False,
+                   checkpoint_interval=0.0, **kw).execute()
+
+    run(tmp_path / "straight")
+    run(tmp_path / "cut", stop_after_frames=3)
+    run(tmp_path / "cut", resume=True)
+    a, b = load_states(tmp_path / "straight" / "states"), load_states(tmp_path / "cut" / "states")
+    assert a.fields["fluid/water/x"].shape == (6, 200, 2)
+    for key in ("x", "v", "active"):
+        assert np.array_equal(a.fields[f"fluid/water/{key}"], b.fields[f"fluid/water/{key}"]), key
+    assert not np.array_equal(a.fields["fluid/water/x"][0], a.fields["fluid/water/x"][-1])
