@@ -12,7 +12,23 @@ manifolds, deepest penetration, bodies asleep at the end, and the per-stage time
 50 iterations; MuJoCo dt 0.002 with the CG solver), so the ratio "peer ms per simulated second /
 Inertia ms per simulated second" compares equal simulated time, not equal steps.
 
-Run: PYTHONPATH=src python benchmarks/bench_rigid.py [--n 1000] [--shapes box sphere] [--engines inertia pybullet mujoco]
+Rest: after the 3 s window Inertia's pile runs on until every body sleeps (at most 15 s), and the
+deepest contact penetration of the last second before that is the resting pile's penetration. The
+peers' penetration is read from the lowest body centre at 3 s (their script's measure), which Inertia
+also prints.
+
+Run (about 3-5 minutes with both peers installed; peers: ``pip install pybullet mujoco``, bench only):
+    PYTHONPATH=src python benchmarks/bench_rigid.py [--n 1000] [--shapes box sphere] [--engines inertia pybullet mujoco] [--pyramid] [--substeps 8]
+
+Measured 2026-11-23 (2 vCPU shared with other jobs, load ~4; pybullet 3.2.7, mujoco CG), default command:
+    1000 boxes:   inertia 1630 ms per simulated s (27.2 ms per 1/60 s frame; solve 15.5, narrow 9.4, broad 2.0),
+                  all asleep at 6.5 s, 2.74 mm deepest at rest, lowest centre 0.89 mm into the floor;
+                  PyBullet 11 318 (x6.95, 4.25 mm), MuJoCo CG 17 003 (x10.4, 8.96 mm)
+    1000 spheres: inertia 685 ms per simulated s (11.4 ms per frame: real time); PyBullet 3 511 (x5.1),
+                  MuJoCo CG 4 016 (x5.9); only 385 / 1000 asleep at 15 s (no rolling resistance: spheres roll on)
+    10-box stack: inertia 33.6 ms per simulated s, top box 0.51 mm after settling; PyBullet 61.6 (x1.8), MuJoCo 56.7 (x1.7)
+    --substeps 4: 1000 boxes in 14.4 ms per frame (real time), asleep at 7.1 s, but 5.46 mm deepest at rest and
+                  the stack drifts 17 mm: 8 substeps is the default
 """
 
 from __future__ import annotations
@@ -52,7 +68,10 @@ def grid_positions(n, seed=0):
     return np.array(pos), q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0):
+def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
+    """The peers' 3 s window, timed step by step; then on until every body sleeps (at most rest_cap s),
+    also timed. Returns the world, per-step times of the window, the lowest body centre at its end,
+    and the rest phase's figures."""
     from inertia.model import ModelBuilder
     from inertia.rigid.world import RigidWorld
     pos, quat = grid_positions(n)
@@ -63,18 +82,32 @@ def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0):
             b.add_box(b.add_body(position=p, orientation=q), (EDGE / 2,) * 3, density=DENS)
         else:
             b.add_sphere(b.add_body(position=p), RAD, density=DENS)
-    world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel)
-    world.step()                                   # compile / load the cache outside the timing
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")            # the peers' grid starts with overlapping boxes
+        world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel)
+        world.step()                               # compile / load the cache outside the timing
     world.profile = {k: 0.0 for k in world.profile}
     steps = int(round(seconds * 60)) - 1
-    per_step, deepest = [], 0.0
+    per_step = []
     for s in range(steps):
         t0 = time.perf_counter()
         world.step()
         per_step.append(time.perf_counter() - t0)
-        if s >= steps - 60:                        # the last second: the pile has formed
-            deepest = max(deepest, world.max_penetration())
-    return world, np.array(per_step), deepest
+    zmin = float(world.state.body_q[:, 2].min())
+    window_profile = dict(world.profile)
+    # rest: until all bodies sleep; the deepest penetration of the last second before that
+    last_second, rest_steps, t_rest = [], 0, 0.0
+    while world.state.body_awake.any() and (steps + rest_steps) < rest_cap * 60:
+        t0 = time.perf_counter()
+        world.step()
+        t_rest += time.perf_counter() - t0
+        rest_steps += 1
+        last_second = (last_second + [world.max_penetration()])[-60:]
+    rest = dict(asleep=int((~world.state.body_awake).sum()), t_sleep=(steps + 1 + rest_steps) / 60.0,
+                deepest_at_rest=max(last_second) if last_second else float("nan"),
+                rest_ms_per_s=t_rest / max(rest_steps, 1) * 60e3, profile=window_profile)
+    return world, np.array(per_step), zmin, rest
 
 
 def inertia_stack(seconds, substeps):
@@ -142,17 +175,19 @@ def main():
     for shape in a.shapes:
         if "inertia" in a.engines:
             par = {"auto": "auto", "yes": True, "no": False}[a.parallel]
-            world, per_step, deepest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
+            world, per_step, zmin, rest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
             ms_per_s = per_step.sum() / (len(per_step) / 60.0) * 1e3
-            last = per_step[-60:].mean() * 60 * 1e3
             results[("inertia", shape)] = ms_per_s
-            prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in world.profile.items())
-            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: {ms_per_s:9.1f} ms per "
-                  f"simulated s (last 1 s {last:8.1f}; {per_step.mean() * 1e3:.2f} ms per 1/60 s step), "
-                  f"{world.contacts.active_count} manifolds at the end, deepest penetration "
-                  f"{deepest * 1e3:.2f} mm in the last second ({world.max_penetration() * 1e3:.2f} mm at the end), "
-                  f"{int((~world.state.body_awake).sum())}/{a.n} asleep")
-            print(f"         per-stage ms per step: {prof}")
+            prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in rest["profile"].items())
+            depth = (EDGE / 2 if shape == "box" else RAD) - zmin
+            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: "
+                  f"{ms_per_s:9.1f} ms per simulated s over 0-3 s ({per_step.mean() * 1e3:.2f} ms per 1/60 s "
+                  f"step, max {per_step.max() * 1e3:.1f}), lowest centre {zmin:.4f} m "
+                  f"(>= {max(depth, 0) * 1e3:.2f} mm into the floor)")
+            print(f"         per-stage ms per step (0-3 s): {prof}")
+            print(f"         at rest: {rest['asleep']}/{a.n} asleep at t = {rest['t_sleep']:.2f} s, deepest contact "
+                  f"penetration in the last second before {rest['deepest_at_rest'] * 1e3:.2f} mm; "
+                  f"{rest['rest_ms_per_s']:.1f} ms per simulated s from 3 s until asleep")
         for eng in ("pybullet", "mujoco"):
             if eng not in a.engines:
                 continue
@@ -177,6 +212,24 @@ def main():
         print(f"inertia  stack of 10 boxes, {a.stack_seconds:.0f} s: {per_s * 1e3:.2f} ms per simulated s; top box "
               f"moved {np.linalg.norm(p1 - settled) * 1e3:.3f} mm after settling in the first second "
               f"(sag {(p0[2] - settled[2]) * 1e3:.2f} mm, lateral {np.linalg.norm(p1[:2] - p0[:2]) * 1e3:.3f} mm)")
+        stack_ms = per_s * 1e3
+        for eng in ("pybullet", "mujoco"):
+            if eng not in a.engines:
+                continue
+            try:
+                __import__(eng)
+            except ImportError:
+                continue
+            sys.path.insert(0, PEERS)
+            import bench_3d_rigid as peers
+            if eng == "mujoco":
+                peers.MJ_SOLVER[0] = "cg"
+                times, _load, dt, q0, q1 = peers.mujoco_stack()
+            else:
+                times, _load, dt, q0, q1 = peers.pybullet_stack()
+            ms = np.mean(times) / dt * 1e3
+            print(f"{eng:8s} stack of 10 boxes, 10 s, dt={dt:.5f}: {ms:.2f} ms per simulated s; top box moved "
+                  f"{np.linalg.norm(q1 - q0) * 1e3:.2f} mm from its start; ratio {eng} / inertia = {ms / stack_ms:.2f}")
         if a.pyramid:
             per_s, disp, awake, nb = inertia_pyramid()
             print(f"inertia  pyramid base 20 ({nb} boxes), 30 s: {per_s * 1e3:.1f} ms per simulated s, largest "

@@ -8,8 +8,10 @@ versions compute identical bits: the kernels write each output element from one 
 and reductions use fixed chunks.
 
 ``parallel_kernel`` / ``SizeDispatched`` is the one size-dispatch mechanism: the serial twin
-runs when the first argument holds fewer than ``SERIAL_BELOW`` elements (``args[0].size``),
-the parallel build from there on. Each build is compiled on its first call only, so a small
+runs when the first argument holds fewer than ``SERIAL_BELOW`` elements (``args[0].size``, or
+another count through ``.pick(n)``, e.g. the pair solver's number of pairs), the parallel
+build from there on. ``SERIAL_BELOW`` is read at every call, so setting it (0: always
+parallel) applies to every dispatched kernel, the particle collision kernels included. Each build is compiled on its first call only, so a small
 scene never compiles the parallel build (which costs several times the serial build's
 compile time) and a large one never compiles the serial twin.
 
@@ -53,15 +55,26 @@ def serial_twin(kernel):
 class SizeDispatched:
     """Calls the parallel kernel, or its serial twin when the first argument has fewer than
     ``serial_below`` elements (``SERIAL_BELOW`` default). Each is compiled on first use.
-    Use from Python only; inside other kernels call ``.parallel`` or ``.serial``."""
+    Use from Python only; inside other kernels call ``.parallel`` or ``.serial``.
 
-    def __init__(self, kernel, serial_below: int | None = None):
+    The threshold is read at each call, so setting ``inertia._jit.SERIAL_BELOW`` (0: always
+    parallel, as the thread-count tests do) applies to every dispatched kernel. ``serial`` may
+    hand in an existing serial twin (kernels other code calls by their ``_serial`` name)."""
+
+    def __init__(self, kernel, serial_below: int | None = None, serial=None):
         self.parallel = kernel
-        self.serial_below = SERIAL_BELOW if serial_below is None else min(int(serial_below), SERIAL_BELOW)
-        self._serial = None
+        self._own_below = None if serial_below is None else int(serial_below)
+        self._serial = serial
         self.__doc__ = kernel.py_func.__doc__
         self.__name__ = kernel.py_func.__name__
         self.py_func = kernel.py_func
+
+    @property
+    def serial_below(self) -> int:
+        """Elements below which the serial twin runs: the kernel's own threshold, never above
+        the global ``SERIAL_BELOW``."""
+        below = SERIAL_BELOW
+        return below if self._own_below is None else min(self._own_below, below)
 
     @property
     def serial(self):

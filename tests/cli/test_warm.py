@@ -35,3 +35,34 @@ def test_warmup_covers_every_bundled_example_and_renders_it():
         sim = data["simulation"]
         assert abs(sim["duration"] * sim["fps"] - 2.0) < 1e-9  # two frames each
         assert sim["duration"] == 2.0  # long enough for falling particles to land
+
+
+def test_warmup_covers_the_fused_collision_kernels_of_both_kind_sets():
+    # `inertia run` compiles the collision kernels per collider kind set
+    # (particle_kernels.kernels_for): the warm-up scenes fuse the collision pass into rk4 for both
+    import json
+
+    from inertia.collision import particle_kernels as pk
+    from inertia.scene import build, parse_scene
+
+    kinds = set()
+    for name, data in warm._scenes():
+        if "fused colliders" not in name:
+            continue
+        world = build(parse_scene(json.dumps(data), format="json", source=name))
+        for group in world.groups:
+            d = group.system._collision
+            assert group.integrator == "rk4" and d.can_fuse() and group.system._affine_terms() is not None
+            kinds.add(pk.kernels_for(d.cint).kinds)
+    assert kinds == {pk.LIGHT_KINDS, pk.ALL_KINDS}
+
+
+def test_warmup_ends_with_the_render_kernels_of_meshes_and_lines(monkeypatch):
+    # bodies, cloth surfaces and spring lines are drawn by kernels the particle examples never
+    # reach: warm_all calls inertia.render.warm_kernels once (here replaced by a recorder)
+    import inertia.render
+
+    calls = []
+    monkeypatch.setattr(inertia.render, "warm_kernels", lambda: calls.append(1) or 0.0)
+    assert warm.warm_all(only="render") == ["render"]
+    assert calls == [1]

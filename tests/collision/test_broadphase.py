@@ -161,8 +161,7 @@ def test_deterministic_at_1_and_2_threads(monkeypatch):
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("needs 2 Numba threads")
     # force the parallel kernels and the parallel colour batches, whatever the scene size
-    monkeypatch.setattr(ia.collision.particle_stage, "SERIAL_BELOW", 0)
-    monkeypatch.setattr(ia.collision.particle_stage, "PARALLEL_PAIRS", 0)
+    monkeypatch.setattr(ia._jit, "SERIAL_BELOW", 0)
     hashes = []
     before = numba.get_num_threads()
     try:

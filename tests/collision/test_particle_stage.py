@@ -169,8 +169,8 @@ FUSED_GOLDEN = "d24935d6ce9721f397c864a45d742ae8de74805295a2eaac6456c445b543dbfe
 def test_fused_collision_pass_is_deterministic_at_1_and_2_threads(monkeypatch):
     import numba
 
-    from inertia.collision import particle_stage
-    monkeypatch.setattr(particle_stage, "SERIAL_BELOW", 0)  # the parallel kernel
+    from inertia import _jit
+    monkeypatch.setattr(_jit, "SERIAL_BELOW", 0)  # the parallel kernels
     before = numba.get_num_threads()
     hashes = []
     try:

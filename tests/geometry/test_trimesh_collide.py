@@ -199,8 +199,9 @@ w.step(60)
 print(hashlib.sha256(w.state.body_q.tobytes() + w.state.body_qd.tobytes()).hexdigest())
 """
 
-# from a 1-thread run on the reference machine
-GOLDEN_HEIGHTFIELD_HASH = "9ae9f7a8cbd3ee192d2a5b82ac2854f723b82b767faba24f93f2c9248df2f272"
+# measured at 1 and 2 threads; re-measured after twisting friction and the per-body sleep test, and
+# after the crease fix (spheres in heightfield creases get one point per face)
+GOLDEN_HEIGHTFIELD_HASH = "4fb6408520787b28976eedaab2592f62df391b6fdef91437509d937d94f28ad2"
 
 
 def test_heightfield_pile_is_deterministic_at_1_and_2_threads():
@@ -218,3 +219,83 @@ def test_heightfield_pile_is_deterministic_at_1_and_2_threads():
         hashes.append(out.stdout.strip().splitlines()[-1])
     assert hashes[0] == hashes[1]
     assert hashes[0] == GOLDEN_HEIGHTFIELD_HASH
+
+
+# ----------------------------------------------------------------------------- sphere in a crease
+def _manifolds(builder, dt=1.0 / 60.0):
+    """Broad + narrow phase once on the builder's scene: (Contacts, model)."""
+    from inertia.dynamics.contacts import Contacts
+    from inertia.geometry.broadphase import shape_world_bounds, sort_and_sweep
+    from inertia.geometry.narrowphase import compact_active, narrow_phase
+    m = builder.finalize()
+    st = m.state()
+    ns = m.shape_count
+    pose, aabb = np.zeros((ns, 7)), np.zeros((ns, 6))
+    shapes = m.shapes()
+    shape_world_bounds(shapes, m.body_type, m.body_bound_radius, st.body_q, st.body_qd, dt, pose, aabb)
+    pairs, keys = np.zeros((64, 2), np.int32), np.zeros(64, np.int64)
+    n = sort_and_sweep(aabb, shapes, m.body_type, st.body_awake, np.zeros(ns, np.int64), keys, pairs)
+    c = Contacts(64)
+    narrow_phase(pairs, keys, n, shapes, pose, st.body_qd, m.body_bound_radius, dt, c.arrays())
+    c.count = n
+    c.active_count = compact_active(c.arrays(), n)
+    return c, m
+
+
+def _v_mesh(b, alpha):
+    """Two triangles meeting in a V valley along the y axis, faces inclined at alpha to the horizontal
+    (left z = -x tan(alpha), right z = x tan(alpha)), normals pointing up into the valley."""
+    t = math.tan(alpha)
+    v = np.array([[0, -2, 0], [0, 2, 0], [-1, 0, t], [1, 0, t]], float)
+    tris = np.array([[0, 1, 2], [1, 0, 3]])
+    # right-hand normals must point up
+    for a, bb, c in tris:
+        assert np.cross(v[bb] - v[a], v[c] - v[a])[2] > 0
+    b.add_triangle_mesh(v, tris)
+
+
+def test_sphere_in_a_v_crease_gets_one_point_per_face_on_the_bisector():
+    """Centre at z = r / cos(alpha) - delta: each face is delta cos(alpha) deep along its normal, i.e. the
+    sphere is delta too low along the bisector (closed form): two points, normal vertical, sep = -delta."""
+    alpha, r, delta = math.radians(30), 0.15, 0.001
+    b = ModelBuilder(default_margin=0.01)
+    _v_mesh(b, alpha)
+    b.add_sphere(b.add_body(position=(0.0, 0.3, r / math.cos(alpha) - delta)), r)
+    c, _ = _manifolds(b)
+    (i,) = c.manifolds()
+    k = c.contact_point_count[i]
+    assert k == 2
+    assert c.contact_normal[i] == pytest.approx([0, 0, -1], abs=1e-12)   # sphere (A) -> mesh (B)
+    assert c.contact_separation[i, :2] == pytest.approx([-delta, -delta], abs=1e-12)
+    assert sorted(c.contact_point[i, :2, 0]) == pytest.approx([-r * math.sin(alpha), r * math.sin(alpha)], abs=1e-3)
+
+
+def test_sphere_on_a_tessellated_flat_floor_counts_one_normal():
+    """A sphere touching four coplanar triangles at their shared vertex: one point, not four."""
+    b = ModelBuilder(default_margin=0.01)
+    v, tris = grid_mesh(np.array([-1.0, -1, 0]), np.array([2.0, 0, 0]), np.array([0, 2.0, 0]), 2, 2)
+    b.add_triangle_mesh(v, tris)
+    b.add_sphere(b.add_body(position=(0.0, 0.0, 0.099)), 0.1)
+    c, _ = _manifolds(b)
+    (i,) = c.manifolds()
+    assert c.contact_point_count[i] == 1
+    assert c.contact_separation[i, 0] == pytest.approx(-0.001, abs=1e-12)
+
+
+def test_sphere_settles_in_a_v_crease_at_the_closed_form_height_without_jitter():
+    """Dropped into a 30-degree V valley, the sphere comes to rest with its centre at r / cos(alpha) above
+    the crease line (closed form) within 0.5 mm and stays still (z varies < 1 micron over the last 0.5 s)."""
+    alpha, r = math.radians(30), 0.15
+    b = ModelBuilder()
+    _v_mesh(b, alpha)
+    body = b.add_body(position=(0.0, 0.3, r / math.cos(alpha) + 0.01))
+    b.add_sphere(body, r, density=1000)
+    w = RigidWorld(b.finalize())
+    zs = []
+    for step in range(150):
+        w.step()
+        zs.append(w.state.body_q[body, :3].copy())
+    zs = np.array(zs)
+    assert zs[-1, 2] == pytest.approx(r / math.cos(alpha), abs=5e-4)
+    assert abs(zs[-1, 0]) < 1e-6
+    assert np.ptp(zs[-30:, 2]) < 1e-6

@@ -217,3 +217,45 @@ def test_camera_fit_keeps_the_box_in_view():
     moved = camera.with_orbit(azimuth=110.0)
     assert np.allclose(moved.target, camera.target)
     assert np.isclose(np.linalg.norm(moved.position - moved.target), np.linalg.norm(camera.position - camera.target))
+
+
+def test_an_orbit_turns_the_camera_over_the_run_and_keeps_the_scene_framed():
+    # Orbit 90 degrees over times 0..1: at t = 0 the fitted azimuth, at t = 1 azimuth + 90, the
+    # elevation kept; every frame's view holds all the points (framed at each key angle).
+    rng = np.random.default_rng(3)
+    cloud = rng.uniform([-2.0, -0.3, 0.0], [2.0, 0.3, 1.0], (400, 3))
+    renderer = Renderer(W, H, orbit=90.0, azimuth=-60.0, elevation=20.0)
+    renderer.fit(cloud, times=np.linspace(0.0, 1.0, 11))
+    for t, azimuth in ((0.0, -60.0), (0.5, -15.0), (1.0, 30.0)):
+        cam = renderer.camera_at(t)
+        offset = (cam.position - cam.target) / np.linalg.norm(cam.position - cam.target)
+        assert np.degrees(np.arctan2(offset[1], offset[0])) == pytest.approx(azimuth, abs=1e-9)
+        assert np.degrees(np.arcsin(offset[2])) == pytest.approx(20.0, abs=1e-9)
+        px, py, depth = cam.project(cloud, W, H)
+        assert np.all(depth > 0) and np.all((px >= 0) & (px <= W) & (py >= 0) & (py <= H))
+    # A camera set by hand after fit wins over the orbit.
+    renderer.camera = _front_camera()
+    assert renderer.camera_at(0.7) is renderer.camera
+    with pytest.raises(ValueError, match="orbit"):
+        Renderer(W, H, orbit=float("nan"))
+
+
+def test_follow_keeps_a_travelling_cloud_large_and_in_view():
+    # A ball of points travels 10 m along x over 4 s; framed on the whole run it spans a small
+    # part of the picture, followed it spans a large part, at every frame, and never leaves it.
+    rng = np.random.default_rng(5)
+    ball = rng.normal(size=(300, 3)) * 0.3
+    times = np.linspace(0.0, 4.0, 41)
+    run = ball[None] + np.stack([np.linspace(-5, 5, 41), np.zeros(41), np.full(41, 1.0)], axis=1)[:, None]
+    still = Renderer(W, H)
+    still.fit(run, times=times)
+    follow = Renderer(W, H, follow=True)
+    follow.fit(run, times=times)
+    for f in (0, 13, 20, 33, 40):
+        widths = []
+        for renderer in (still, follow):
+            cam = renderer.camera_at(times[f])
+            px, py, depth = cam.project(run[f], W, H)
+            assert np.all(depth > 0) and np.all((px >= 0) & (px <= W) & (py >= 0) & (py <= H))
+            widths.append(px.max() - px.min())
+        assert widths[1] > 2.0 * widths[0]

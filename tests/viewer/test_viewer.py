@@ -121,3 +121,33 @@ def test_headless_chromium_shows_the_particles_and_steps():
         driver.quit()
         viewer.close()
         shutil.rmtree(profile, ignore_errors=True)
+
+
+def test_rigid_bodies_are_meshes_moved_by_body_q():
+    # A box on body 0 and a sphere fixed in the world (body -1); body 0 moves along x and turns
+    # about z: its mesh handle follows the body pose composed with the shape's local offset.
+    frames = 4
+    xs = np.linspace(0.0, 1.5, frames)
+    angle = np.linspace(0.0, np.pi / 2, frames)
+    body_q = np.zeros((frames, 1, 7))
+    body_q[:, 0, 0] = xs
+    body_q[:, 0, 3], body_q[:, 0, 6] = np.cos(angle / 2), np.sin(angle / 2)
+    states = _run(frames, n=20)
+    states.fields["body_q"] = body_q
+    states.model = {  # the contract's States.model
+        "shape_type": np.array([1, 0], np.int32), "shape_body": np.array([0, -1], np.int32),
+        "shape_local_pose": np.array([[0.2, 0.0, 0.0, 1.0, 0, 0, 0], [0.0, 1.0, 0.5, 1.0, 0, 0, 0]]),
+        "shape_params": np.array([[0.1, 0.2, 0.3, 0.0], [0.25, 0.0, 0.0, 0.0]]),
+    }
+    viewer = view(states, port=0, block=False, autoplay=False)
+    try:
+        assert len(viewer._body_handles) == 1  # the static sphere is drawn once, not moved
+        handle, row = viewer._body_handles[0]
+        viewer.set_frame(3)
+        # Body at x = 1.5 turned 90 degrees: the local offset (0.2, 0, 0) points along +y.
+        assert np.allclose(handle.position, (1.5, 0.2, 0.0), atol=1e-6)
+        assert np.allclose(np.abs(handle.wxyz), (np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)), atol=1e-6)
+        viewer.set_frame(0)
+        assert np.allclose(handle.position, (0.2, 0.0, 0.0), atol=1e-6)
+    finally:
+        viewer.close()

@@ -488,13 +488,29 @@ def validate(
         forces = ", ".join(type(f).__name__ for f in getattr(g.system, "forces", [])) or "-"
         colliders = ", ".join(getattr(c, "name", type(c).__name__) for c in g.colliders) or "-"
         table.add_row(g.name, g.kind, str(g.particle_count), g.integrator, forces, colliders)
-    out_console.print(table)
+    if world.groups:
+        out_console.print(table)
+    rigid = getattr(world, "rigid_scene", None)
+    if rigid is not None:
+        m = rigid.model
+        out_console.print(f"{m.body_count} rigid bodies, {m.shape_count} shapes "
+                          f"({', '.join(f'{n} {t}' for t, n in _shape_counts(m).items())})")
     frames = int(sim.duration * sim.fps + 1e-6) + 1
     steps = frame_steps(frames - 1, sim.fps, sim.dt)
     period = 1.0 / (sim.fps * sim.dt)
     note = "" if abs(period - round(period)) < 1e-6 else (
         " [yellow](1/fps is not a whole number of steps: frames are taken at the first step after each frame time)[/]")
     out_console.print(f"[green]ok[/]: {path}: {frames} frames, {steps} steps{note}")
+
+
+def _shape_counts(model) -> dict:
+    from inertia.geometry import shapes as S
+
+    import numpy as np
+
+    names = {v: k for k, v in S.SHAPE_NAMES.items()}
+    codes, counts = np.unique(np.asarray(model.shape_type), return_counts=True)
+    return {names.get(int(c), str(c)): int(n) for c, n in zip(codes, counts)}
 
 
 # ------------------------------------------------------------------------------------------------

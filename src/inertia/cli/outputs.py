@@ -25,6 +25,7 @@ __all__ = ["write_outputs", "render_frames", "plot_energy", "OUTPUT_NAMES", "ren
 OUTPUT_NAMES = {
     "mp4": "movie.mp4", "gif": "movie.gif", "frames": "frames", "plot": "energy.png",
     "ply": "ply", "usd": "points.usdc", "manifest": "manifest.json",
+    "usd_bodies": "bodies.usdc", "obj": "obj",
 }
 
 
@@ -47,10 +48,16 @@ def renderer_for(states, render: dict | None, colliders=()):
 
     speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
-                        theme=render.get("theme", "dark"), speed_max=speed_max, **options)
+                        theme=render.get("theme", "dark"), speed_max=speed_max,
+                        orbit=float(camera.get("orbit") or 0.0), follow=bool(camera.get("follow", False)), **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
-    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active)
+    from inertia.render.drawables import ModelDrawables
+
+    drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
+    extra = None if drawables is None else drawables.bounds_points(states.fields.get("body_q"))
+    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
+                 times=states.times)
     cam = renderer.camera
     if dim == 2 and camera.get("height") is not None:
         center = camera.get("target") or cam.target[:2]
@@ -87,12 +94,16 @@ def _group_colors(states, renderer):
 
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
+    from inertia.render.drawables import ModelDrawables, frame_options
     from inertia.render.fluid_particles import fluid_legend, frame_grids, paint_grids, with_fluid_particles
 
     states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
     frame_grids(renderer, states)  # 2-D grid fluids: framed when there is no particle, painted below
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
+    drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
+    if drawables is not None:
+        draw = list(draw) + drawables.plane_colliders()
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
@@ -103,8 +114,8 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
         image = renderer.frame(
             states.positions[f], radius=radius,
             velocities=None if states.velocities is None else states.velocities[f],
-            colors=colors, groups=groups, active=states.active(f), colliders=draw,
-            t=float(states.times[f]))
+            colors=colors, groups=groups, colliders=draw, t=float(states.times[f]),
+            **frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0))))
         paint_grids(image, states, f, renderer)
         if legend is not None:
             from inertia.render.legend import overlay
@@ -187,9 +198,27 @@ def write_outputs(states, out_dir, output: dict, render: dict | None = None, col
         directory = out / OUTPUT_NAMES["ply"]
         write_ply_sequence(states, directory)
         written["ply"] = directory
-    if output.get("usd"):
+    bodies = _body_frames(states)
+    if output.get("usd") and (bodies is None or states.particle_count):
         written["usd"] = write_usd(states, out / OUTPUT_NAMES["usd"], up_axis="Z" if states.dim == 3 else "Y")
+    if bodies is not None and output.get("usd"):
+        from inertia.io import write_usd_bodies
+
+        written["usd_bodies"] = write_usd_bodies(out / OUTPUT_NAMES["usd_bodies"], bodies[0], bodies[1], fps=fps)
+    if bodies is not None and output.get("obj"):
+        from inertia.io import write_obj_sequence
+
+        written["obj"] = write_obj_sequence(out / OUTPUT_NAMES["obj"], bodies[0], bodies[1])
     return written
+
+
+def _body_frames(states):
+    """(model dict, body_q (F, B, 7)) when the state file recorded rigid bodies, else None."""
+    model = getattr(states, "model", None) or {}
+    body_q = (states.fields or {}).get("body_q") if hasattr(states, "fields") else None
+    if body_q is None or "shape_type" not in model:
+        return None
+    return model, np.asarray(body_q)
 
 
 def frame_count_for(duration: float, fps: float) -> int:

@@ -4,7 +4,9 @@ Every kernel is ``@njit(cache=True)``, so compiling once fills the on-disk cache
 sources, or under ``NUMBA_CACHE_DIR``) and later runs start warm. First every bundled example
 runs for two frames and renders one (what `inertia run NAME` compiles, render kernels
 included); then the scenes below touch every integrator, force, emitter, tracer field and
-collider type for a few steps, in 2-D and 3-D.
+collider type for a few steps, in 2-D and 3-D, and the collision kernels of both collider kind
+sets (``particle_kernels.kernels_for``), fused into rk4 and separate; last the render kernels of
+meshes, lines and every collider primitive (``inertia.render.warm_kernels``).
 
 Limitations: kernels have a serial and a parallel build (``inertia._jit``); tiny scenes compile
 the serial builds only, so the first run of a scene above ``inertia._jit.SERIAL_BELOW``
@@ -122,6 +124,26 @@ def _colliders(dim: int, mode: str) -> dict:
     return scene
 
 
+def _fused_colliders(light: bool) -> dict:
+    """Static colliders with affine forces under rk4: the collision pass fused into the
+    integrator's kernel (``particle_kernels.step_and_collide``), for the light kind set (planes,
+    spheres, containers) or every kind (``particle_kernels.kernels_for``); some particles start
+    inside the sphere (the first step's push-out)."""
+    scene = _base(3, "rk4")
+    scene["particles"] = [{"radius": 0.05, "restitution": 0.5,
+                           "lattice": {"origin": [-0.3, -0.3, 0.1], "counts": [3, 3, 3], "spacing": 0.3},
+                           "velocity": [0.0, 0.0, -50.0]}]
+    scene["forces"] = [{"type": "gravity"}]
+    colliders = [{"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]},
+                 {"type": "sphere", "center": [0.0, 0.0, 0.4], "radius": 0.2}]
+    if light:
+        colliders.append({"type": "container", "center": [0.0, 0.0, 0.0], "half_extents": [5.0, 5.0, 5.0]})
+    else:
+        colliders.append({"type": "box", "center": [2.0, 0.0, 0.0], "half_extents": [0.3, 0.3, 0.3]})
+    scene["colliders"] = colliders
+    return scene
+
+
 def _scenes():
     from inertia.ode.integrators import available
 
@@ -136,6 +158,9 @@ def _scenes():
             scenes.append((f"{dim}-D tracers, {name}", _tracers(dim, name)))
         for mode in ("a_priori", "a_posteriori"):
             scenes.append((f"{dim}-D colliders, {mode}", _colliders(dim, mode)))
+    # the fused collision kernels of both kind sets (the same compiled code in 2-D and 3-D)
+    scenes.append(("3-D fused colliders, planes/spheres/containers", _fused_colliders(True)))
+    scenes.append(("3-D fused colliders, every kind", _fused_colliders(False)))
     return scenes
 
 
@@ -204,6 +229,18 @@ def warm_all(report: Callable[[str], None] | None = None, *, only: str | None = 
             done.append(name)
         except Exception as exc:  # noqa: BLE001 - keep compiling the rest, then report
             failures.append(f"{name}: {type(exc).__name__}: {exc}")
+    if only is None or only in "render":
+        # Meshes (bodies, cloth surfaces), lines and every collider primitive: what a scene with
+        # rigid bodies draws, which the particle examples above do not reach.
+        if report is not None:
+            report("render")
+        try:
+            from ..render import warm_kernels
+
+            warm_kernels()
+            done.append("render")
+        except Exception as exc:  # noqa: BLE001
+            failures.append(f"render: {type(exc).__name__}: {exc}")
     if failures:
         raise RuntimeError("warm-up scenes failed:\n  " + "\n  ".join(failures))
     return done

@@ -44,7 +44,8 @@ from __future__ import annotations
 
 import math
 
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 PLANE, SPHERE, BOX, CAPSULE, CYLINDER, CONTAINER, GRID, CALLABLE = range(8)
 KIND_NAMES = ("plane", "sphere", "box", "capsule", "cylinder", "container", "grid", "callable")
@@ -377,28 +378,102 @@ def _grid(cf, ci, o, io, x, y, z):
 
 
 # --- dispatch --------------------------------------------------------------------------------
+# A kind set is passed to the collision kernels as a tuple ``kinds`` of GRID + 1 entries, True
+# for a kind the scene uses and None for one it does not (``kinds_token``). Numba types that
+# tuple by which entries are None, so each kind set is its own compiled signature, and the
+# dispatchers below (``sdf_in``, ``lower_bound_in``) are generated per kind set at typing time
+# with the branches of absent kinds removed before they are compiled: a scene of planes
+# compiles no box, capsule, cylinder, container or grid code into its kernels (the grid and
+# mesh distances are most of the collision kernels' compile time). ``ALL_KINDS`` keeps every
+# branch (the generic ``sdf`` / ``distance_lower_bound``); every kind set computes the same bits.
+ALL_KINDS = (True,) * (GRID + 1)
+
+
+def kinds_token(kinds) -> tuple:
+    """The ``kinds`` argument of the collision kernels for a collection of kind codes (CALLABLE
+    and unknown codes are ignored: the kernels skip CALLABLE rows)."""
+    present = {int(k) for k in kinds}
+    return tuple(True if k in present else None for k in range(GRID + 1))
+
+
+def _present(kinds):
+    """Which kinds a ``kinds`` token type holds (typing time), as GRID + 1 booleans."""
+    if not isinstance(kinds, types.BaseTuple) or len(kinds.types) != GRID + 1:
+        raise TypeError(f"kinds must be a tuple of {GRID + 1} entries (True or None); see kinds_token")
+    return tuple(not isinstance(t, (types.NoneType, types.Omitted)) for t in kinds.types)
+
+
+def sdf_in(kinds, kind, cf, o, ci, io, x, y, z):
+    """Signed distance and unit outward normal (gradient) of one packed shape at a rest point,
+    compiled for the kind set ``kinds`` only (Numba; shapes of other kinds give BIG, like
+    CALLABLE)."""
+    raise NotImplementedError("sdf_in runs inside Numba kernels only")
+
+
+@overload(sdf_in, jit_options={"cache": True})
+def _sdf_in(kinds, kind, cf, o, ci, io, x, y, z):
+    has_plane, has_sphere, has_box, has_capsule, has_cylinder, has_container, has_grid = _present(kinds)
+
+    def impl(kinds, kind, cf, o, ci, io, x, y, z):
+        if has_plane:
+            if kind == PLANE:
+                return cf[o] * x + cf[o + 1] * y + cf[o + 2] * z - cf[o + 3], cf[o], cf[o + 1], cf[o + 2]
+        if has_sphere:
+            if kind == SPHERE:
+                rx, ry, rz = x - cf[o], y - cf[o + 1], z - cf[o + 2]
+                dist = math.sqrt(rx * rx + ry * ry + rz * rz)
+                if dist > 0.0:
+                    return dist - cf[o + 3], rx / dist, ry / dist, rz / dist
+                return -cf[o + 3], 0.0, 0.0, 1.0
+        if has_box:
+            if kind == BOX:
+                return _box(cf, o, x, y, z)
+        if has_capsule:
+            if kind == CAPSULE:
+                return _capsule(cf, o, x, y, z)
+        if has_cylinder:
+            if kind == CYLINDER:
+                return _cylinder(cf, o, x, y, z)
+        if has_container:
+            if kind == CONTAINER:
+                return _container(cf, ci, o, io, x, y, z)
+        if has_grid:
+            if kind == GRID:
+                return _grid(cf, ci, o, io, x, y, z)
+        return BIG, 0.0, 0.0, 1.0  # CALLABLE shapes are evaluated outside the kernels
+
+    return impl
+
+
+def lower_bound_in(kinds, kind, cf, o, ci, io, x, y, z):
+    """``distance_lower_bound`` compiled for the kind set ``kinds`` only (Numba)."""
+    raise NotImplementedError("lower_bound_in runs inside Numba kernels only")
+
+
+@overload(lower_bound_in, jit_options={"cache": True})
+def _lower_bound_in(kinds, kind, cf, o, ci, io, x, y, z):
+    has_grid = _present(kinds)[GRID]
+
+    def impl(kinds, kind, cf, o, ci, io, x, y, z):
+        if has_grid:
+            if kind == GRID:
+                value, gx, gy, gz, inside = grid_sample(cf, ci, o, io, x, y, z)
+                if not inside:
+                    return value - cf[o + G_THICK]
+                if ci[io + GI_HASTRI] != 0 and abs(value) < cf[o + G_MARGIN] + 2.0 * cf[o + G_H]:
+                    d, gx, gy, gz = _grid(cf, ci, o, io, x, y, z)  # exact near the triangles
+                    return abs(d)
+                return abs(value) - cf[o + G_H] * 1.7320508075688772 - cf[o + G_THICK]
+        d, gx, gy, gz = sdf_in(kinds, kind, cf, o, ci, io, x, y, z)
+        return abs(d)
+
+    return impl
+
+
 @njit(cache=True)
 def sdf(kind, cf, o, ci, io, x, y, z):
     """Signed distance and unit outward normal (gradient) of one packed shape at a rest point."""
-    if kind == PLANE:
-        return cf[o] * x + cf[o + 1] * y + cf[o + 2] * z - cf[o + 3], cf[o], cf[o + 1], cf[o + 2]
-    if kind == SPHERE:
-        rx, ry, rz = x - cf[o], y - cf[o + 1], z - cf[o + 2]
-        dist = math.sqrt(rx * rx + ry * ry + rz * rz)
-        if dist > 0.0:
-            return dist - cf[o + 3], rx / dist, ry / dist, rz / dist
-        return -cf[o + 3], 0.0, 0.0, 1.0
-    if kind == BOX:
-        return _box(cf, o, x, y, z)
-    if kind == CAPSULE:
-        return _capsule(cf, o, x, y, z)
-    if kind == CYLINDER:
-        return _cylinder(cf, o, x, y, z)
-    if kind == CONTAINER:
-        return _container(cf, ci, o, io, x, y, z)
-    if kind == GRID:
-        return _grid(cf, ci, o, io, x, y, z)
-    return BIG, 0.0, 0.0, 1.0  # CALLABLE shapes are evaluated outside the kernels
+    return sdf_in(ALL_KINDS, kind, cf, o, ci, io, x, y, z)
 
 
 @njit(cache=True)
@@ -406,16 +481,7 @@ def distance_lower_bound(kind, cf, o, ci, io, x, y, z):
     """A lower bound of the distance from a rest point to the shape's surface, used to reject
     segments that cannot reach it: exact |d| for the analytic shapes, |d| - h sqrt(3) for grids
     (each grid sample is within |x - node| of the true value, and interpolation averages them)."""
-    if kind == GRID:
-        value, gx, gy, gz, inside = grid_sample(cf, ci, o, io, x, y, z)
-        if not inside:
-            return value - cf[o + G_THICK]
-        if ci[io + GI_HASTRI] != 0 and abs(value) < cf[o + G_MARGIN] + 2.0 * cf[o + G_H]:
-            d, gx, gy, gz = _grid(cf, ci, o, io, x, y, z)  # exact near the triangles
-            return abs(d)
-        return abs(value) - cf[o + G_H] * 1.7320508075688772 - cf[o + G_THICK]
-    d, gx, gy, gz = sdf(kind, cf, o, ci, io, x, y, z)
-    return abs(d)
+    return lower_bound_in(ALL_KINDS, kind, cf, o, ci, io, x, y, z)
 
 
 @njit(cache=True, parallel=True)

@@ -20,7 +20,12 @@ rest_u (N, 3)         the collider's surface velocity there (world, m/s)
 load   (N,)           normal load per unit mass the filter cancelled (m/s^2), last evaluation
 static_ok (N,) bool   the applied tangential force is within the static friction cone
 
-All kernels are pure functions: inputs, then outputs, then scalars; nothing is allocated.
+All kernels are pure functions: inputs, then outputs, then scalars, then ``kinds``; nothing is
+allocated. ``kinds`` (``distance.kinds_token``) is the set of collider kinds compiled in: Numba
+types it by which kinds are present, so each kind set is its own signature and the distance,
+bound and time-of-impact code of absent kinds is not compiled (``distance.sdf_in``,
+``toi.segment_toi_in``). Callers use ``kernels_for(kinds)``, which binds the kind set and picks
+the serial twin or the parallel build by size (``inertia._jit``).
 Particles are independent in ``collide_particles`` and ``step_and_collide`` (parallel,
 deterministic: the only reductions are integer counts and a finite flag); the pair solver
 processes colour batches (write-disjoint) in parallel.
@@ -40,10 +45,11 @@ import math
 from numba import njit, prange
 
 from . import distance as _d
-from .._jit import serial_twin
+from .._jit import SizeDispatched
+from . import broadphase as _bp
 from .broadphase import MAX_COLORS
 from .response import surface_response
-from .toi import may_hit, path_fraction, segment_toi
+from .toi import may_hit_in, path_fraction, segment_toi_in
 
 NEAR_PLANE, NEAR_BALL, NEAR_PLANES, NEAR_ALWAYS, NEAR_NEVER = 0.0, 1.0, 2.0, 3.0, 4.0
 
@@ -56,14 +62,14 @@ def copy_into(src, dst):
 
 
 @njit(cache=True)
-def _eval(cint, cf, ci, pose, ref, k, x, y, z):
+def _eval(cint, cf, ci, pose, ref, k, x, y, z, kinds):
     """Distance, world normal and rest point of collider k at world point (x, y, z) for `pose`."""
     kind, moving = cint[k, 0], cint[k, 1] & 1
     if moving:
         lx, ly, lz = _d.to_rest(pose[k], ref[k], x, y, z)
     else:
         lx, ly, lz = x, y, z
-    d, gx, gy, gz = _d.sdf(kind, cf, cint[k, 2], ci, cint[k, 3], lx, ly, lz)
+    d, gx, gy, gz = _d.sdf_in(kinds, kind, cf, cint[k, 2], ci, cint[k, 3], lx, ly, lz)
     if moving:
         gx, gy, gz = _d.rotate(pose[k], gx, gy, gz)
     return d, gx, gy, gz, lx, ly, lz
@@ -81,7 +87,7 @@ def _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt):
 
 @njit(cache=True, inline="always")
 def _resting_collider(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref, inv_dt, tol,
-                      rest_speed, keep, near, rest_n, rest_u):
+                      rest_speed, keep, near, rest_n, rest_u, kinds):
     """The collider particle i rests on (-1 if none): within tol of its surface and not moving along
     its normal; `keep` wins ties, `near` is a bitmask of the colliders to consider (-1: all).
     Writes that contact's normal and surface velocity into rest_n[i], rest_u[i]."""
@@ -89,7 +95,7 @@ def _resting_collider(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, p
     for k in range(cint.shape[0]):
         if cint[k, 0] == _d.CALLABLE or not (near >> min(k, 62)) & 1:
             continue
-        d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose_at, ref, k, x, y, z)
+        d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose_at, ref, k, x, y, z, kinds)
         if d - r > tol:
             continue
         ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt)
@@ -105,14 +111,14 @@ def _resting_collider(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, p
 
 @njit(cache=True)
 def _classify_one(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref, inv_dt, tol,
-                  rest_speed, keep, rest_k, rest_n, rest_u):
+                  rest_speed, keep, rest_k, rest_n, rest_u, kinds):
     rest_k[i] = _resting_collider(i, x, y, z, vx, vy, vz, r, cint, cf, ci, pose_at, pose0, pose1, ref,
-                                  inv_dt, tol, rest_speed, keep, -1, rest_n, rest_u)
+                                  inv_dt, tol, rest_speed, keep, -1, rest_n, rest_u, kinds)
 
 
 @njit(cache=True, parallel=True)
 def classify_contacts(x, v, radius, inv_mass, active, cint, cf, ci, pose_at, pose0, pose1, ref,
-                      rest_k, rest_n, rest_u, dt, tol, rest_speed):
+                      rest_k, rest_n, rest_u, dt, tol, rest_speed, kinds):
     """Resting-contact state of every particle at positions x (colliders at ``pose_at``).
     Returns the number of resting particles."""
     n, dim = x.shape
@@ -126,14 +132,14 @@ def classify_contacts(x, v, radius, inv_mass, active, cint, cf, ci, pose_at, pos
         vz = v[i, 2] if dim == 3 else 0.0
         _classify_one(i, x[i, 0], x[i, 1], z, v[i, 0], v[i, 1], vz, radius[i], cint, cf, ci,
                       pose_at, pose0, pose1, ref, inv_dt, tol, rest_speed, rest_k[i], rest_k, rest_n,
-                      rest_u)
+                      rest_u, kinds)
         if rest_k[i] >= 0:
             resting += 1
     return resting
 
 
 @njit(cache=True, parallel=True)
-def push_out(x, v, radius, inv_mass, active, cint, cf, ci, pose, ref, tol, inside_count):
+def push_out(x, v, radius, inv_mass, active, cint, cf, ci, pose, ref, tol, inside_count, kinds):
     """Project particles that lie inside a collider onto its surface and remove their inward
     normal velocity (relative to a static surface). inside_count (K,) int64 receives, per
     collider, how many particles were inside it. Returns the number of particles moved."""
@@ -148,7 +154,7 @@ def push_out(x, v, radius, inv_mass, active, cint, cf, ci, pose, ref, tol, insid
             if not active[i] or inv_mass[i] == 0.0:
                 continue
             z = x[i, 2] if dim == 3 else 0.0
-            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose, ref, k, x[i, 0], x[i, 1], z)
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose, ref, k, x[i, 0], x[i, 1], z, kinds)
             f = d - radius[i]
             if f >= -tol:
                 continue
@@ -231,7 +237,7 @@ def _resting_motion(x0x, x0y, x0z, v0x, v0y, v0z, ax, ay, az, nx, ny, nz, ux, uy
 def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az,
                dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, resting_done,
-               started):
+               started, kinds):
     """Steps 1-4 of ``collide_particles`` for one particle near a collider (kept out of the hot
     loop so that the far-from-everything path stays small). Returns the final (x, v), whether
     anything changed and whether the particle rests afterwards.
@@ -311,9 +317,9 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
                     lex, ley, lez = _d.to_rest(pose1[k], ref[k], ex, ey, ez)
                 else:
                     lsx, lsy, lsz, lex, ley, lez = sx, sy, sz, ex, ey, ez
-                if not may_hit(kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley, lez, r, tol):
+                if not may_hit_in(kinds, kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley, lez, r, tol):
                     continue
-                hit, sig, gx, gy, gz = segment_toi(kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley,
+                hit, sig, gx, gy, gz = segment_toi_in(kinds, kind, cf, o, ci, io, lsx, lsy, lsz, lex, ley,
                                                    lez, r, tol, max_iter)
                 if hit:
                     # chord fraction -> time fraction on the path (tangent plane at the hit)
@@ -384,7 +390,7 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
         for k in range(ncol):
             if cint[k, 0] == _d.CALLABLE or not (near >> min(k, 62)) & 1:
                 continue
-            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, ex, ey, ez)
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, ex, ey, ez, kinds)
             f = d - r
             if f >= tol:
                 continue
@@ -403,7 +409,7 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
                     # detected after the fact: the velocity the particle gained inside the
                     # collider is not kept. The impact time on the path from the signed
                     # distances at the segment's start and end; remove a_N (time inside).
-                    fs = _eval(cint, cf, ci, pose0, ref, k, sx, sy, sz)[0] - r
+                    fs = _eval(cint, cf, ci, pose0, ref, k, sx, sy, sz, kinds)[0] - r
                     inside = span  # started inside: the whole step
                     if fs > 0.0:
                         tau = path_fraction(f - fs, 0.5 * an * span * span, fs / (fs - f))
@@ -428,7 +434,7 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
     # 4. resting-contact state for the next step (only near colliders can hold it)
     if classify:
         kbest = _resting_collider(i, ex, ey, ez, evx, evy, evz, r, cint, cf, ci, pose1, pose0, pose1,
-                                  ref, inv_dt, tol, rest_speed, kr, near, rest_n, rest_u)
+                                  ref, inv_dt, tol, rest_speed, kr, near, rest_n, rest_u, kinds)
         if kbest != kr:
             rest_k[i] = kbest
         return ex, ey, ez, evx, evy, evz, modified, kbest >= 0
@@ -436,25 +442,41 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
 
 
 @njit(cache=True, inline="always")
-def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
-    """Bit k set for each collider k the step's path (of length ``length``, ending at e) may
-    reach: a lower bound of its distance at the end point (exact for planes and containers, the
-    bounding sphere otherwise) beyond r + 2 tol + length proves the path cannot reach the
-    surface. Inline math only, no square root: this runs for every particle."""
-    reach = r + 2.0 * tol + length
-    near = 0
+def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, dx, dy, dz):
+    """Bit k set for each collider k the step's path (displacement d, ending at e) may reach: a
+    lower bound of its distance at the end point (exact for planes and containers, the bounding
+    sphere otherwise) beyond r + 2 tol + |d| proves the path cannot reach the surface.
+
+    Cheap bound first, in registers: |d|_1 >= |d| decides for every particle farther than
+    r + 2 tol + |d|_1 without a square root; only the others compute |d| and apply the exact
+    test (so the mask is the same bits as the exact test alone). This runs for every particle."""
+    reach0 = r + 2.0 * tol
+    l1 = abs(dx) + abs(dy) + abs(dz)  # >= the path's length
+    length = -1.0  # the path's length, computed when the cheap bound does not decide
+    near = cnear.shape[0] * 0  # an int64 variable (a literal 0 would type the callers twice)
     for k in range(cnear.shape[0]):
         kind = cnear[k, 0]
         if kind == NEAR_NEVER:
             continue
         if k < 62 and k != kr:
             if kind == NEAR_PLANE:
-                if cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4] > reach:
+                f = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
+                if f - reach0 > l1:
+                    continue
+                if length < 0.0:
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if f > reach0 + length:
                     continue
             elif kind == NEAR_BALL:
-                dx, dy, dz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
-                far = cnear[k, 4] + reach
-                if far > 0.0 and dx * dx + dy * dy + dz * dz > far * far:
+                bx, by, bz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
+                d2 = bx * bx + by * by + bz * bz
+                far = cnear[k, 4] + (reach0 + l1)
+                if far > 0.0 and d2 > far * far:
+                    continue
+                if length < 0.0:
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                far = cnear[k, 4] + (reach0 + length)
+                if far > 0.0 and d2 > far * far:
                     continue
             elif kind == NEAR_PLANES:
                 o, m = int(cnear[k, 1]), int(cnear[k, 2])
@@ -462,7 +484,11 @@ def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, length):
                 for p in range(m):
                     b = o + 4 * p
                     lb = min(lb, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
-                if lb > reach:
+                if lb - reach0 > l1:
+                    continue
+                if length < 0.0:
+                    length = math.sqrt(dx * dx + dy * dy + dz * dz)
+                if lb > reach0 + length:
                     continue
             # NEAR_ALWAYS (moving colliders): always a candidate
         near |= 1 << min(k, 62)
@@ -503,7 +529,7 @@ def _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, 
 @njit(cache=True)
 def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                   static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                  rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started):
+                  rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started, kinds):
     """Steps 1-4 of ``collide_particles`` for particle i, whose path may reach a collider (or
     which rests on one). Start (s, sv) and end (e, ev) of the integrator's step in, final
     (x, v) out, with whether they changed and whether the particle rests afterwards."""
@@ -544,14 +570,14 @@ def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_
     return _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                       static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay,
                       az, dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran,
-                      resting_done, started)
+                      resting_done, started, kinds)
 
 
 @njit(cache=True, parallel=True)
 def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cnear, cmat, cf, ci, pose0,
                       pose1, ref, rest_k, rest_n, rest_u, load, static_ok, dv_step,
                       dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, write_dv,
-                      filter_ran, save_next):
+                      filter_ran, save_next, kinds):
     """Detect and respond to particle-collider contacts for one step, in place on x and v.
 
     x0, v0: the state at the start of the step (rows valid where active0). For each particle
@@ -600,7 +626,7 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
         kr = rest_k[i]
         # 0. colliders near the path
         dx, dy, dz = ex - sx, ey - sy, ez - sz
-        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, dx, dy, dz)
         if near != 0 or kr >= 0:
             if started:
                 svx, svy = v0[i, 0], v0[i, 1]
@@ -610,7 +636,7 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
             ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                 i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                 static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started)
+                rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started, kinds)
             if mod:
                 changed += 1
                 check += (ex + ey + ez + evx + evy + evz) * 0.0
@@ -651,7 +677,7 @@ def _affine_step(x, v, g, f, k, w, h, rk4):
 @njit(cache=True, parallel=True)
 def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk4, cint, cnear, cmat, cf,
                      ci, pose, ref, rest_k, rest_n, rest_u, load, static_ok, dt, tol, rest_speed,
-                     a_priori, max_sub, max_iter):
+                     a_priori, max_sub, max_iter, kinds):
     """The fused integrator step (rk4 or semi-implicit Euler, affine forces) and the collision
     pass against static colliders, in one pass over memory.
 
@@ -687,12 +713,12 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
             ez, evz = 0.0, 0.0
         kr = rest_k[i]
         dx, dy, dz = ex - sx, ey - sy, ez - sz
-        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, math.sqrt(dx * dx + dy * dy + dz * dz))
+        near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, dx, dy, dz)
         if near != 0 or kr >= 0:
             ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                 i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
                 static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                rest_speed, a_priori, max_sub, max_iter, True, False, True)
+                rest_speed, a_priori, max_sub, max_iter, True, False, True, kinds)
             if mod:
                 changed += 1
             if rests:
@@ -891,7 +917,7 @@ def _near_lower_bound(cnear, cf, k, x, y, z):
 
 @njit(cache=True)
 def _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, pose1, ref, inv_dt,
-                    rest_speed, project):
+                    rest_speed, project, kinds):
     """Project particle i out of the colliders (``project``) and remove its velocity into them
     (inelastic, with the collider's friction). Returns True when it touches a collider that
     holds it up (the surface normal within 60 degrees of the particle's applied pull, reversed)."""
@@ -906,7 +932,7 @@ def _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, 
             z = x[i, 2] if dim == 3 else 0.0
             if _near_lower_bound(cnear, cf, k, x[i, 0], x[i, 1], z) - radius[i] > 1e-3 * radius[i]:
                 continue
-            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, x[i, 0], x[i, 1], z)
+            d, nx, ny, nz, lx, ly, lz = _eval(cint, cf, ci, pose1, ref, k, x[i, 0], x[i, 1], z, kinds)
             f = d - radius[i]
             if f > 1e-3 * radius[i]:
                 continue
@@ -933,7 +959,7 @@ def _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, 
 @njit(cache=True, parallel=True)
 def solve_pairs(x, v, inv_mass, radius, dv_step, pair_i, pair_j, color_start, color_order, ncolors,
                 in_pair, support, cint, cnear, cmat, cf, ci, pose0, pose1, ref,
-                dt, restitution, friction, rest_speed, iterations):
+                dt, restitution, friction, rest_speed, iterations, kinds):
     """Sphere-sphere contacts: Gauss-Seidel over colour batches (each batch in parallel).
 
     0. support: particles in pairs that touch a collider are supported; support persists while a
@@ -952,7 +978,7 @@ def solve_pairs(x, v, inv_mass, radius, dv_step, pair_i, pair_j, color_start, co
             support[i] = inv_mass[i] == 0.0 and in_pair[i] != 0  # pinned particles support others
             continue
         if _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, pose1, ref, inv_dt,
-                           rest_speed, False):
+                           rest_speed, False, kinds):
             support[i] = True
         # particles within a radius of a collider are the ones the position passes may push in
         z = x[i, 2] if x.shape[1] == 3 else 0.0
@@ -981,15 +1007,86 @@ def solve_pairs(x, v, inv_mass, radius, dv_step, pair_i, pair_j, color_start, co
         for i in prange(n):
             if in_pair[i] == 2 and inv_mass[i] != 0.0:
                 _collider_clamp(i, x, v, radius, dv_step, cint, cnear, cmat, cf, ci, pose0, pose1, ref, inv_dt,
-                                rest_speed, True)
+                                rest_speed, True, kinds)
 
 
-# --- serial twins for small systems (see _jit) ------------------------------------------------
-copy_into_serial = serial_twin(copy_into)
-classify_contacts_serial = serial_twin(classify_contacts)
-push_out_serial = serial_twin(push_out)
-collide_particles_serial = serial_twin(collide_particles)
-step_and_collide_serial = serial_twin(step_and_collide)
-resting_filter_serial = serial_twin(resting_filter)
-mark_pairs_serial = serial_twin(mark_pairs)
-solve_pairs_serial = serial_twin(solve_pairs)
+# --- the kernels a scene runs: one bundle per kind set (see ``kernels_for``) -------------------
+_DISPATCHED = {name: SizeDispatched(globals()[name]) for name in (
+    "copy_into", "classify_contacts", "push_out", "collide_particles", "step_and_collide",
+    "resting_filter", "mark_pairs", "solve_pairs")}
+_BROADPHASE = {name: SizeDispatched(getattr(_bp, name), serial=getattr(_bp, name + "_serial"))
+               for name in ("bin_particles", "gather", "scatter", "count_pairs", "fill_pairs")}
+_TAKES_KINDS = ("classify_contacts", "push_out", "collide_particles", "step_and_collide", "solve_pairs")
+
+
+class _WithKinds:
+    """A size-dispatched kernel with the bundle's ``kinds`` appended to its arguments."""
+
+    __slots__ = ("dispatched", "kinds")
+
+    def __init__(self, dispatched, kinds):
+        self.dispatched, self.kinds = dispatched, kinds
+
+    def __call__(self, *args):
+        return self.dispatched(*args, self.kinds)
+
+    def pick(self, n):
+        """The build for a first argument of n elements (``SizeDispatched.pick``), kinds bound."""
+        build, kinds = self.dispatched.pick(n), self.kinds
+        return lambda *args: build(*args, kinds)
+
+
+class ParticleKernels:
+    """The particle collision kernels of one kind set (``kernels_for``).
+
+    Attributes: ``copy_into``, ``classify_contacts``, ``push_out``, ``collide_particles``,
+    ``step_and_collide``, ``resting_filter``, ``mark_pairs``, ``solve_pairs`` (this module) and
+    the broad phase's ``bin_particles``, ``gather``, ``scatter``, ``count_pairs``,
+    ``fill_pairs``: each called with the arguments documented on the kernel (without
+    ``kinds``), running its serial twin below ``inertia._jit.SERIAL_BELOW`` elements of its
+    first argument and its parallel build above (``.pick(n)`` chooses by another count, e.g.
+    the pair solver by the number of pairs). ``kinds``: the kind codes compiled in.
+    """
+
+    def __init__(self, kinds: frozenset):
+        self.kinds = kinds
+        token = _d.kinds_token(kinds)
+        for name, dispatched in _DISPATCHED.items():
+            setattr(self, name, _WithKinds(dispatched, token) if name in _TAKES_KINDS else dispatched)
+        for name, dispatched in _BROADPHASE.items():
+            setattr(self, name, dispatched)
+
+    def __repr__(self):
+        names = ", ".join(_d.KIND_NAMES[k] for k in sorted(self.kinds)) or "none"
+        return f"ParticleKernels({names})"
+
+
+_BUNDLES: dict = {}
+
+#: The kind sets compiled: scenes whose colliders are all planes, spheres and containers (a
+#: ground, a ball, a room: most scenes and the bundled examples without boxes) get kernels
+#: with only those three distance functions; any other scene gets every kind. Two sets, not
+#: one per combination, so that a process (a test suite, a sweep of scenes) compiles each
+#: kernel at most twice.
+LIGHT_KINDS = frozenset((_d.PLANE, _d.SPHERE, _d.CONTAINER))
+ALL_KINDS = frozenset(range(_d.GRID + 1))
+
+
+def kernels_for(kinds) -> ParticleKernels:
+    """The collision kernels compiled for the collider kinds a scene uses.
+
+    ``kinds``: kind codes (``distance.PLANE`` ...), or the packed ``cint`` (K, 4) table whose
+    first column holds them. The kernels are compiled for ``LIGHT_KINDS`` when every kind is in
+    it and for ``ALL_KINDS`` otherwise; the signed distances and times of impact of the kinds
+    left out are not compiled (a scene of planes compiles about 60 % of the code of one with
+    every shape, and the first frame of the fountain comes 35 % sooner), and both give the same
+    bits. Bundles are cached (cheap to call every step).
+    """
+    if hasattr(kinds, "ndim") and kinds.ndim == 2:
+        kinds = kinds[:, 0].tolist()
+    used = {int(k) for k in kinds if 0 <= int(k) <= _d.GRID}
+    key = LIGHT_KINDS if used <= LIGHT_KINDS else ALL_KINDS
+    bundle = _BUNDLES.get(key)
+    if bundle is None:
+        bundle = _BUNDLES[key] = ParticleKernels(key)
+    return bundle

@@ -129,11 +129,9 @@ __all__ = ["attach_collider", "set_collision_mode", "set_self_collisions", "conf
            "ParticleCollisionData", "ParticleCollisionStage", "RestingContactFilter", "COLLISION_MODES"]
 
 COLLISION_MODES = ("a_priori", "a_posteriori")
-# Below these sizes the serial twins of the kernels run: a parallel launch costs ~10 us on an
-# idle machine and milliseconds on an oversubscribed one, against ~50-100 ns of work per
-# particle here; each colour batch of the pair solver is one launch.
-SERIAL_BELOW = 16384
-PARALLEL_PAIRS = 65536
+# The kernels come from ``particle_kernels.kernels_for`` (compiled for the collider kinds in use;
+# serial twin or parallel build by ``inertia._jit``'s size dispatch; the pair solver's colour
+# batches by the number of pairs).
 
 
 def _user_stacklevel() -> int:
@@ -145,11 +143,6 @@ def _user_stacklevel() -> int:
     while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
         frame, level = frame.f_back, level + 1
     return level
-
-
-def pick(kernel, twin, n):
-    """The kernel for n items: its serial twin below ``SERIAL_BELOW``."""
-    return twin if n < SERIAL_BELOW else kernel
 
 
 class ParticleCollisionData:
@@ -259,9 +252,8 @@ class ParticleCollisionData:
         """The integrator's fused step with the collision pass (``particle_kernels.step_and_collide``)."""
         g, force, damping = affine
         self.fused_armed = False
-        n = system.x.shape[0]
         tic = time.perf_counter()
-        self.fused_result = pick(pk.step_and_collide, pk.step_and_collide_serial, n)(
+        self.fused_result = pk.kernels_for(self.cint).step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
             self.cint, self.cnear, self.cmat, self.cf, self.ci, self.pose1, self.ref, self.rest_k,
             self.rest_n, self.rest_u, self.load, self.static_ok, dt, self.distance_tolerance,
@@ -432,10 +424,9 @@ class RestingContactFilter:
         d.filter_ran = True
         if d.resting_count == 0 or d._shape is None:
             return
-        kernel = pick(pk.resting_filter, pk.resting_filter_serial, f.shape[0])
         if d.coupling is not None:
             d.coupling.before_filter(f)
-        kernel(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
+        pk.kernels_for(d.cint).resting_filter(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
                d.static_ok)
         if d.coupling is not None:
             d.coupling.after_filter(x, f, d)
@@ -458,7 +449,6 @@ class ParticleCollisionStage:
         d.ensure_buffers(system)
         d.filter_ran = False
         d.fused_result = None
-        n = system.x.shape[0]
         tic = time.perf_counter()
         # the collision pass runs inside the integrator's fused kernel when it can: then the
         # kernel keeps the step's start in registers and nothing is saved here
@@ -472,7 +462,7 @@ class ParticleCollisionStage:
             d.fused_armed = False
             # the step's start: already written by the previous end_step unless someone changed it
             if d._saved_revision != system.state_revision:
-                pick(pk.copy_into, pk.copy_into_serial, n)(system.state, d.state0)
+                pk.kernels_for(d.cint).copy_into(system.state, d.state0)
             np.copyto(d.active0, system.active)
         d.update_poses(t, dt)
         toc = time.perf_counter()
@@ -481,7 +471,7 @@ class ParticleCollisionStage:
             self._push_out_start(system)
         # resting contacts at the start of the step (reuse end_step's when still valid)
         if d.any_kernel and (d.any_moving or (d._valid_revision != system.state_revision and not d._restored)):
-            d.resting_count = pick(pk.classify_contacts, pk.classify_contacts_serial, n)(
+            d.resting_count = pk.kernels_for(d.cint).classify_contacts(
                 system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                 d.pose0, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt,
                 d.distance_tolerance, d.rest_speed)
@@ -496,7 +486,6 @@ class ParticleCollisionStage:
             self._end_fused_step(system)
             return
         x, v = system.x, system.v
-        n = x.shape[0]
         changed = 0
         finite = True
         tic = time.perf_counter()
@@ -507,7 +496,7 @@ class ParticleCollisionStage:
         save_next = not d.self_collisions and not d.callables
         if d.any_kernel or d.self_collisions:
             classify = not d.self_collisions
-            changed, resting, finite = pick(pk.collide_particles, pk.collide_particles_serial, n)(
+            changed, resting, finite = pk.kernels_for(d.cint).collide_particles(
                 x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
                 d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
                 d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
@@ -557,8 +546,7 @@ class ParticleCollisionStage:
         d = self.data
         d.check_start = False
         inside = np.zeros(d.cint.shape[0], np.int64)
-        kernel = pick(pk.push_out, pk.push_out_serial, system.x.shape[0])
-        moved = kernel(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
+        moved = pk.kernels_for(d.cint).push_out(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                        d.pose0, d.ref, d.distance_tolerance, inside)
         if moved:
             names = ", ".join(f"{type(c).__name__} #{i}: {int(inside[i])}"
@@ -588,22 +576,23 @@ class ParticleCollisionStage:
         nbuckets = int(np.prod(d.grid_dims)) if dense else d.table_size
         d.grid_mode = "dense" if dense else "hash"
         grid = (inv_cell, d.box_lo, d.grid_dims, dense, mask)
-        pick(bp.bin_particles, bp.bin_particles_serial, n)(x, radius, system.active, *grid, d.cell_key, d.bucket)
+        kernels = pk.kernels_for(d.cint)
+        kernels.bin_particles(x, radius, system.active, *grid, d.cell_key, d.bucket)
         ns = int(bp.counting_sort(d.bucket, nbuckets, d.bucket_start, d.order))
         # sorted space: the particles in cell order (see broadphase)
-        gather, scatter = pick(bp.gather, bp.gather_serial, n), pick(bp.scatter, bp.scatter_serial, n)
+        gather, scatter = kernels.gather.pick(x.size), kernels.scatter.pick(x.size)
         order = d.order
         xs, rs, ks = d.xs[:ns], d.rs[:ns], d.ks[:ns]
         gather(order, ns, x, xs)
         gather(order, ns, radius, rs)
         if not dense:
             gather(order, ns, d.cell_key, ks)
-        pick(bp.count_pairs, bp.count_pairs_serial, n)(
+        kernels.count_pairs.pick(x.size)(
             xs, rs, ks, *grid, d.bucket_start, ns, margin, d.pair_counts)
         total = int(bp.exclusive_scan(d.pair_counts, ns, d.pair_start))
         if total > d.pair_i.shape[0]:
             d._alloc_pairs(int(total * 1.5) + 64)
-        pick(bp.fill_pairs, bp.fill_pairs_serial, n)(
+        kernels.fill_pairs.pick(x.size)(
             xs, rs, ks, *grid, d.bucket_start, ns, margin, d.pair_start, d.pair_i, d.pair_j)
         ncolors = int(bp.color_pairs(d.pair_i, d.pair_j, total, d.used_colors, d.pair_color,
                                      d.color_start, d.color_order, d.color_cursor))
@@ -618,10 +607,9 @@ class ParticleCollisionStage:
             gather(order, ns, d.support, sups)
             inp[:] = 0
             # colour batches pay off when they are large; small pair sets run serially
-            m = n if total >= PARALLEL_PAIRS else 0
-            pick(pk.mark_pairs, pk.mark_pairs_serial, m)(d.pair_i, d.pair_j, d.color_start, d.color_order,
+            kernels.mark_pairs.pick(total)(d.pair_i, d.pair_j, d.color_start, d.color_order,
                                                          ncolors, inp)
-            pick(pk.solve_pairs, pk.solve_pairs_serial, m)(
+            kernels.solve_pairs.pick(total)(
                 xs, vs, ims, rs, dvs, d.pair_i, d.pair_j, d.color_start, d.color_order, ncolors, inp, sups,
                 d.cint, d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, dt, d.self_restitution,
                 d.self_friction, d.rest_speed, d.iterations)
@@ -636,7 +624,7 @@ class ParticleCollisionStage:
         # resting contacts for the next step, after the pair solver moved the particles
         d = self.data
         if d.any_kernel:
-            d.resting_count = pick(pk.classify_contacts, pk.classify_contacts_serial, system.x.shape[0])(
+            d.resting_count = pk.kernels_for(d.cint).classify_contacts(
                 system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci, d.pose1,
                 d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt, d.distance_tolerance, d.rest_speed)
 

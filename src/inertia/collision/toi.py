@@ -64,14 +64,15 @@ from __future__ import annotations
 import math
 
 from numba import njit
+from numba.extending import overload
 
 from . import distance as _d
 
 
 @njit(cache=True)
-def _convex_toi(kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter):
+def _convex_toi(kinds, kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter):
     # f(sigma) = phi(s + sigma L) - r, convex; Newton from the left never passes the first root
-    f, gx, gy, gz = _d.sdf(kind, cf, o, ci, io, sx, sy, sz)
+    f, gx, gy, gz = _d.sdf_in(kinds, kind, cf, o, ci, io, sx, sy, sz)
     f -= r
     slope = gx * lx + gy * ly + gz * lz
     if f <= tol:
@@ -86,7 +87,7 @@ def _convex_toi(kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter):
         sigma += f / (-slope)
         if sigma > 1.0:
             return False, 0.0, gx, gy, gz
-        f, gx, gy, gz = _d.sdf(kind, cf, o, ci, io, sx + sigma * lx, sy + sigma * ly, sz + sigma * lz)
+        f, gx, gy, gz = _d.sdf_in(kinds, kind, cf, o, ci, io, sx + sigma * lx, sy + sigma * ly, sz + sigma * lz)
         f -= r
         slope = gx * lx + gy * ly + gz * lz
         if f <= tol:
@@ -231,11 +232,11 @@ def _mesh_toi(cf, ci, o, io, sx, sy, sz, lx, ly, lz, r, tol):
 
 
 @njit(cache=True)
-def _march_toi(kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter):
+def _march_toi(kinds, kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter):
     # conservative advancement: |grad phi| <= 1, so a step of f / |L| cannot pass a root
     length = math.sqrt(lx * lx + ly * ly + lz * lz)
     sigma = 0.0
-    f, gx, gy, gz = _d.sdf(kind, cf, o, ci, io, sx, sy, sz)
+    f, gx, gy, gz = _d.sdf_in(kinds, kind, cf, o, ci, io, sx, sy, sz)
     f -= r
     if f <= tol:
         if gx * lx + gy * ly + gz * lz < -tol:
@@ -245,11 +246,44 @@ def _march_toi(kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter):
         sigma += 0.9 * f / length
         if sigma > 1.0:
             return False, 0.0, gx, gy, gz
-        f, gx, gy, gz = _d.sdf(kind, cf, o, ci, io, sx + sigma * lx, sy + sigma * ly, sz + sigma * lz)
+        f, gx, gy, gz = _d.sdf_in(kinds, kind, cf, o, ci, io, sx + sigma * lx, sy + sigma * ly, sz + sigma * lz)
         f -= r
         if f <= tol:
             return True, sigma, gx, gy, gz
     return True, sigma, gx, gy, gz
+
+
+def segment_toi_in(kinds, kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol, max_iter):
+    """``segment_toi`` compiled for the kind set ``kinds`` only (Numba; see
+    ``distance.kinds_token``)."""
+    raise NotImplementedError("segment_toi_in runs inside Numba kernels only")
+
+
+@overload(segment_toi_in, jit_options={"cache": True})
+def _segment_toi_in(kinds, kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol, max_iter):
+    present = _d._present(kinds)
+    has_container, has_grid = present[_d.CONTAINER], present[_d.GRID]
+    has_convex = any(present[k] for k in (_d.PLANE, _d.SPHERE, _d.BOX, _d.CAPSULE, _d.CYLINDER))
+
+    def impl(kinds, kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol, max_iter):
+        lx, ly, lz = ex - sx, ey - sy, ez - sz
+        if lx == 0.0 and ly == 0.0 and lz == 0.0:
+            return False, 0.0, 0.0, 0.0, 0.0
+        if has_container:
+            if kind == _d.CONTAINER:
+                return _container_toi(cf, ci, o, io, sx, sy, sz, lx, ly, lz, r, tol)
+        if has_grid:
+            if kind == _d.GRID:
+                if ci[io + _d.GI_HASTRI] != 0:
+                    return _mesh_toi(cf, ci, o, io, sx, sy, sz, lx, ly, lz, r, tol)
+                return _march_toi(kinds, kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, 4 * max_iter)
+        if kind == _d.CALLABLE:
+            return False, 0.0, 0.0, 0.0, 0.0
+        if has_convex:
+            return _convex_toi(kinds, kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter)
+        return False, 0.0, 0.0, 0.0, 0.0
+
+    return impl
 
 
 @njit(cache=True)
@@ -260,31 +294,26 @@ def segment_toi(kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol, max_iter):
     A path that starts touching (f <= tol) hits at sigma = 0 only if it heads in by more than
     ``tol`` over the segment.
     """
-    lx, ly, lz = ex - sx, ey - sy, ez - sz
-    if lx == 0.0 and ly == 0.0 and lz == 0.0:
-        return False, 0.0, 0.0, 0.0, 0.0
-    if kind == _d.CONTAINER:
-        return _container_toi(cf, ci, o, io, sx, sy, sz, lx, ly, lz, r, tol)
-    if kind == _d.GRID:
-        if ci[io + _d.GI_HASTRI] != 0:
-            return _mesh_toi(cf, ci, o, io, sx, sy, sz, lx, ly, lz, r, tol)
-        return _march_toi(kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, 4 * max_iter)
-    if kind == _d.CALLABLE:
-        return False, 0.0, 0.0, 0.0, 0.0
-    return _convex_toi(kind, cf, o, ci, io, sx, sy, sz, lx, ly, lz, r, tol, max_iter)
+    return segment_toi_in(_d.ALL_KINDS, kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol, max_iter)
 
 
 @njit(cache=True)
-def may_hit(kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol):
+def may_hit_in(kinds, kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol):
     """False when the segment provably cannot come within r + tol of the surface.
 
     With lower bounds a, b of the surface distance at the ends and L the segment length, every
     point of the segment is at least max(a - sigma L, b - (1 - sigma) L) >= (a + b - L) / 2 from
-    the surface (1-Lipschitz distance)."""
-    a = _d.distance_lower_bound(kind, cf, o, ci, io, sx, sy, sz) - r
-    b = _d.distance_lower_bound(kind, cf, o, ci, io, ex, ey, ez) - r
+    the surface (1-Lipschitz distance). ``kinds``: the kind set compiled in (``distance.kinds_token``)."""
+    a = _d.lower_bound_in(kinds, kind, cf, o, ci, io, sx, sy, sz) - r
+    b = _d.lower_bound_in(kinds, kind, cf, o, ci, io, ex, ey, ez) - r
     length = math.sqrt((ex - sx) ** 2 + (ey - sy) ** 2 + (ez - sz) ** 2)
     return a + b - length <= 2.0 * tol
+
+
+@njit(cache=True)
+def may_hit(kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol):
+    """``may_hit_in`` for every kind."""
+    return may_hit_in(_d.ALL_KINDS, kind, cf, o, ci, io, sx, sy, sz, ex, ey, ez, r, tol)
 
 
 @njit(cache=True)

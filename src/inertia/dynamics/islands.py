@@ -84,8 +84,13 @@ def wake_touched(active, n_active, contact_body, contact_is_sensor, body_type, b
 @njit(cache=True)
 def update_sleep(active, n_active, contact_body, contact_is_sensor, body_type, body_awake, body_qd,
                  body_sleep_time, body_sleep_island, parent, island_min, dt, linear_tol, angular_tol,
-                 time_to_sleep):
-    """Advance sleep timers, build islands, put resting islands to sleep. Returns bodies put to sleep."""
+                 time_to_sleep, body_bound_radius):
+    """Advance sleep timers, build islands, put resting islands to sleep. Returns bodies put to sleep.
+
+    A body rests when |v| <= linear_tol and |w| <= max(angular_tol, linear_tol / bound_radius): its
+    farthest point moves no faster than linear_tol by rotation (Box2D v3 measures the sleep speed at
+    the body's maximum extent the same way), so a large body needs a slow spin, a small one may rock
+    a little faster without keeping a whole pile awake."""
     nb = body_awake.shape[0]
     for b in range(nb):
         parent[b] = b
@@ -94,7 +99,9 @@ def update_sleep(active, n_active, contact_body, contact_is_sensor, body_type, b
         qd = body_qd[b]
         w = math.sqrt(qd[0] * qd[0] + qd[1] * qd[1] + qd[2] * qd[2])
         v = math.sqrt(qd[3] * qd[3] + qd[4] * qd[4] + qd[5] * qd[5])
-        if v > linear_tol or w > angular_tol:
+        r = body_bound_radius[b]
+        w_tol = max(angular_tol, linear_tol / r) if r > 0.0 else angular_tol
+        if v > linear_tol or w > w_tol:
             body_sleep_time[b] = 0.0
         else:
             body_sleep_time[b] += dt

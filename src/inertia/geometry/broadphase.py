@@ -32,9 +32,11 @@ _BIG = 1e30
 
 
 @njit(inline="always")
-def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
-    b = shapes.shape_body[s]
-    lp = shapes.shape_local_pose[s]
+def _bounds_one(s, geom_vertices, shape_body, shape_local_pose, shape_margin, shape_params, shape_type,
+                shape_vert_count, shape_vert_start, body_type, body_bound_radius, body_q, body_qd, dt, pose_out,
+                aabb_out):
+    b = shape_body[s]
+    lp = shape_local_pose[s]
     lq = (lp[3], lp[4], lp[5], lp[6])
     if b >= 0:
         bq = body_q[b]
@@ -52,8 +54,8 @@ def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, po
     pose_out[s, 4] = wq[1]
     pose_out[s, 5] = wq[2]
     pose_out[s, 6] = wq[3]
-    t = shapes.shape_type[s]
-    p = shapes.shape_params[s]
+    t = shape_type[s]
+    p = shape_params[s]
     ex = (0.0, 0.0, 0.0)
     if t == S.SPHERE:
         ex = (p[0], p[0], p[0])
@@ -75,12 +77,12 @@ def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, po
     lo = [0.0, 0.0, 0.0]
     hi = [0.0, 0.0, 0.0]
     if t == S.CONVEX_HULL or t == S.TRIANGLE_MESH or t == S.HEIGHTFIELD:
-        v0 = shapes.shape_vert_start[s]
+        v0 = shape_vert_start[s]
         for k in range(3):
             lo[k] = _BIG
             hi[k] = -_BIG
-        for i in range(v0, v0 + shapes.shape_vert_count[s]):
-            v = shapes.geom_vertices[i]
+        for i in range(v0, v0 + shape_vert_count[s]):
+            v = geom_vertices[i]
             w = qrot(wq, (v[0], v[1], v[2]))
             for k in range(3):
                 lo[k] = min(lo[k], c[k] + w[k])
@@ -100,7 +102,7 @@ def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, po
         for k in range(3):
             lo[k] = c[k] - ex[k]
             hi[k] = c[k] + ex[k]
-    m = shapes.shape_margin[s]
+    m = shape_margin[s]
     ang = 0.0
     lin = (0.0, 0.0, 0.0)
     if b >= 0 and body_type[b] != S.STATIC:
@@ -115,8 +117,14 @@ def _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, po
 
 @njit(cache=True)
 def _bounds_range(lo, hi, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out):
+    # the shape table's arrays as locals (a NamedTuple member read per shape costs a reference count)
+    verts, body, local_pose = shapes.geom_vertices, shapes.shape_body, shapes.shape_local_pose
+    margin, params, types = shapes.shape_margin, shapes.shape_params, shapes.shape_type
+    vstart, vcount = shapes.shape_vert_start, shapes.shape_vert_count
     for s in range(lo, hi):
-        _bounds_one(s, shapes, body_type, body_bound_radius, body_q, body_qd, dt, pose_out, aabb_out)
+        _bounds_one(s, verts, body, local_pose, margin, params, types, vcount, vstart, body_type,
+                    body_bound_radius,
+                    body_q, body_qd, dt, pose_out, aabb_out)
 
 
 @njit(cache=True, parallel=True)
@@ -130,18 +138,18 @@ def shape_world_bounds(shapes, body_type, body_bound_radius, body_q, body_qd, dt
 
 
 @njit(inline="always")
-def _may_collide(sa, sb, shapes, body_type, body_awake):
-    ba = shapes.shape_body[sa]
-    bb = shapes.shape_body[sb]
+def _may_collide(sa, sb, shape_body, shape_group, shape_mask, body_type, body_awake):
+    ba = shape_body[sa]
+    bb = shape_body[sb]
     if ba == bb:
         return False
     a_active = ba >= 0 and body_type[ba] == S.DYNAMIC and body_awake[ba]
     b_active = bb >= 0 and body_type[bb] == S.DYNAMIC and body_awake[bb]
     if not (a_active or b_active):
         return False
-    if (shapes.shape_group[sa] & shapes.shape_mask[sb]) == 0:
+    if (shape_group[sa] & shape_mask[sb]) == 0:
         return False
-    if (shapes.shape_group[sb] & shapes.shape_mask[sa]) == 0:
+    if (shape_group[sb] & shape_mask[sa]) == 0:
         return False
     return True
 
@@ -153,6 +161,9 @@ def sort_and_sweep(aabb, shapes, body_type, body_awake, order, keys, pairs_out):
     ``order`` (S,) int64 and ``keys`` (capacity,) int64 are scratch. Returns the pair count; if it
     exceeds the capacity nothing is written past it and the caller grows the buffers and calls again.
     """
+    # the shape table's arrays as locals: a NamedTuple member read inside the loop costs a reference count
+    shape_body, shape_group, shape_mask, shape_type = (shapes.shape_body, shapes.shape_group, shapes.shape_mask,
+                                                       shapes.shape_type)
     ns = aabb.shape[0]
     # sweep axis: largest spread of the finite box centres
     best_axis, best_var = 0, -1.0
@@ -182,10 +193,10 @@ def sort_and_sweep(aabb, shapes, body_type, body_awake, order, keys, pairs_out):
             if (aabb[i, 0] > aabb[j, 3] or aabb[j, 0] > aabb[i, 3] or aabb[i, 1] > aabb[j, 4]
                     or aabb[j, 1] > aabb[i, 4] or aabb[i, 2] > aabb[j, 5] or aabb[j, 2] > aabb[i, 5]):
                 continue
-            if not _may_collide(i, j, shapes, body_type, body_awake):
+            if not _may_collide(i, j, shape_body, shape_group, shape_mask, body_type, body_awake):
                 continue
             a, b = i, j
-            ta, tb = shapes.shape_type[a], shapes.shape_type[b]
+            ta, tb = shape_type[a], shape_type[b]
             if ta > tb or (ta == tb and a > b):
                 a, b = b, a
             if count < cap:

@@ -316,12 +316,19 @@ def _reduce_simplex(sw, sa, sb, n, lam):
     bl = np.zeros(4)
     inside = True
     faces = ((0, 1, 2, 3), (0, 1, 3, 2), (0, 2, 3, 1), (1, 2, 3, 0))
+    # a flat tetrahedron (support ties of flat shapes put four points on one plane) encloses nothing:
+    # then the closest point of its faces decides, and GJK goes on with (at most) a triangle
+    e1 = sw[1] - sw[0]
+    e2 = sw[2] - sw[0]
+    e3 = sw[3] - sw[0]
+    vol = _m.dot(_m.cross(e1, e2), e3)
+    flat = abs(vol) <= 1e-10 * math.sqrt(_m.dot(e1, e1) * _m.dot(e2, e2) * _m.dot(e3, e3))
     for f in faces:
         i, j, k, o = f
         nrm = _m.cross(sw[j] - sw[i], sw[k] - sw[i])
         s_origin = -(nrm[0] * sw[i, 0] + nrm[1] * sw[i, 1] + nrm[2] * sw[i, 2])
         s_opp = nrm[0] * (sw[o, 0] - sw[i, 0]) + nrm[1] * (sw[o, 1] - sw[i, 1]) + nrm[2] * (sw[o, 2] - sw[i, 2])
-        if s_origin * s_opp < 0.0:
+        if flat or s_origin * s_opp < 0.0:
             inside = False
             u, v, w = _closest_on_triangle(sw[i], sw[j], sw[k])
             p = u * sw[i] + v * sw[j] + w * sw[k]

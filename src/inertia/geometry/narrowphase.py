@@ -10,8 +10,17 @@ Speculative contacts (continuous collision): a pair keeps every point whose gap 
 close in one step -- and the solver lets the gap close to zero but not beyond (Catto 2024, "soft step"
 speculative contacts). A fast sphere therefore stops at a thin wall instead of passing it.
 
-Pairs (A has the lower type code): sphere-sphere, sphere-box, sphere-capsule, sphere-plane, box-box,
-box-capsule, box-plane, capsule-capsule, capsule-plane, cylinder-plane, hull-plane.
+Closed-form pairs (A has the lower type code): sphere-sphere, sphere-box, sphere-capsule, sphere-plane,
+box-box, box-plane, capsule-capsule, capsule-plane, cylinder-plane, hull-plane. Every other pair of convex
+shapes (sphere, box, capsule, cylinder, hull; box-capsule included) takes the general path
+``_convex_general``: GJK on the cores gives the exact distance and witnesses when separated (spheres and
+capsules are a point/segment plus radius), EPA on the cores the depth and normal when they overlap; the
+support features of both shapes along that normal (vertex, segment, polygon) give the manifold by
+clipping the incident feature against the side planes of the reference one (the feature facing the
+normal better; a polygon before a segment), the normal snapped to the reference face's, separations
+measured to the reference plane, at most four points kept, feature key = incident vertex / clip plane.
+Box-capsule is therefore exact: the closest points of segment and box by GJK, two clipped points when the
+capsule lies parallel to a face.
 Box-box is the separating-axis test over the 15 axes with a hysteresis that prefers faces to edges,
 reference/incident face clipping (Sutherland-Hodgman), and reduction to four points (deepest point,
 farthest point, largest triangle, largest quad) after Gregorius (2015).
@@ -21,12 +30,14 @@ References
 - Gregorius, D. (2015). Robust contact creation for physics simulations. GDC.
 - Catto, E. (2024). Solver2D / Box2D v3: speculative contacts, feature ids for warm starting.
 - Ericson, C. (2005). Real-Time Collision Detection, 5.1.9 (closest points of two segments).
+- Gilbert, Johnson and Keerthi (1988) GJK; van den Bergen (2001) EPA: see ``inertia.geometry.convex``.
 
 Limitations
-- Box-capsule uses the two end spheres and the segment point closest to the box (found by alternating
-  projection); a capsule whose segment passes through the box's interior gets the end points only.
-- Pairs with cylinders or hulls other than against planes, and triangle meshes/heightfields, are not
-  collided yet (no points): they need GJK/EPA from ``inertia.geometry.convex``.
+- The general path allocates a few small arrays per pair per step (GJK simplex, EPA polytope ~70 KB,
+  feature scratch); only pairs without a closed form take it.
+- Curved cylinder sides converge in EPA only to its tolerance (~1e-6 m) when a cylinder's side is deep in
+  a shape that is not a polytope face (parallel round sides and faces snap the normal exactly).
+- A support feature is flat within ~2 degrees (``FEATURE_SIN``); a cylinder cap is a 12-gon on its rim.
 """
 
 from __future__ import annotations
@@ -37,7 +48,8 @@ import numpy as np
 from numba import njit, prange
 
 from . import shapes as S
-from ._tup import add, cross, dot, madd, norm, orthonormal_basis, qrot, qrot_inv, scale, sub
+from . import convex as CV
+from ._tup import add, cross, dot, madd, norm, normalize, orthonormal_basis, qrot, qrot_inv, scale, sub
 
 __all__ = ["narrow_phase", "match_warm_start"]
 
@@ -201,67 +213,6 @@ def _capsule_plane(ca, i, pc, qc, r, h, pp, pq, spec):
             cnt += 1
     if cnt > 0:
         _set_normal(ca, i, scale(n, -1.0))
-    return cnt
-
-
-@_inl
-def _box_support(pb, ax, ay, az, h, n):
-    """max over the box of dot(x, n)."""
-    return dot(pb, n) + h[0] * abs(dot(ax, n)) + h[1] * abs(dot(ay, n)) + h[2] * abs(dot(az, n))
-
-
-@njit(cache=True)
-def _box_capsule(ca, i, pb, qb, h, pc, qc, r, hc, spec):
-    """A = box, B = capsule."""
-    u = qrot(qc, (0.0, 0.0, 1.0))
-    # candidate segment points: both ends, and the point closest to the box (alternating projection)
-    x = pc
-    for _ in range(8):
-        lc = qrot_inv(qb, sub(x, pb))
-        cl = (min(max(lc[0], -h[0]), h[0]), min(max(lc[1], -h[1]), h[1]), min(max(lc[2], -h[2]), h[2]))
-        x = _segment_point(pc, u, hc, add(pb, qrot(qb, cl)))
-    cands = (madd(pc, u, hc), madd(pc, u, -hc), x)
-    # the manifold normal: that of the candidate sphere with the smallest gap
-    best_sep, best_n = 1e300, (0.0, 0.0, 1.0)
-    for k in range(3):
-        c = cands[k]
-        lc = qrot_inv(qb, sub(c, pb))
-        cl = (min(max(lc[0], -h[0]), h[0]), min(max(lc[1], -h[1]), h[1]), min(max(lc[2], -h[2]), h[2]))
-        d = sub(lc, cl)
-        dist = norm(d)
-        if dist > 1e-12:
-            sep, nl = dist - r, scale(d, 1.0 / dist)
-        else:
-            best_gap, axis, sgn = 1e300, 0, 1.0
-            for a in range(3):
-                gap = h[a] - abs(lc[a])
-                if gap < best_gap:
-                    best_gap, axis = gap, a
-                    sgn = 1.0 if lc[a] >= 0 else -1.0
-            nl = (sgn if axis == 0 else 0.0, sgn if axis == 1 else 0.0, sgn if axis == 2 else 0.0)
-            sep = -best_gap - r
-        if sep < best_sep:
-            best_sep, best_n = sep, qrot(qb, nl)
-    if best_sep > spec:
-        return 0
-    n = best_n
-    ax = qrot(qb, (1.0, 0.0, 0.0))
-    ay = qrot(qb, (0.0, 1.0, 0.0))
-    az = qrot(qb, (0.0, 0.0, 1.0))
-    top = _box_support(pb, ax, ay, az, h, n)
-    cnt = 0
-    for k in range(2):
-        e = cands[k]
-        sep = dot(e, n) - r - top
-        if sep <= spec:
-            _emit(ca, i, cnt, madd(e, n, -(r + 0.5 * sep)), sep, k)
-            cnt += 1
-    if cnt == 0:
-        e = cands[2]
-        sep = dot(e, n) - r - top
-        _emit(ca, i, 0, madd(e, n, -(r + 0.5 * sep)), sep, 2)
-        cnt = 1
-    _set_normal(ca, i, n)
     return cnt
 
 
@@ -557,6 +508,310 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec):
     return _box_face_manifold(ca, i, pa, A, ha, ka, n, pb, B, hb, spec, True, ka)
 
 
+
+# ------------------------------------------------------------------- general convex pairs (GJK/EPA)
+# A support feature is "flat" along a direction when it lies within this sine of the angle (about 2 deg):
+# polytope vertices within FEATURE_SIN * extent of the support plane, a cylinder cap/side within that tilt.
+FEATURE_SIN = 0.035
+_CAP_POINTS = 12          # rim points of a cylinder cap used as its contact polygon
+_MAX_FEATURE = 32         # at most this many vertices in one support feature
+
+
+@njit(cache=True)
+def _support_feature(t, params, pose_row, verts, vs, vc, d, out):
+    """The support feature of a shape's core along the world unit direction ``d``: world points in
+    ``out[:m]``, returns ``m`` (1 vertex, 2 segment, >= 3 convex polygon counter-clockwise about ``d``)."""
+    p = (pose_row[0], pose_row[1], pose_row[2])
+    q = (pose_row[3], pose_row[4], pose_row[5], pose_row[6])
+    dl = qrot_inv(q, d)
+    m = 0
+    if t == CV.SPHERE:
+        out[0, 0], out[0, 1], out[0, 2] = p
+        return 1
+    if t == CV.CAPSULE or t == CV.CYLINDER:
+        h = params[1]
+        radial = math.sqrt(dl[0] * dl[0] + dl[1] * dl[1])
+        if t == CV.CAPSULE or radial > FEATURE_SIN:
+            # rim (cylinder) or axis (capsule) points at the radial direction
+            rx, ry = 0.0, 0.0
+            if t == CV.CYLINDER and radial > 0.0:
+                rx, ry = params[0] * dl[0] / radial, params[0] * dl[1] / radial
+            if abs(dl[2]) <= FEATURE_SIN:
+                for k in range(2):
+                    w = add(p, qrot(q, (rx, ry, h if k == 0 else -h)))
+                    out[k, 0], out[k, 1], out[k, 2] = w
+                return 2
+            w = add(p, qrot(q, (rx, ry, h if dl[2] >= 0.0 else -h)))
+            out[0, 0], out[0, 1], out[0, 2] = w
+            return 1
+        # cylinder cap facing d: a regular polygon on the rim
+        z = h if dl[2] >= 0.0 else -h
+        for k in range(_CAP_POINTS):
+            a = 2.0 * math.pi * k / _CAP_POINTS
+            lv = (params[0] * math.cos(a), params[0] * math.sin(a), z)
+            w = add(p, qrot(q, lv))
+            out[k, 0], out[k, 1], out[k, 2] = w
+        m = _CAP_POINTS
+    else:
+        # polytopes: the vertices within FEATURE_SIN * extent of the support plane
+        nv = 8 if t == CV.BOX else vc
+        hmax, ext = -1e300, 0.0
+        for k in range(nv):
+            lv = _poly_vertex(t, params, verts, vs, k)
+            hmax = max(hmax, dot(lv, dl))
+            ext = max(ext, norm(lv))
+        tol = FEATURE_SIN * ext
+        for k in range(nv):
+            lv = _poly_vertex(t, params, verts, vs, k)
+            if dot(lv, dl) >= hmax - tol and m < _MAX_FEATURE:
+                w = add(p, qrot(q, lv))
+                out[m, 0], out[m, 1], out[m, 2] = w
+                m += 1
+        if m <= 2:
+            if m == 2 and norm(sub((out[0, 0], out[0, 1], out[0, 2]), (out[1, 0], out[1, 1], out[1, 2]))) \
+                    <= 1e-9 * (1.0 + ext):
+                m = 1
+            return m
+    return _convex_polygon(out, m, d)
+
+
+@_inl
+def _poly_vertex(t, params, verts, vs, k):
+    if t == CV.BOX:
+        return (params[0] if k & 1 else -params[0], params[1] if k & 2 else -params[1],
+                params[2] if k & 4 else -params[2])
+    v = verts[vs + k]
+    return (v[0], v[1], v[2])
+
+
+@njit(cache=True)
+def _convex_polygon(pts, m, d):
+    """Reorder ``pts[:m]`` in place as their convex hull projected along ``d``, counter-clockwise about
+    ``d`` (Andrew's monotone chain); returns the hull's vertex count (collinear points dropped)."""
+    t1, t2 = orthonormal_basis(d)
+    xy = np.empty((m, 2))
+    order = np.empty(m, np.int64)
+    for k in range(m):
+        w = (pts[k, 0], pts[k, 1], pts[k, 2])
+        xy[k, 0] = dot(w, t1)
+        xy[k, 1] = dot(w, t2)
+        order[k] = k
+    # insertion sort by (x, y)
+    for a in range(1, m):
+        b = a
+        while b > 0 and (xy[order[b], 0] < xy[order[b - 1], 0] or
+                         (xy[order[b], 0] == xy[order[b - 1], 0] and xy[order[b], 1] < xy[order[b - 1], 1])):
+            order[b], order[b - 1] = order[b - 1], order[b]
+            b -= 1
+    hull = np.empty(2 * m + 1, np.int64)
+    k = 0
+    scale2 = 0.0
+    for a in range(m):
+        scale2 = max(scale2, xy[a, 0] * xy[a, 0] + xy[a, 1] * xy[a, 1])
+    eps = 1e-14 * (1.0 + scale2)
+    for a in range(m):                                   # lower chain
+        o = order[a]
+        while k >= 2:
+            i0, i1 = hull[k - 2], hull[k - 1]
+            c = (xy[i1, 0] - xy[i0, 0]) * (xy[o, 1] - xy[i0, 1]) - (xy[i1, 1] - xy[i0, 1]) * (xy[o, 0] - xy[i0, 0])
+            if c > eps:
+                break
+            k -= 1
+        hull[k] = o
+        k += 1
+    lower = k + 1
+    for a in range(m - 2, -1, -1):                       # upper chain
+        o = order[a]
+        while k >= lower:
+            i0, i1 = hull[k - 2], hull[k - 1]
+            c = (xy[i1, 0] - xy[i0, 0]) * (xy[o, 1] - xy[i0, 1]) - (xy[i1, 1] - xy[i0, 1]) * (xy[o, 0] - xy[i0, 0])
+            if c > eps:
+                break
+            k -= 1
+        hull[k] = o
+        k += 1
+    k -= 1                                               # last point repeats the first
+    if k < 1:
+        k = 1
+    tmp = np.empty((k, 3))
+    for a in range(k):
+        for c in range(3):
+            tmp[a, c] = pts[hull[a], c]
+    for a in range(k):
+        for c in range(3):
+            pts[a, c] = tmp[a, c]
+    return k
+
+
+@_inl
+def _row(a, k):
+    return (a[k, 0], a[k, 1], a[k, 2])
+
+
+@njit(cache=True)
+def _polygon_normal(pts, m, d):
+    """Unit normal of the polygon pts[:m] (Newell's method), on the side of ``d``."""
+    nx, ny, nz = 0.0, 0.0, 0.0
+    for k in range(m):
+        a = _row(pts, k)
+        b = _row(pts, (k + 1) % m)
+        nx += (a[1] - b[1]) * (a[2] + b[2])
+        ny += (a[2] - b[2]) * (a[0] + b[0])
+        nz += (a[0] - b[0]) * (a[1] + b[1])
+    n = (nx, ny, nz)
+    ln = norm(n)
+    if ln <= 0.0:
+        return d
+    n = scale(n, 1.0 / ln)
+    return n if dot(n, d) >= 0.0 else scale(n, -1.0)
+
+
+@njit(cache=True)
+def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
+    """Any two convex shapes: GJK on the cores (exact distance when separated), EPA when the cores overlap,
+    then the manifold by clipping the incident support feature against the reference feature's side
+    planes (Gregorius 2015), reduced to four points. Normal A -> B."""
+    verts = shapes.geom_vertices
+    par_a, par_b = shapes.shape_params[sa], shapes.shape_params[sb]
+    pose_a, pose_b = pose[sa], pose[sb]
+    vs_a, vc_a = shapes.shape_vert_start[sa], shapes.shape_vert_count[sa]
+    vs_b, vc_b = shapes.shape_vert_start[sb], shapes.shape_vert_count[sb]
+    ra = CV.core_radius(ta, par_a)
+    rb = CV.core_radius(tb, par_b)
+    dist, wa, wb, nrm, separated = CV.gjk_distance(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b,
+                                                   verts)
+    if separated:
+        if dist > spec:
+            return 0
+    else:
+        depth, wa, wb, nrm, ok = CV._epa(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts,
+                                         False)
+        if not ok:
+            return 0
+        dist = -(depth + ra + rb)
+        wa = wa + ra * nrm
+        wb = wb - rb * nrm
+    n = (nrm[0], nrm[1], nrm[2])
+    fa = np.empty((_MAX_FEATURE, 3))
+    fb = np.empty((_MAX_FEATURE, 3))
+    ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa)
+    mb = _support_feature(tb, par_b, pose_b, verts, vs_b, vc_b, scale(n, -1.0), fb)
+    single = ma == 1 or mb == 1
+    if ma == 2 and mb == 2:
+        ua = normalize(sub(_row(fa, 1), _row(fa, 0)))
+        ub = normalize(sub(_row(fb, 1), _row(fb, 0)))
+        single = abs(dot(ua, ub)) < 1.0 - 0.5 * FEATURE_SIN * FEATURE_SIN
+    if single:
+        _set_normal(ca, i, n)
+        _emit(ca, i, 0, (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist, 0)
+        return 1
+    # reference feature: a polygon before a segment; of two polygons the one facing the normal better
+    ref_is_a = True
+    if ma >= 3 and mb >= 3:
+        ref_is_a = dot(_polygon_normal(fa, ma, n), n) >= dot(_polygon_normal(fb, mb, scale(n, -1.0)), scale(n, -1.0)) - 1e-12
+    elif mb >= 3:
+        ref_is_a = False
+    if ref_is_a:
+        ref, mr, inc, mi, dref = fa, ma, fb, mb, n
+    else:
+        ref, mr, inc, mi, dref = fb, mb, fa, ma, scale(n, -1.0)
+    # reference plane: outward normal nr (the contact normal is snapped to it), through the centroid c
+    if mr >= 3:
+        nr = _polygon_normal(ref, mr, dref)
+    else:
+        u = normalize(sub(_row(ref, 1), _row(ref, 0)))
+        nr = normalize(madd(dref, u, -dot(dref, u)))
+        round_a = ta == CV.CYLINDER or ta == CV.CAPSULE
+        round_b = tb == CV.CYLINDER or tb == CV.CAPSULE
+        if round_a and round_b:
+            # parallel round sides: the exact normal is the axes' common perpendicular (EPA's normal on a
+            # curved side is only converged to its tolerance)
+            d_ab = sub((pose_b[0], pose_b[1], pose_b[2]), (pose_a[0], pose_a[1], pose_a[2]))
+            perp = madd(d_ab, u, -dot(d_ab, u))
+            if norm(perp) > 1e-12:
+                nr = normalize(perp) if ref_is_a else scale(normalize(perp), -1.0)
+    c = (0.0, 0.0, 0.0)
+    for k in range(mr):
+        c = add(c, _row(ref, k))
+    c = scale(c, 1.0 / mr)
+    n_ab = nr if ref_is_a else scale(nr, -1.0)
+    # side planes of the reference feature (outward normals s_k, offsets)
+    nplanes = mr if mr >= 3 else 2
+    side = np.empty((nplanes, 4))
+    if mr >= 3:
+        for k in range(mr):
+            e = sub(_row(ref, (k + 1) % mr), _row(ref, k))
+            s = normalize(cross(e, nr))
+            side[k, 0], side[k, 1], side[k, 2] = s
+            side[k, 3] = dot(s, _row(ref, k))
+    else:
+        u = normalize(sub(_row(ref, 1), _row(ref, 0)))
+        side[0, 0], side[0, 1], side[0, 2] = u
+        side[0, 3] = dot(u, _row(ref, 1))
+        side[1, 0], side[1, 1], side[1, 2] = scale(u, -1.0)
+        side[1, 3] = -dot(u, _row(ref, 0))
+    # Sutherland-Hodgman clip of the incident feature; column 3 carries a feature id per point
+    cap = mi + 2 * nplanes + 4
+    poly = np.empty((cap, 4))
+    tmp = np.empty((cap, 4))
+    for k in range(mi):
+        poly[k, 0], poly[k, 1], poly[k, 2] = _row(inc, k)
+        poly[k, 3] = k
+    count = mi
+    closed = mi >= 3
+    for pl in range(nplanes):
+        sn = (side[pl, 0], side[pl, 1], side[pl, 2])
+        out = 0
+        last = count if closed else count - 1
+        for k in range(count):
+            a = (poly[k, 0], poly[k, 1], poly[k, 2])
+            da = dot(sn, a) - side[pl, 3]
+            if da <= 0.0:
+                for m in range(4):
+                    tmp[out, m] = poly[k, m]
+                out += 1
+            if k < last:
+                k2 = (k + 1) % count
+                b = (poly[k2, 0], poly[k2, 1], poly[k2, 2])
+                db = dot(sn, b) - side[pl, 3]
+                if (da < 0.0 and db > 0.0) or (da > 0.0 and db < 0.0):
+                    t = da / (da - db)
+                    for m in range(3):
+                        tmp[out, m] = poly[k, m] + t * (poly[k2, m] - poly[k, m])
+                    tmp[out, 3] = 64 * (pl + 1) + (int(poly[k, 3]) & 63)
+                    out += 1
+        count = out
+        for k in range(count):
+            for m in range(4):
+                poly[k, m] = tmp[k, m]
+        if count == 0:
+            break
+    pts = np.empty((max(count, 1), 3))
+    seps = np.empty(max(count, 1))
+    feats = np.empty(max(count, 1), np.int64)
+    cnt = 0
+    for k in range(count):
+        x = (poly[k, 0], poly[k, 1], poly[k, 2])
+        sep = dot(sub(x, c), nr) - ra - rb
+        if sep <= spec:
+            if ref_is_a:
+                pk = madd(x, n_ab, -(rb + 0.5 * sep))
+            else:
+                pk = madd(x, n_ab, ra + 0.5 * sep)
+            pts[cnt, 0], pts[cnt, 1], pts[cnt, 2] = pk
+            seps[cnt] = sep
+            feats[cnt] = (0 if ref_is_a else 1 << 12) + int(poly[k, 3])
+            cnt += 1
+    if cnt == 0:
+        if dist > spec:
+            return 0
+        _set_normal(ca, i, n)
+        _emit(ca, i, 0, (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist, 0)
+        return 1
+    _set_normal(ca, i, n_ab)
+    return _reduce_and_emit(ca, i, pts, seps, feats, cnt, n_ab)
+
+
 # ------------------------------------------------------------------------------------------ dispatch
 @njit(cache=True)
 def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
@@ -578,8 +833,6 @@ def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
     elif ta == S.BOX:
         if tb == S.BOX:
             return _box_box(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec)
-        if tb == S.CAPSULE:
-            return _box_capsule(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, B[0], B[1], spec)
         if tb == S.PLANE:
             return _box_plane(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec)
     elif ta == S.CAPSULE:
@@ -594,6 +847,8 @@ def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
         if tb == S.PLANE:
             return _hull_plane(ca, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
                                shapes.shape_vert_count[sa], pb, qb, spec)
+    if tb <= S.CONVEX_HULL:
+        return _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec)
     return 0
 
 

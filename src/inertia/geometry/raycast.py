@@ -15,7 +15,8 @@ Closed forms, all in the shape's local frame (world rays are moved in by the inv
 - plane (solid z <= 0): t = -o_z / d_z; triangle: Moller and Trumbore (1997).
 The shape cast moves shape A by ``translation`` and finds the first time of contact with B (within
 ``tolerance``) by conservative advancement (Mirtich 1996, thesis; Catto's time of impact): each GJK distance d
-with normal n allows an advance of d / (translation . n) without touching.
+with normal n allows an advance of d / (translation . n) without touching; the loop is ``inertia.geometry.toi``'s
+kernel (one home for shape casts and bullet times of impact).
 
 References
 - Kay, T. L. and Kajiya, J. T. (1986). Ray tracing complex scenes. SIGGRAPH '86 (slabs).
@@ -40,8 +41,8 @@ import numpy as np
 from numba import njit
 
 from inertia import math as _m
-from inertia.geometry.convex import (BOX, CAPSULE, CONVEX_HULL, CYLINDER, PLANE, SPHERE, TRIANGLE_MESH,
-                                     shape_distance)
+from inertia.geometry import toi as _toi
+from inertia.geometry.convex import BOX, CAPSULE, CONVEX_HULL, CYLINDER, PLANE, SPHERE, TRIANGLE_MESH
 
 __all__ = ["ray_sphere", "ray_box", "ray_capsule", "ray_cylinder", "ray_convex_hull", "ray_plane",
            "ray_triangle", "ray_cast", "shape_cast"]
@@ -285,19 +286,11 @@ def shape_cast(type_a, params_a, pose_a, start_a, count_a, translation, type_b, 
     than ``tolerance`` (or overlapping) gives s = 0.  If ``max_iterations`` (20-50 is ample for polytopes;
     grazing curved shapes need more) runs out, the last s reached is returned: the shapes do not touch
     before it, so it is a conservative time of impact."""
-    pose = pose_a.copy()
-    s = 0.0
-    for _ in range(max_iterations):
-        pose[0:3] = pose_a[0:3] + s * translation
-        d, wa, wb, n = shape_distance(type_a, params_a, pose, start_a, count_a, type_b, params_b, pose_b,
-                                      start_b, count_b, verts)
-        if d <= tolerance:
-            return s, n, wb
-        # the gap along n closes at rate translation . n; a convex pair cannot touch before it is used up
-        closing = _m.dot(translation, n)
-        if closing <= 0.0:
-            return _MISS, np.zeros(3), np.zeros(3)
-        s += (d - 0.5 * tolerance) / closing
-        if s > 1.0:
-            return _MISS, np.zeros(3), np.zeros(3)
+    # one home for sweeps: the time-of-impact kernel (conservative advancement on GJK) without rotation
+    pose_a1 = pose_a.copy()
+    pose_a1[0:3] = pose_a[0:3] + translation
+    s, n, _, wb, hit = _toi.toi_kernel(type_a, params_a, start_a, count_a, pose_a, pose_a1, type_b, params_b,
+                                       start_b, count_b, pose_b, pose_b, verts, 0.0, tolerance, max_iterations)
+    if not hit:
+        return _MISS, np.zeros(3), np.zeros(3)
     return s, n, wb

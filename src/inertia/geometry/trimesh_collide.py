@@ -10,9 +10,10 @@ fly from the cells under a query box.
 Narrow phase (stage ``narrow_phase``, called from ``narrowphase._collide`` for pairs whose B is a mesh or
 heightfield), all in the mesh's local frame, candidates = triangles under A's box fattened by the
 speculative distance:
-- sphere: the closest point of each candidate triangle (Ericson 2005, 5.1.5); the nearest one gives the
-  single contact (normal from the sphere centre to that point, so edges and vertices round correctly);
-  a centre behind the triangle's face takes the face normal;
+- sphere: the closest point of each candidate triangle (Ericson 2005, 5.1.5), normal from that point to
+  the sphere centre (so edges and vertices round correctly; a centre behind the face takes the face
+  normal); triangles giving the same normal (shared edge or vertex, coplanar faces) count once, distinct
+  normals (a concave crease) give one point each on the blended normal (``_sphere_crease``);
 - capsule: the same for its two end spheres (two points, the deeper one's normal);
 - box, cylinder (16 rim points), convex hull: vertex-face contacts: each vertex of A projected on the
   candidate triangle containing it, separation along the face normal; the points are reduced to four
@@ -27,9 +28,10 @@ References
 Limitations
 - Vertex-face only for polytopes and cylinders: a box edge lying across a sharp terrain ridge, or a mesh
   vertex poking into a box face, is not detected (fine for terrain and ramps; not for spiky meshes).
-- One manifold (one normal) per shape pair: a sphere touching two non-coplanar faces at once (resting in
-  a crease or valley) is held by the nearest face only and sinks ~1 mm into the other (measured: a
-  0.15 m sphere in a 0.5-slope V valley rests 0.66 mm low); per-triangle manifolds would fix it.
+- One manifold (one normal) per shape pair: a sphere in a crease gets one point per face with the
+  blended normal m and separations along m (exact at rest in a symmetric crease); in an asymmetric crease
+  the single normal is the weighted bisector, not the two true normals, so the sphere is held partly by
+  friction. Capsules and polytopes in creases still take the deepest face's normal.
 - A capsule's segment crossing a ridge between its end spheres gets no middle point.
 - Meshes are one-sided surfaces seen from the side their face normals point to; no internal-edge
   (ghost collision) smoothing, so a box sliding over a tessellated flat floor may catch on seams rarely.
@@ -52,6 +54,7 @@ __all__ = ["mesh_soup", "heightfield_vertices", "triangle_local", "triangle_cand
            "ray_triangles"]
 
 _MAX_CANDIDATES = 256
+CREASE_BAND = 0.05      # of the radius: faces this much farther than the deepest stop steering the normal
 
 
 # ------------------------------------------------------------------------------------------ build (once)
@@ -218,6 +221,79 @@ def _sphere_triangles(c, r, shapes, s, cand, n):
     return best_sep, best_n, best_k
 
 
+_CREASE_MAX = 4
+
+
+@njit(cache=True)
+def _sphere_triangle_contacts(c, r, shapes, s, cand, n, spec, out_sep, out_n, out_k, out_q, out_face):
+    """Distinct contacts of a sphere with the candidate triangles within ``spec``: one per contact normal
+    (Voronoi-region test on triangle features, Ericson 2005, 5.1.5: triangles whose closest points share an
+    edge or vertex give the same normal from the centre and count once; only faces of a concave crease give
+    different normals). Keeps the ``_CREASE_MAX`` smallest separations; returns the count."""
+    m = 0
+    for t in range(n):
+        k = cand[t]
+        a, b, cc = triangle_local(shapes, s, k)
+        q = _closest_point_triangle(c, a, b, cc)
+        d = sub(c, q)
+        dist = norm(d)
+        fn = _face_normal(a, b, cc)
+        if dot(d, fn) < 0.0:
+            sep = -dist - r
+            nrm = fn
+        else:
+            sep = dist - r
+            nrm = scale(d, 1.0 / dist) if dist > 1e-12 else fn
+        if sep > spec:
+            continue
+        dup = -1
+        for j in range(m):
+            if dot(nrm, (out_n[j, 0], out_n[j, 1], out_n[j, 2])) > 1.0 - 1e-9:
+                dup = j
+                break
+        if dup < 0 and m < _CREASE_MAX:
+            dup = m
+            m += 1
+            out_sep[dup] = np.inf
+        elif dup < 0:
+            worst = 0
+            for j in range(1, m):
+                if out_sep[j] > out_sep[worst]:
+                    worst = j
+            if sep >= out_sep[worst]:
+                continue
+            dup = worst
+            out_sep[dup] = np.inf
+        if sep < out_sep[dup] or (sep == out_sep[dup] and k < out_k[dup]):
+            out_sep[dup] = sep
+            out_n[dup, 0], out_n[dup, 1], out_n[dup, 2] = nrm
+            out_k[dup] = k
+            out_q[dup, 0], out_q[dup, 1], out_q[dup, 2] = q
+            out_face[dup] = dot(nrm, fn) > 1.0 - 1e-9
+    # Voronoi test: an edge/vertex contact whose closest point lies on or above the plane of a face contact
+    # is that face's contact seen from a neighbour (coplanar floor, the near edge of a crease): drop it
+    keep = 0
+    for j in range(m):
+        drop = False
+        if not out_face[j]:
+            qj = (out_q[j, 0], out_q[j, 1], out_q[j, 2])
+            for f in range(m):
+                if f != j and out_face[f]:
+                    if dot(sub(qj, (out_q[f, 0], out_q[f, 1], out_q[f, 2])),
+                           (out_n[f, 0], out_n[f, 1], out_n[f, 2])) >= -1e-9 * (1.0 + r):
+                        drop = True
+                        break
+        if not drop:
+            out_sep[keep] = out_sep[j]
+            out_k[keep] = out_k[j]
+            out_face[keep] = out_face[j]
+            for a in range(3):
+                out_n[keep, a] = out_n[j, a]
+                out_q[keep, a] = out_q[j, a]
+            keep += 1
+    return keep
+
+
 @njit(cache=True)
 def _vertex_triangles(v, shapes, s, cand, n):
     """Separation of a point along the face normal of the candidate triangle whose prism contains it
@@ -258,15 +334,10 @@ def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
             lo[k] = min(e0[k], e1[k]) - r - spec
             hi[k] = max(e0[k], e1[k]) + r + spec
         cand, n = _gather(shapes, sb, lo, hi)
+        if ta == S.SPHERE:
+            return _sphere_crease(ca, i, e0, r, shapes, sb, cand, n, spec, pb, qb)
         s0, n0, k0 = _sphere_triangles(e0, r, shapes, sb, cand, n)
         cnt = 0
-        if ta == S.SPHERE:
-            if s0 > spec:
-                return 0
-            _set_normal(ca, i, qrot(qb, scale(n0, -1.0)))
-            ca_p = add(pb, qrot(qb, madd(e0, n0, -(r + 0.5 * s0))))
-            _write(ca, i, 0, ca_p, s0, k0 * 64)
-            return 1
         s1, n1, k1 = _sphere_triangles(e1, r, shapes, sb, cand, n)
         nrm = n0 if s0 <= s1 else n1
         if min(s0, s1) > spec:
@@ -326,6 +397,53 @@ def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
         return 0
     _set_normal(ca, i, normal)
     return _reduce_and_emit(ca, i, pts, seps, feats, cnt, normal)
+
+
+@njit(cache=True)
+def _sphere_crease(ca, i, c, r, shapes, sb, cand, n, spec, pb, qb):
+    """Sphere manifold against a mesh (mesh frame centre ``c``): one point per distinct contact normal.
+    With several (a crease), the manifold normal is the weighted mean m of the normals, weights falling
+    linearly from 1 for the deepest to 0 at CREASE_BAND * r above it (continuous, so no flip-flop), and each
+    point's separation is measured along m: sep_k / (n_k . m), the gap the sphere closes moving along m
+    before touching face k. In a symmetric crease m is the bisector and the sphere rests on both faces."""
+    seps = np.empty(_CREASE_MAX)
+    nrms = np.empty((_CREASE_MAX, 3))
+    tris = np.empty(_CREASE_MAX, np.int64)
+    foot = np.empty((_CREASE_MAX, 3))
+    face = np.empty(_CREASE_MAX, np.bool_)
+    m = _sphere_triangle_contacts(c, r, shapes, sb, cand, n, spec, seps, nrms, tris, foot, face)
+    if m == 0:
+        return 0
+    lowest = seps[0]
+    for j in range(1, m):
+        lowest = min(lowest, seps[j])
+    band = CREASE_BAND * r
+    mx, my, mz = 0.0, 0.0, 0.0
+    for j in range(m):
+        w = max(0.0, 1.0 - (seps[j] - lowest) / band)
+        mx += w * nrms[j, 0]
+        my += w * nrms[j, 1]
+        mz += w * nrms[j, 2]
+    mn = (mx, my, mz)
+    ln = norm(mn)
+    if ln < 1e-9:
+        mn = (nrms[0, 0], nrms[0, 1], nrms[0, 2])
+    else:
+        mn = scale(mn, 1.0 / ln)
+    _set_normal(ca, i, qrot(qb, scale(mn, -1.0)))
+    cnt = 0
+    for j in range(m):
+        nk = (nrms[j, 0], nrms[j, 1], nrms[j, 2])
+        cosk = dot(nk, mn)
+        if cosk <= 0.05:
+            continue
+        sep = seps[j] / cosk
+        if sep > spec:
+            continue
+        p = add(pb, qrot(qb, madd(c, nk, -(r + 0.5 * seps[j]))))
+        _write(ca, i, cnt, p, sep, tris[j] * 64)
+        cnt += 1
+    return cnt
 
 
 @njit(cache=True)

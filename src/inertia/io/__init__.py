@@ -8,6 +8,8 @@ Public API::
     load_states(path, frames=None) -> States   (.times, .positions, .velocities, .fields, .static, .metadata)
     write_ply(path, positions, ...), write_ply_sequence(states, directory, ...), read_ply(path)
     write_usd(states, path, ...)       animated UsdGeom.Points (.usdc); needs inertia[usd]
+    write_usd_bodies(path, model, body_q_frames, fps=)  animated rigid-body Xforms + shape meshes
+    write_obj(path, model, body_q), write_obj_sequence(directory, model, body_q_frames)  body meshes
     write_manifest(path, ...), read_manifest(path), library_versions()
 
 See each module's docstring for the file formats.
@@ -17,7 +19,8 @@ from .atomic import atomic_path, atomic_write, remove_stale_partials, write_byte
 from .manifest import library_versions, read_manifest, write_manifest
 from .ply import read_ply, write_ply, write_ply_sequence
 from .states import FORMAT_VERSION, States, StateWriter, load_states, write_states
-from .usd import write_usd
+from .obj import write_obj, write_obj_sequence
+from .usd import write_usd, write_usd_bodies
 
 __all__ = [
     "atomic_write",
@@ -34,6 +37,9 @@ __all__ = [
     "read_ply",
     "write_ply_sequence",
     "write_usd",
+    "write_usd_bodies",
+    "write_obj",
+    "write_obj_sequence",
     "write_manifest",
     "read_manifest",
     "library_versions",

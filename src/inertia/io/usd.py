@@ -37,7 +37,7 @@ import numpy as np
 
 from .atomic import atomic_path
 
-__all__ = ["write_usd"]
+__all__ = ["write_usd", "write_usd_bodies"]
 
 
 def _import_usd():
@@ -150,6 +150,85 @@ def write_usd(
                 points.GetIdsAttr().Set(Vt.Int64Array.FromNumpy(ids.astype(np.int64)), code)
                 if frame_colors is not None:
                     primvars[g].Set(as_vec3f(frame_colors[sel]), code)
+        stage.GetRootLayer().Save()
+        del stage
+    return path
+
+
+def write_usd_bodies(path: str | os.PathLike, model, body_q_frames, *, fps: float = 30.0,
+                     start_time_code: float = 1.0, up_axis: str = "Z", segments: int = 24) -> Path:
+    """Write rigid bodies as an animated USD stage (see `inertia.io.obj` for the tessellation).
+
+    ``/World/Bodies/<body name>``: an Xform per body with time-sampled ``xformOp:translate`` (double3,
+    centre of mass, m) and ``xformOp:orient`` (quatd w, x, y, z) per time code ``start_time_code + frame``;
+    under it a ``UsdGeom.Mesh`` per shape with its constant local pose. ``/World/Static/shape_S``: static
+    shapes (body -1) as meshes in world coordinates. ``model``: a `Model` or a ``States.model`` dict;
+    ``body_q_frames (F, B, 7)``. Returns the path.
+    """
+    from pxr import Gf
+
+    from .obj import model_arrays, shape_meshes
+
+    Sdf, Usd, UsdGeom, Vt = _import_usd()
+    path = Path(path)
+    if path.suffix.lower() not in (".usd", ".usdc", ".usda"):
+        raise ValueError(f"write_usd_bodies: {path} must end in .usdc, .usda or .usd")
+    if up_axis.upper() not in ("Y", "Z"):
+        raise ValueError(f"write_usd_bodies: up_axis must be 'Y' or 'Z', got {up_axis!r}")
+    frames = np.asarray(body_q_frames, dtype=np.float64)
+    m = model_arrays(model)
+    nb = frames.shape[1] if frames.ndim == 3 else 0
+    meshes = shape_meshes(m, segments=segments)
+    names = m.get("body_name") or [f"body{i}" for i in range(nb)]
+
+    def quatd(q):
+        return Gf.Quatd(float(q[0]), Gf.Vec3d(float(q[1]), float(q[2]), float(q[3])))
+
+    def mesh_prim(stage, prim_path, verts, faces):
+        mesh = UsdGeom.Mesh.Define(stage, prim_path)
+        mesh.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(verts, np.float32)))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.full(len(faces), 3, np.int32)))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(faces.ravel(), np.int32)))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.none)
+        return mesh
+
+    with atomic_path(path) as temp:
+        stage = Usd.Stage.CreateNew(str(temp))
+        UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y if up_axis.upper() == "Y" else UsdGeom.Tokens.z)
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0)
+        stage.SetTimeCodesPerSecond(float(fps))
+        stage.SetFramesPerSecond(float(fps))
+        stage.SetStartTimeCode(float(start_time_code))
+        stage.SetEndTimeCode(float(start_time_code + max(len(frames) - 1, 0)))
+        world = UsdGeom.Xform.Define(stage, "/World")
+        stage.SetDefaultPrim(world.GetPrim())
+        UsdGeom.Xform.Define(stage, "/World/Bodies")
+        UsdGeom.Xform.Define(stage, "/World/Static")
+        used = set()
+        body_prims = []
+        for b in range(nb):
+            name = _prim_name(names[b] if b < len(names) else f"body{b}")
+            while name in used:
+                name += "_"
+            used.add(name)
+            xf = UsdGeom.Xform.Define(stage, f"/World/Bodies/{name}")
+            translate = xf.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble)
+            orient = xf.AddOrientOp(UsdGeom.XformOp.PrecisionDouble)
+            body_prims.append((xf, translate, orient))
+        for si, (verts, faces) in enumerate(meshes):
+            b = int(m["shape_body"][si])
+            pose = np.asarray(m["shape_local_pose"][si], float)
+            if b < 0:
+                mesh = mesh_prim(stage, f"/World/Static/shape_{si}", verts, faces)
+            else:
+                mesh = mesh_prim(stage, f"{body_prims[b][0].GetPath()}/shape_{si}", verts, faces)
+            mesh.AddTranslateOp(UsdGeom.XformOp.PrecisionDouble).Set(Gf.Vec3d(*map(float, pose[:3])))
+            mesh.AddOrientOp(UsdGeom.XformOp.PrecisionDouble).Set(quatd(pose[3:]))
+        for k, q in enumerate(frames):
+            code = Usd.TimeCode(float(start_time_code + k))
+            for b, (_, translate, orient) in enumerate(body_prims):
+                translate.Set(Gf.Vec3d(*map(float, q[b, :3])), code)
+                orient.Set(quatd(q[b, 3:]), code)
         stage.GetRootLayer().Save()
         del stage
     return path

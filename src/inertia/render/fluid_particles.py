@@ -79,9 +79,12 @@ def with_fluid_particles(states) -> States:
         spacing = states.model.get(f"fluid/{name}/spacing")
         radius.append(np.full(cap, 0.0 if spacing is None else 0.5 * float(np.ravel(spacing)[0])))
     total = sum(p.shape[1] for p in pos)
-    fields = {k: v for k, v in states.fields.items() if not (np.ndim(v) >= 2 and np.shape(v)[1] == n and n > 0)}
+    fields = dict(states.fields)
     fields["active"] = np.concatenate(active, axis=1)
     static = {"radius": np.concatenate(radius)}
+    if "radius" in fields:  # per-frame radii of the groups, then the fluids' constant ones
+        fields["radius"] = np.concatenate([np.asarray(fields["radius"], np.float64)[:, :n],
+                                           np.broadcast_to(static["radius"][n:], (frames, total - n))], axis=1)
     metadata = dict(states.metadata, dim=dim, particle_count=total)
     return States(states.times, np.concatenate(pos, axis=1), np.concatenate(vel, axis=1), fields, static, metadata,
                   states.model)

@@ -326,114 +326,228 @@ def _hit_capsule(ox, oy, oz, dx, dy, dz, p):
 # ---------------------------------------------------------------------------------------------
 # 1. Backgrounds
 # ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _primary_ray(cam, px, py):
+    """World ray (origin, unit direction) through the centre of pixel (px, py)."""
+    f, cx, cy = cam[CAM_F], cam[CAM_CX], cam[CAM_CY]
+    sx = (px + 0.5 - cx) / f
+    sy = (cy - (py + 0.5)) / f
+    if cam[CAM_ORTHO] > 0.5:
+        ox = cam[0] + sx * cam[3] + sy * cam[6]
+        oy = cam[1] + sx * cam[4] + sy * cam[7]
+        oz = cam[2] + sx * cam[5] + sy * cam[8]
+        return ox, oy, oz, cam[9], cam[10], cam[11]
+    dx = cam[9] + sx * cam[3] + sy * cam[6]
+    dy = cam[10] + sx * cam[4] + sy * cam[7]
+    dz = cam[11] + sx * cam[5] + sy * cam[8]
+    n = math.sqrt(dx * dx + dy * dy + dz * dz)
+    return cam[0], cam[1], cam[2], dx / n, dy / n, dz / n
+
+
+@njit(cache=True)
+def _write_surface(py, px, ox, oy, oz, dx, dy, dz, t, nx, ny, nz, kind, p, albedo, cam, light, sky_horizon,
+                   fog_distance, grid_line, color_out, depth_out, ground_out):
+    """Shade the hit of the ray at distance t (normal n) on a primitive of ``kind`` (row p) and
+    write colour, depth and, for shadow-receiving planes and container floors, the hit point."""
+    hx, hy, hz = ox + t * dx, oy + t * dy, oz + t * dz
+    # Camera-space normal for shading.
+    cnx = _dot(nx, ny, nz, cam[3], cam[4], cam[5])
+    cny = _dot(nx, ny, nz, cam[6], cam[7], cam[8])
+    cnz = -_dot(nx, ny, nz, cam[9], cam[10], cam[11])
+    r, g, b = _shade(albedo[0], albedo[1], albedo[2], cnx, cny, cnz, light)
+    if kind == PRIM_PLANE or kind == PRIM_CONTAINER:
+        # Grid lines in the plane's (wall's) own coordinates, then fog towards the horizon.
+        if kind == PRIM_PLANE:
+            nx, ny, nz = p[3], p[4], p[5]
+        if abs(nx) < 0.9:
+            ax, ay, az = 0.0, -nz, ny  # n x (1, 0, 0)
+        else:
+            ax, ay, az = nz, 0.0, -nx  # n x (0, 1, 0)
+        an = math.sqrt(ax * ax + ay * ay + az * az)
+        ax, ay, az = ax / an, ay / an, az / an
+        bx, by, bz = ny * az - nz * ay, nz * ax - nx * az, nx * ay - ny * ax
+        u = _dot(hx, hy, hz, ax, ay, az)
+        v = _dot(hx, hy, hz, bx, by, bz)
+        cosine = max(abs(_dot(dx, dy, dz, nx, ny, nz)), 0.12)
+        f = cam[CAM_F]
+        footprint = (1.0 / f if cam[CAM_ORTHO] > 0.5 else t / f) / cosine
+        line = _grid_intensity(u, v, p[6] if kind == PRIM_PLANE else p[15], footprint)
+        r = r + (grid_line[0] - r) * line * 0.35
+        g = g + (grid_line[1] - g) * line * 0.35
+        b = b + (grid_line[2] - b) * line * 0.35
+        fog = 1.0 - math.exp(-t / fog_distance) if fog_distance > 0.0 else 0.0
+        fog = fog * fog
+        r = r + (sky_horizon[0] - r) * fog
+        g = g + (sky_horizon[1] - g) * fog
+        b = b + (sky_horizon[2] - b) * fog
+        receives = p[7] > 0.5 if kind == PRIM_PLANE else _dot(nx, ny, nz, light[15], light[16], light[17]) > 0.95
+        if receives:
+            ground_out[py, px, 0] = hx
+            ground_out[py, px, 1] = hy
+            ground_out[py, px, 2] = hz
+        else:
+            ground_out[py, px, 0] = np.nan
+            ground_out[py, px, 1] = np.nan
+            ground_out[py, px, 2] = np.nan
+    else:
+        ground_out[py, px, 0] = np.nan
+        ground_out[py, px, 1] = np.nan
+        ground_out[py, px, 2] = np.nan
+    color_out[py, px, 0] = r
+    color_out[py, px, 1] = g
+    color_out[py, px, 2] = b
+    depth_out[py, px] = t * _dot(dx, dy, dz, cam[9], cam[10], cam[11])
+
+
 @parallel_kernel
 def background_3d(cam, width, height, prims, prim_kind, prim_color, light, sky_top, sky_horizon, fog_distance,
                   grid_line, color_out, depth_out, ground_out):
-    """Sky, grid planes and collider primitives for a 3-D view.
+    """Sky and grid planes for a 3-D view (the rows of ``prims`` are all PRIM_PLANE; the other
+    primitives are traced over this by the ``trace_<kind>s`` kernels, one per kind, so that a scene
+    compiles only the intersectors it draws).
 
     grid_line (3,): linear colour the grid lines blend towards.
     ground_out (H, W, 3) float32: world hit point of shadow-receiving planes, NaN elsewhere.
     """
-    f, cx, cy = cam[CAM_F], cam[CAM_CX], cam[CAM_CY]
     ortho = cam[CAM_ORTHO] > 0.5
     for py in prange(height):
         for px in range(width):
-            # Primary ray through the pixel centre, in world space.
-            sx = (px + 0.5 - cx) / f
-            sy = (cy - (py + 0.5)) / f
-            if ortho:
-                ox = cam[0] + sx * cam[3] + sy * cam[6]
-                oy = cam[1] + sx * cam[4] + sy * cam[7]
-                oz = cam[2] + sx * cam[5] + sy * cam[8]
-                dx, dy, dz = cam[9], cam[10], cam[11]
-            else:
-                ox, oy, oz = cam[0], cam[1], cam[2]
-                dx = cam[9] + sx * cam[3] + sy * cam[6]
-                dy = cam[10] + sx * cam[4] + sy * cam[7]
-                dz = cam[11] + sx * cam[5] + sy * cam[8]
-                n = math.sqrt(dx * dx + dy * dy + dz * dz)
-                dx, dy, dz = dx / n, dy / n, dz / n
-            # Nearest primitive along the ray.
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            # Nearest plane along the ray.
             best_t, best_k = 1e300, -1
             bnx, bny, bnz = 0.0, 0.0, 0.0
             for k in range(prims.shape[0]):
-                kind = prim_kind[k]
-                if kind == PRIM_PLANE:
-                    t, nx, ny, nz = _hit_plane(ox, oy, oz, dx, dy, dz, prims[k])
-                elif kind == PRIM_SPHERE:
-                    t, nx, ny, nz = _hit_sphere(ox, oy, oz, dx, dy, dz, prims[k])
-                elif kind == PRIM_BOX:
-                    t, nx, ny, nz = _hit_box(ox, oy, oz, dx, dy, dz, prims[k])
-                elif kind == PRIM_CONTAINER:
-                    t, nx, ny, nz = _hit_container(ox, oy, oz, dx, dy, dz, prims[k])
-                elif kind == PRIM_CYLINDER:
-                    t, nx, ny, nz = _hit_cylinder(ox, oy, oz, dx, dy, dz, prims[k])
-                else:
-                    t, nx, ny, nz = _hit_capsule(ox, oy, oz, dx, dy, dz, prims[k])
+                t, nx, ny, nz = _hit_plane(ox, oy, oz, dx, dy, dz, prims[k])
                 if t > 1e-9 and t < best_t:
                     best_t, best_k, bnx, bny, bnz = t, k, nx, ny, nz
-            ground_out[py, px, 0] = np.nan
-            ground_out[py, px, 1] = np.nan
-            ground_out[py, px, 2] = np.nan
+            if best_k >= 0:
+                _write_surface(py, px, ox, oy, oz, dx, dy, dz, best_t, bnx, bny, bnz, PRIM_PLANE, prims[best_k],
+                               prim_color[best_k], cam, light, sky_horizon, fog_distance, grid_line,
+                               color_out, depth_out, ground_out)
+                continue
             # Sky: a vertical gradient from the horizon colour to the top colour.
             if ortho:
                 up_dot = 0.45 - (py + 0.5) / height
             else:
                 up_dot = _dot(dx, dy, dz, light[15], light[16], light[17])
             s = _clamp(up_dot * 1.6 + 0.1, 0.0, 1.0)
-            sky_r = sky_horizon[0] + (sky_top[0] - sky_horizon[0]) * s
-            sky_g = sky_horizon[1] + (sky_top[1] - sky_horizon[1]) * s
-            sky_b = sky_horizon[2] + (sky_top[2] - sky_horizon[2]) * s
-            if best_k < 0:
-                color_out[py, px, 0] = sky_r
-                color_out[py, px, 1] = sky_g
-                color_out[py, px, 2] = sky_b
-                depth_out[py, px] = FAR
+            color_out[py, px, 0] = sky_horizon[0] + (sky_top[0] - sky_horizon[0]) * s
+            color_out[py, px, 1] = sky_horizon[1] + (sky_top[1] - sky_horizon[1]) * s
+            color_out[py, px, 2] = sky_horizon[2] + (sky_top[2] - sky_horizon[2]) * s
+            depth_out[py, px] = FAR
+            ground_out[py, px, 0] = np.nan
+            ground_out[py, px, 1] = np.nan
+            ground_out[py, px, 2] = np.nan
+
+
+@parallel_kernel
+def trace_spheres(cam, width, height, prims, prim_color, light, sky_horizon, fog_distance, grid_line,
+                  color_out, depth_out, ground_out):
+    """Ray-cast the PRIM_SPHERE rows ``prims`` over the buffers (z-tested against ``depth_out``)."""
+    fwd_x, fwd_y, fwd_z = cam[9], cam[10], cam[11]
+    for py in prange(height):
+        for px in range(width):
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            best_t, best_k = 1e300, -1
+            bnx, bny, bnz = 0.0, 0.0, 0.0
+            for k in range(prims.shape[0]):
+                t, nx, ny, nz = _hit_sphere(ox, oy, oz, dx, dy, dz, prims[k])
+                if t > 1e-9 and t < best_t:
+                    best_t, best_k, bnx, bny, bnz = t, k, nx, ny, nz
+            if best_k < 0 or best_t * _dot(dx, dy, dz, fwd_x, fwd_y, fwd_z) >= depth_out[py, px]:
                 continue
-            p = prims[best_k]
-            hx, hy, hz = ox + best_t * dx, oy + best_t * dy, oz + best_t * dz
-            # Camera-space normal for shading.
-            cnx = _dot(bnx, bny, bnz, cam[3], cam[4], cam[5])
-            cny = _dot(bnx, bny, bnz, cam[6], cam[7], cam[8])
-            cnz = -_dot(bnx, bny, bnz, cam[9], cam[10], cam[11])
-            r, g, b = _shade(prim_color[best_k, 0], prim_color[best_k, 1], prim_color[best_k, 2], cnx, cny, cnz, light)
-            depth = best_t * _dot(dx, dy, dz, cam[9], cam[10], cam[11])
-            kind = prim_kind[best_k]
-            if kind == PRIM_PLANE or kind == PRIM_CONTAINER:
-                # Grid lines in the plane's (wall's) own coordinates, then fog towards the horizon.
-                if kind == PRIM_PLANE:
-                    nx, ny, nz = p[3], p[4], p[5]
-                else:
-                    nx, ny, nz = bnx, bny, bnz
-                if abs(nx) < 0.9:
-                    ax, ay, az = 0.0, -nz, ny  # n x (1, 0, 0)
-                else:
-                    ax, ay, az = nz, 0.0, -nx  # n x (0, 1, 0)
-                an = math.sqrt(ax * ax + ay * ay + az * az)
-                ax, ay, az = ax / an, ay / an, az / an
-                bx, by, bz = ny * az - nz * ay, nz * ax - nx * az, nx * ay - ny * ax
-                u = _dot(hx, hy, hz, ax, ay, az)
-                v = _dot(hx, hy, hz, bx, by, bz)
-                cosine = max(abs(_dot(dx, dy, dz, nx, ny, nz)), 0.12)
-                footprint = (1.0 / f if ortho else best_t / f) / cosine
-                line = _grid_intensity(u, v, p[6] if kind == PRIM_PLANE else p[15], footprint)
-                r = r + (grid_line[0] - r) * line * 0.35
-                g = g + (grid_line[1] - g) * line * 0.35
-                b = b + (grid_line[2] - b) * line * 0.35
-                fog = 1.0 - math.exp(-best_t / fog_distance) if fog_distance > 0.0 else 0.0
-                fog = fog * fog
-                r = r + (sky_horizon[0] - r) * fog
-                g = g + (sky_horizon[1] - g) * fog
-                b = b + (sky_horizon[2] - b) * fog
-                receives = p[7] > 0.5 if kind == PRIM_PLANE else _dot(nx, ny, nz, light[15], light[16], light[17]) > 0.95
-                if receives:
-                    ground_out[py, px, 0] = hx
-                    ground_out[py, px, 1] = hy
-                    ground_out[py, px, 2] = hz
-            color_out[py, px, 0] = r
-            color_out[py, px, 1] = g
-            color_out[py, px, 2] = b
-            depth_out[py, px] = depth
+            _write_surface(py, px, ox, oy, oz, dx, dy, dz, best_t, bnx, bny, bnz, PRIM_SPHERE, prims[best_k],
+                           prim_color[best_k], cam, light, sky_horizon, fog_distance, grid_line,
+                           color_out, depth_out, ground_out)
+
+
+@parallel_kernel
+def trace_boxes(cam, width, height, prims, prim_color, light, sky_horizon, fog_distance, grid_line,
+                  color_out, depth_out, ground_out):
+    """Ray-cast the PRIM_BOX rows ``prims`` over the buffers (z-tested against ``depth_out``)."""
+    fwd_x, fwd_y, fwd_z = cam[9], cam[10], cam[11]
+    for py in prange(height):
+        for px in range(width):
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            best_t, best_k = 1e300, -1
+            bnx, bny, bnz = 0.0, 0.0, 0.0
+            for k in range(prims.shape[0]):
+                t, nx, ny, nz = _hit_box(ox, oy, oz, dx, dy, dz, prims[k])
+                if t > 1e-9 and t < best_t:
+                    best_t, best_k, bnx, bny, bnz = t, k, nx, ny, nz
+            if best_k < 0 or best_t * _dot(dx, dy, dz, fwd_x, fwd_y, fwd_z) >= depth_out[py, px]:
+                continue
+            _write_surface(py, px, ox, oy, oz, dx, dy, dz, best_t, bnx, bny, bnz, PRIM_BOX, prims[best_k],
+                           prim_color[best_k], cam, light, sky_horizon, fog_distance, grid_line,
+                           color_out, depth_out, ground_out)
+
+
+@parallel_kernel
+def trace_capsules(cam, width, height, prims, prim_color, light, sky_horizon, fog_distance, grid_line,
+                  color_out, depth_out, ground_out):
+    """Ray-cast the PRIM_CAPSULE rows ``prims`` over the buffers (z-tested against ``depth_out``)."""
+    fwd_x, fwd_y, fwd_z = cam[9], cam[10], cam[11]
+    for py in prange(height):
+        for px in range(width):
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            best_t, best_k = 1e300, -1
+            bnx, bny, bnz = 0.0, 0.0, 0.0
+            for k in range(prims.shape[0]):
+                t, nx, ny, nz = _hit_capsule(ox, oy, oz, dx, dy, dz, prims[k])
+                if t > 1e-9 and t < best_t:
+                    best_t, best_k, bnx, bny, bnz = t, k, nx, ny, nz
+            if best_k < 0 or best_t * _dot(dx, dy, dz, fwd_x, fwd_y, fwd_z) >= depth_out[py, px]:
+                continue
+            _write_surface(py, px, ox, oy, oz, dx, dy, dz, best_t, bnx, bny, bnz, PRIM_CAPSULE, prims[best_k],
+                           prim_color[best_k], cam, light, sky_horizon, fog_distance, grid_line,
+                           color_out, depth_out, ground_out)
+
+
+@parallel_kernel
+def trace_cylinders(cam, width, height, prims, prim_color, light, sky_horizon, fog_distance, grid_line,
+                  color_out, depth_out, ground_out):
+    """Ray-cast the PRIM_CYLINDER rows ``prims`` over the buffers (z-tested against ``depth_out``)."""
+    fwd_x, fwd_y, fwd_z = cam[9], cam[10], cam[11]
+    for py in prange(height):
+        for px in range(width):
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            best_t, best_k = 1e300, -1
+            bnx, bny, bnz = 0.0, 0.0, 0.0
+            for k in range(prims.shape[0]):
+                t, nx, ny, nz = _hit_cylinder(ox, oy, oz, dx, dy, dz, prims[k])
+                if t > 1e-9 and t < best_t:
+                    best_t, best_k, bnx, bny, bnz = t, k, nx, ny, nz
+            if best_k < 0 or best_t * _dot(dx, dy, dz, fwd_x, fwd_y, fwd_z) >= depth_out[py, px]:
+                continue
+            _write_surface(py, px, ox, oy, oz, dx, dy, dz, best_t, bnx, bny, bnz, PRIM_CYLINDER, prims[best_k],
+                           prim_color[best_k], cam, light, sky_horizon, fog_distance, grid_line,
+                           color_out, depth_out, ground_out)
+
+
+@parallel_kernel
+def trace_containers(cam, width, height, prims, prim_color, light, sky_horizon, fog_distance, grid_line,
+                  color_out, depth_out, ground_out):
+    """Ray-cast the PRIM_CONTAINER rows ``prims`` over the buffers (z-tested against ``depth_out``)."""
+    fwd_x, fwd_y, fwd_z = cam[9], cam[10], cam[11]
+    for py in prange(height):
+        for px in range(width):
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            best_t, best_k = 1e300, -1
+            bnx, bny, bnz = 0.0, 0.0, 0.0
+            for k in range(prims.shape[0]):
+                t, nx, ny, nz = _hit_container(ox, oy, oz, dx, dy, dz, prims[k])
+                if t > 1e-9 and t < best_t:
+                    best_t, best_k, bnx, bny, bnz = t, k, nx, ny, nz
+            if best_k < 0 or best_t * _dot(dx, dy, dz, fwd_x, fwd_y, fwd_z) >= depth_out[py, px]:
+                continue
+            _write_surface(py, px, ox, oy, oz, dx, dy, dz, best_t, bnx, bny, bnz, PRIM_CONTAINER, prims[best_k],
+                           prim_color[best_k], cam, light, sky_horizon, fog_distance, grid_line,
+                           color_out, depth_out, ground_out)
+
+
+#: The trace kernel of each non-plane primitive kind.
+TRACE_KERNELS = {PRIM_SPHERE: "trace_spheres", PRIM_BOX: "trace_boxes", PRIM_CAPSULE: "trace_capsules",
+                 PRIM_CYLINDER: "trace_cylinders", PRIM_CONTAINER: "trace_containers"}
 
 
 @njit(cache=True)

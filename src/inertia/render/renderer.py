@@ -144,6 +144,13 @@ class Renderer:
     min_radius_px : smallest drawn radius in pixels, 1.0 default (0.7-2 is sensible).
     band : rows per parallel task of the splat, 16 default (8-64; smaller balances threads
         better, larger scans the particle list fewer times).
+    orbit : degrees the automatic 3-D camera turns about the up axis over the run (0 default,
+        still; 20-60 shows depth without distracting). `fit` with ``times`` frames every angle;
+        `frame` picks the angle from its ``t``.
+    follow : False default; True frames the particles near each moment of the run (key
+        cameras every ~0.5 s, framed on a window of frames, interpolated by ``t``), so a
+        travelling cloud stays large in the picture. Needs `fit` with (F, N, 3) positions and
+        ``times``.
     """
 
     def __init__(
@@ -168,6 +175,8 @@ class Renderer:
         default_radius: float | None = None,
         min_radius_px: float = 1.0,
         band: int = 16,
+        orbit: float = 0.0,
+        follow: bool = False,
     ):
         if dim not in (2, 3):
             raise ValueError(f"Renderer: dim must be 2 or 3, got {dim!r}")
@@ -197,6 +206,17 @@ class Renderer:
         self.default_radius = default_radius
         self.min_radius_px = float(min_radius_px)
         self.band = int(band)
+        if not (isinstance(orbit, (int, float)) and math.isfinite(orbit) and abs(orbit) <= 360.0):
+            raise ValueError(f"Renderer: orbit must be degrees in [-360, 360], got {orbit!r}")
+        #: Degrees the automatic camera turns about the up axis over the run (3-D; 0: still).
+        self.orbit = float(orbit)
+        #: Follow the particles over the run (3-D): the framing moves with them (see `fit`).
+        self.follow = bool(follow)
+        self._orbit_keys = None
+        #: Unit world direction towards the key light (None: chosen from the first camera).
+        self.light_direction = None
+        #: Share of the direct light a mesh shadow takes from the ground and colliders.
+        self.shadow_strength = 0.6
         #: (lower, upper) world box the camera was fitted to; sets the grid and default radius.
         self.bounds: tuple[np.ndarray, np.ndarray] | None = None
         self._background_key = None
@@ -217,6 +237,7 @@ class Renderer:
         self._stride = stride
         self._shadow = np.zeros((1, 1), np.float32)
         self._shadow_scratch = np.zeros((1, 1), np.float32)
+        self._mesh_shadow = np.zeros((1, 1), np.float32)
 
     @staticmethod
     def _kernel(name: str, count: int, threshold: int | None = None):
@@ -226,14 +247,80 @@ class Renderer:
         return kernel.parallel if count >= (_PARALLEL_MIN if threshold is None else threshold) else kernel.serial
 
     # -- camera -------------------------------------------------------------------------------
-    def fit(self, positions, *, radius=None, colliders: Sequence = (), t: float = 0.0, active=None, robust: float = 0.001) -> Camera:
+    def fit(self, positions, *, radius=None, colliders: Sequence = (), t: float = 0.0, active=None, robust: float = 0.001,
+            extra_points=None, times=None) -> Camera:
         """Frame the camera on ``positions`` ((N, D), or (F, N, D) for a whole run) and colliders.
 
+        ``extra_points (M, D)``: more world points to keep in view (mesh vertices over the run).
+        ``times (F,)``: the run's frame times; with ``orbit`` set, the camera is framed at
+        several angles of the orbit and `frame` interpolates between them by ``t``.
         Sets and returns ``self.camera``; also fixes the grid spacing and default radius.
         """
+        camera = self._fit(positions, radius, colliders, t, active, robust, extra_points)
+        bounds = self.bounds
+        self._orbit_keys = None
+        positions = np.asarray(positions)
+        follow = self.follow and positions.ndim == 3 and times is not None and len(times) == positions.shape[0]
+        if (self.orbit or follow) and self.dim == 3 and times is not None and len(times) > 1:
+            # Key cameras every <= 15 degrees of the orbit (and, following, every ~0.5 s of the
+            # run, each framed on the frames within a window around its time), interpolated by
+            # `camera_at`.
+            times = np.asarray(times, dtype=np.float64)
+            t0, t1 = float(np.min(times)), float(np.max(times))
+            count = max(2, int(math.ceil(abs(self.orbit) / 15.0)) + 1)
+            if follow:
+                count = max(count, min(24, int(math.ceil((t1 - t0) / 0.5)) + 1))
+            half_window = max(0.5, 0.75 * (t1 - t0) / (count - 1))
+            act = None if active is None else np.asarray(active, dtype=bool)
+            base = self.azimuth
+            keys = []
+            for k in range(count):
+                self.azimuth = base + self.orbit * k / (count - 1)
+                pos_k, act_k = positions, active
+                if follow:
+                    tk = t0 + (t1 - t0) * k / (count - 1)
+                    near = np.abs(times - tk) <= half_window
+                    pos_k = positions[near]
+                    act_k = None if act is None else (act[near] if act.ndim == 2 else act)
+                cam = self._fit(pos_k, radius, colliders, t, act_k, robust, extra_points)
+                keys.append([cam.target, float(np.linalg.norm(cam.position - cam.target))])
+            # A key's distance is the largest of its neighbours' (the scene never leaves the
+            # view between keys, and the zoom changes smoothly).
+            distances = [k[1] for k in keys]
+            for k in range(count):
+                keys[k][1] = max(distances[max(0, k - 1):k + 2])
+            self.azimuth = base
+            self.camera = camera
+            self._orbit_keys = (t0, t1, [tuple(k) for k in keys], camera)
+        self.bounds = bounds
+        return camera
+
+    def camera_at(self, t: float) -> Camera:
+        """The camera at time ``t``: ``self.camera``, or on the orbit when one was fitted."""
+        # A camera set by hand after `fit` wins over the orbit.
+        if self._orbit_keys is None or self._orbit_keys[3] is not self.camera:
+            return self.camera
+        t0, t1, keys, _ = self._orbit_keys
+        s = 0.0 if t1 <= t0 else min(max((t - t0) / (t1 - t0), 0.0), 1.0)
+        x = s * (len(keys) - 1)
+        k = min(int(x), len(keys) - 2)
+        w = x - k
+        target = (1 - w) * keys[k][0] + w * keys[k + 1][0]
+        distance = (1 - w) * keys[k][1] + w * keys[k + 1][1]
+        return Camera.orbit(target, distance, azimuth=self.azimuth + self.orbit * s, elevation=self.elevation,
+                            up=self.up, fov_y=self.fov_y)
+
+    def _fit(self, positions, radius, colliders, t, active, robust, extra_points) -> Camera:
         positions = np.asarray(positions)
         if positions.shape[-1] != self.dim:
             raise ValueError(f"Renderer.fit: positions have D = {positions.shape[-1]}, the renderer dim = {self.dim}")
+        if extra_points is not None and np.size(extra_points):
+            extra = np.asarray(extra_points, dtype=np.float64).reshape(-1, self.dim)
+            flat = positions.reshape(-1, self.dim)
+            if active is not None:
+                flat = flat[np.asarray(active, dtype=bool).reshape(-1)[: flat.shape[0]]]
+                active = None
+            positions = np.concatenate([flat, extra])
         lo, hi = scene_bounds(positions, active=active, robust=robust)
         pad = 0.0
         if radius is not None and np.size(radius):
@@ -313,9 +400,7 @@ class Renderer:
             light_cam = np.array([-0.45, 0.55, 0.7])
         else:
             world_up = UP_AXES[self.up][0]
-            # Key light from above, a little to the left and in front of the camera.
-            light_world = 1.2 * world_up - 0.5 * right - 0.35 * forward
-            light_world /= np.linalg.norm(light_world)
+            light_world = self._light_direction(camera)
             light_cam = np.array([light_world @ right, light_world @ cup, -(light_world @ forward)])
         light_cam = light_cam / np.linalg.norm(light_cam)
         up_cam = np.array([world_up @ right, world_up @ cup, -(world_up @ forward)])
@@ -328,6 +413,17 @@ class Renderer:
         light[15:18] = world_up
         light[18:21] = half / np.linalg.norm(half)
         return light
+
+    def _light_direction(self, camera: Camera) -> np.ndarray:
+        """Unit direction towards the key light, fixed in the world once chosen (so shadows and
+        shading stay put while the camera orbits): from above, a little to the left of and in
+        front of the first camera, unless ``self.light_direction`` was set."""
+        if self.light_direction is None:
+            right, _, forward = camera.basis()
+            world_up = UP_AXES[self.up][0]
+            light_world = 1.2 * world_up - 0.5 * right - 0.35 * forward
+            self.light_direction = light_world / np.linalg.norm(light_world)
+        return np.asarray(self.light_direction, np.float64)
 
     def _ground_rows(self, prims) -> np.ndarray:
         """The automatic ground plane (0 or 1 rows of the primitive table): none in 2-D, none
@@ -383,12 +479,22 @@ class Renderer:
                         levels.append(float(params[k, 0:3] @ up - axis_up @ params[k, 3:6]))
             ground = np.empty((h, w, 3), np.float32)
             fog = 2.0 * self._scene_size()
+            sky_horizon = _srgb_to_linear(self.theme["sky_horizon"]).astype(np.float64)
+            grid_line = _srgb_to_linear(self.theme["ground_line"]).astype(np.float64)
+            # Sky and planes, then each other kind of primitive by its own kernel (a scene
+            # compiles only the intersectors it draws).
+            planes = kinds == K.PRIM_PLANE
             self._kernel("background_3d", w * h, _PARALLEL_PIXELS)(
-                cam, w, h, np.ascontiguousarray(params), kinds, colors, light,
-                _srgb_to_linear(self.theme["sky_top"]).astype(np.float64),
-                _srgb_to_linear(self.theme["sky_horizon"]).astype(np.float64), fog,
-                _srgb_to_linear(self.theme["ground_line"]).astype(np.float64), color, depth, ground,
+                cam, w, h, np.ascontiguousarray(params[planes]), kinds[planes], np.ascontiguousarray(colors[planes]), light,
+                _srgb_to_linear(self.theme["sky_top"]).astype(np.float64), sky_horizon, fog, grid_line, color, depth, ground,
             )
+            for kind, name in K.TRACE_KERNELS.items():
+                rows = kinds == kind
+                if rows.any():
+                    self._kernel(name, w * h, _PARALLEL_PIXELS)(
+                        cam, w, h, np.ascontiguousarray(params[rows]), np.ascontiguousarray(colors[rows]), light,
+                        sky_horizon, fog, grid_line, color, depth, ground,
+                    )
             for collider in prims.generic:
                 self._trace_generic(collider, t, camera, cam, light, collider_lin, color, depth)
             level = max(levels) if levels else None
@@ -465,17 +571,22 @@ class Renderer:
         colliders: Sequence = (),
         t: float = 0.0,
         out: np.ndarray | None = None,
+        meshes: Sequence = (),
+        lines: Sequence = (),
     ) -> np.ndarray:
         """Render one frame; returns (height, width, 3) uint8 sRGB (``out`` if given).
 
         positions (N, D) world positions; radius (N,) or scalar world radii; velocities (N, D)
         for speed colours; colors (N, 3) or one colour; groups (N,) int; active (N,) bool (False
-        slots are not drawn); colliders as in `inertia.colliders`, drawn at time ``t``.
+        slots are not drawn); colliders as in `inertia.colliders`, drawn at time ``t``;
+        meshes: `inertia.render.meshes.TriangleMesh` s in world space (shaded, casting shadows,
+        3-D only); lines: `inertia.render.meshes.LineSet` s (springs).
         """
         with self._lock:
-            return self._frame(positions, radius, velocities, colors, groups, active, colliders, t, out)
+            return self._frame(positions, radius, velocities, colors, groups, active, colliders, t, out,
+                               meshes, lines)
 
-    def _frame(self, positions, radius, velocities, colors, groups, active, colliders, t, out):
+    def _frame(self, positions, radius, velocities, colors, groups, active, colliders, t, out, meshes=(), lines=()):
         pos = np.asarray(positions, dtype=np.float64)
         if pos.ndim != 2 or pos.shape[1] != self.dim:
             raise ValueError(f"Renderer.frame: positions must be (N, {self.dim}), got shape {pos.shape}")
@@ -485,7 +596,7 @@ class Renderer:
                 self.fit(pos, radius=radius, colliders=colliders, t=t, active=active)
             else:
                 self.bounds = scene_bounds(pos, active=active)
-        camera = self.camera
+        camera = self.camera_at(t)
         h, w = self.height, self.width
 
         # Background: rebuilt only when the camera or the colliders changed.
@@ -545,11 +656,80 @@ class Renderer:
             raise ValueError(f"Renderer.frame: out must be a C-contiguous ({h}, {w}, 3) uint8 array")
         np.copyto(self._color, bg_color)
         np.copyto(self._depth, bg_depth)
-        np.copyto(out, bg_bytes)
+        if (meshes or lines) and self.dim == 3:
+            ground = self._draw_meshes(camera, meshes, lines, ground, out)
+        else:
+            np.copyto(out, bg_bytes)
         parallel = w * h >= _PARALLEL_PIXELS or m >= _PARALLEL_PARTICLES
         (K.render_bands.parallel if parallel else K.render_bands.serial)(ground, self._shadow, shadow_box, packed, packed_colors, row_range, band_start, items, table,
              self.band, self._stride, _LUT, self._color, self._depth, out)
         return out
+
+    def _draw_meshes(self, camera: Camera, meshes, lines, ground_tex, out) -> np.ndarray:
+        """Shadows, shaded triangles and lines over the background in ``self._color/_depth``;
+        ``out`` gets the sRGB bytes of the whole frame. Returns the ground texel coordinates
+        with the pixels the meshes cover removed (so contact shadows stay on the ground)."""
+        from . import meshes as M
+
+        h, w = self.height, self.width
+        cam = camera.params(w, h)
+        near = 1e-4 * self._scene_size()
+        mask = np.zeros((h, w), np.uint8)
+        if meshes:
+            verts, norms, tris, cols, base = [], [], [], [], 0
+            for mesh in meshes:
+                v = np.ascontiguousarray(mesh.vertices, dtype=np.float64).reshape(-1, 3)
+                tri = np.ascontiguousarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
+                if mesh.normals is None:
+                    n = np.empty_like(v)
+                    M.vertex_normals(v, tri, n)
+                else:
+                    n = np.asarray(mesh.normals, dtype=np.float64).reshape(-1, 3)
+                color = np.asarray(mesh.color, dtype=np.float32)
+                cols.append(np.broadcast_to(color.reshape(-1, 3), (tri.shape[0], 3)))
+                verts.append(v)
+                norms.append(n)
+                tris.append(tri + base)
+                base += v.shape[0]
+            verts = np.ascontiguousarray(np.concatenate(verts))
+            norms = np.ascontiguousarray(np.concatenate(norms))
+            tris = np.ascontiguousarray(np.concatenate(tris))
+            albedo = np.ascontiguousarray(_srgb_to_linear(np.clip(np.concatenate(cols), 0.0, 1.0)))
+            light_dir = self._light_direction(camera)
+            cam_light = self._light(camera)
+            light = np.zeros(M.LIGHT_SIZE)
+            light[0:3], light[3:6] = light_dir, UP_AXES[self.up][0]
+            light[6:9], light[9:12], light[12] = cam_light[3:6], cam_light[6:9], cam_light[12]
+            light[13] = self.shadow_strength
+            if self.shadows and tris.shape[0]:
+                frame = M.light_frame(light_dir, verts[np.unique(tris)])
+                if self._mesh_shadow.shape != (M.SHADOW_MAP_SIZE, M.SHADOW_MAP_SIZE):
+                    self._mesh_shadow = np.empty((M.SHADOW_MAP_SIZE, M.SHADOW_MAP_SIZE), np.float32)
+                depth_map = self._mesh_shadow
+                M.shadow_map_depth(verts, tris, frame, depth_map)
+                M.shadow_background(cam, frame, depth_map, self.shadow_strength, self._depth, mask, self._color)
+            else:
+                frame, depth_map = np.zeros(M.SHADOW_FRAME_SIZE), np.full((1, 1), -np.inf, np.float32)
+                frame[12] = 1.0
+            M.draw_triangles(verts, norms, tris, albedo, cam, light, frame, depth_map, near,
+                             self._color, self._depth, mask)
+        for line_set in lines:
+            pairs = np.ascontiguousarray(line_set.pairs, dtype=np.int64).reshape(-1, 2)
+            srgb = np.broadcast_to(np.asarray(line_set.color, np.float64).reshape(-1, 3), (pairs.shape[0], 3))
+            color = np.ascontiguousarray(_srgb_to_linear(np.clip(srgb, 0.0, 1.0)), dtype=np.float64)
+            opacity = np.ones(pairs.shape[0]) if line_set.opacity is None else np.ascontiguousarray(
+                np.broadcast_to(np.asarray(line_set.opacity, np.float64), (pairs.shape[0],)))
+            M.draw_lines(np.ascontiguousarray(line_set.points, dtype=np.float64).reshape(-1, 3), pairs, color, opacity,
+                         float(line_set.width_px), cam, near, self._color, self._depth)
+        self._to_bytes_into(self._color, out)
+        if mask.any():
+            ground_tex = ground_tex.copy()
+            ground_tex[mask.astype(bool)] = np.nan
+        return ground_tex
+
+    @staticmethod
+    def _to_bytes_into(color: np.ndarray, out: np.ndarray) -> None:
+        Renderer._kernel("to_srgb8", color.shape[0] * color.shape[1], _PARALLEL_PIXELS)(color, _LUT, out)
 
     def _shading_table(self, light: np.ndarray) -> np.ndarray:
         key = light.tobytes()

@@ -208,6 +208,7 @@ def render_states(
     colors=None,
     quality: float = 6.5,
     progress: Callable[[int, int], None] | None = None,
+    trails: int = 0,
     **renderer_options,
 ):
     """Render a run (`inertia.io.States`, or a path to a state file) to a video, PNG(s) or a folder.
@@ -220,6 +221,9 @@ def render_states(
     ``color_by="group"``, ``azimuth=30``, ``theme="light"``). Unless a camera is given, the view
     is fitted to every frame of the run and speed colours share one scale over the run (the
     same whichever ``frames`` are drawn).
+    ``trails``: draw each particle's path over that many previous frames as faint lines (3-D).
+    A state file's ``model`` adds its bodies, cloth surfaces and springs
+    (`inertia.render.drawables`).
     ``colors``: (N, 3), (F, N, 3) or ``colors(frame) -> (N, 3)``. ``progress(done, total)`` is
     called after each frame. Returns the output path (a list of paths for PNG sequences).
 
@@ -228,6 +232,8 @@ def render_states(
     from ..io.states import load_states
     from .renderer import Renderer
 
+    if not (isinstance(trails, (int, np.integer)) and not isinstance(trails, bool) and 0 <= trails <= 100):
+        raise ValueError(f"render_states: trails must be an integer number of frames in [0, 100], got {trails!r}")
     if isinstance(states, (str, os.PathLike)):
         states = load_states(states)
     kind = "frames" if out is None else output_kind(out)
@@ -249,11 +255,18 @@ def render_states(
     if renderer.dim != states.dim:
         raise ValueError(f"render_states: renderer dim {renderer.dim} but the states are {states.dim}-D")
     active_all = states.fields.get("active")
+    # Bodies, cloth surfaces and springs of the state file's model, if any.
+    from .drawables import ModelDrawables, frame_options
+
+    drawables = ModelDrawables.from_states(states)
+    if drawables is not None:
+        colliders = list(colliders) + drawables.plane_colliders()
     # The view and the speed scale come from the whole run, whichever frames are drawn, so a
     # single frame looks as it does in the video.
     if renderer.camera is None:
         renderer.fit(states.positions, radius=states.radius(), colliders=colliders,
-                     t=float(states.times[0]), active=active_all)
+                     t=float(states.times[0]), active=active_all, times=states.times,
+                     extra_points=None if drawables is None else drawables.bounds_points(states.fields.get("body_q")))
     if renderer.speed_max is None:
         renderer.speed_max = _speed_max(states, np.arange(states.frame_count))
     if renderer.group_colors is None and states.metadata.get("group_colors"):
@@ -271,9 +284,9 @@ def render_states(
             velocities=None if states.velocities is None else states.velocities[f],
             colors=frame_colors,
             groups=groups,
-            active=states.active(f),
             colliders=colliders,
             t=float(states.times[f]),
+            **frame_options(drawables, states, f, states.active(f), trails=trails),
         )
 
     total = int(indices.size)

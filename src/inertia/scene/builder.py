@@ -12,6 +12,7 @@ and the same seed always gives the same run.
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 import math
 import zlib
@@ -44,6 +45,14 @@ def scene_fingerprint(model: M.SceneModel) -> str:
     data = model.model_dump(mode="json", exclude={"output", "render", "name", "description"})
     data["simulation"].pop("duration", None)
     return fingerprint(json.dumps(data, sort_keys=True))
+
+
+def cloth_triangles(nu: int, nv: int) -> np.ndarray:
+    """(2 (nu-1)(nv-1), 3) int64: two counter-clockwise triangles per quad of an nu x nv cloth grid
+    (particle ``j nu + i`` at column i, row j), the surface the renderer shades."""
+    idx = np.arange(nu * nv).reshape(nv, nu)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    return np.concatenate([np.stack([a, b, c], 1), np.stack([a, c, d], 1)]).astype(np.int64)
 
 
 class _Builder:
@@ -518,6 +527,7 @@ class _Builder:
         name = names[index]
         springs = None
         pinned = list(group.pinned)
+        surface = None
         if group.positions is not None:
             x = self.points(group.positions, f"{path}.positions")
         elif group.lattice is not None:
@@ -530,6 +540,7 @@ class _Builder:
         elif group.cloth is not None:
             x, pairs, k, c, pins = self.cloth(group.cloth, f"{path}.cloth")
             springs, pinned = (pairs, k, c), pinned + pins
+            surface = cloth_triangles(*group.cloth.counts)
         else:
             x = np.zeros((0, self.dim))
         n_layout = len(x)
@@ -608,7 +619,8 @@ class _Builder:
                     configure_contacts(system, **options)
         integrator, options = self.integrator(group, path)
         with self.at(f"{path}.integrator"):
-            g = world.add(name, system, integrator=integrator, color=group.color, kind="particles", **options)
+            g = world.add(name, system, integrator=integrator, color=group.color, kind="particles",
+                          triangles=surface, **options)
         g.colliders = attached
 
     def tracer_group(self, world: World, index: int, group: M.TracerGroup, name: str):
@@ -648,8 +660,17 @@ class _Builder:
             if spec.groups is not None:
                 self.check_group_names(spec.groups, f"colliders[{k}].groups", particle_names)
         self.build_colliders()
+        from .rigid_builder import build_rigid
+
+        rigid = build_rigid(m, source=self.source, base_dir=self.base)
+        kwargs = {}
+        if rigid is not None and "model" in inspect.signature(World).parameters:
+            kwargs = dict(model=rigid.model, rigid_options={k: v for k, v in rigid.options.items() if k != "dt"})
         world = World(dt=m.simulation.dt, substeps=m.simulation.substeps,
-                      colliders=[obj for _, obj, _ in self.colliders], name=m.name or "scene")
+                      colliders=[obj for _, obj, _ in self.colliders], name=m.name or "scene", **kwargs)
+        world.rigid_scene = rigid          # the bodies (RigidScene): colours, vehicles
+        if rigid is not None and rigid.vehicles and getattr(world, "rigid", None) is not None:
+            _drive_vehicles(world, rigid)
         for i, group in enumerate(m.particles):
             self.particle_group(world, i, group, names)
         for i, group in enumerate(m.tracers):
@@ -657,6 +678,20 @@ class _Builder:
         add_sph_fluids(self, world)
         add_grid_fluids(self, world)
         return world
+
+
+def _drive_vehicles(world, rigid) -> None:
+    """Run the scene's vehicle scripts before each world step (the World has no pre-step hook yet: this
+    wraps the instance's ``step``). The script is re-applied from the clock, so a resumed run sets the same
+    controls; the wheels' spin is not in the checkpoint (a resumed vehicle run is not bit for bit)."""
+    rigid.attach(world.rigid)
+    step = world.step
+
+    def step_with_vehicles():
+        rigid.before_step(world.rigid.state.time)
+        step()
+
+    world.step = step_with_vehicles
 
 
 def build_world(model: M.SceneModel, *, source=None, base_dir=None) -> World:

@@ -35,6 +35,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from ..ode.integrators import available as _available_integrators
 from .fluids import GridFluidTable, SPHTable
+from .rigid_models import Body, Material, Rigid, Vehicle
 
 __all__ = [
     "FORMAT_VERSION", "INTEGRATORS", "FIRST_ORDER_INTEGRATORS", "SceneModel", "Simulation",
@@ -613,7 +614,8 @@ class Output(_Model):
     frames: bool = Field(False, description="PNG image of every frame")
     plot: bool = Field(True, description="energy and momentum over time (PNG)")
     ply: bool = Field(False, description="PLY point file of every frame")
-    usd: bool = Field(False, description="animated USD points (.usdc)")
+    usd: bool = Field(False, description="animated USD points (.usdc); rigid bodies as animated transforms (bodies.usdc)")
+    obj: bool = Field(False, description="OBJ mesh of the rigid bodies per frame (obj/frame_NNNNN.obj)")
     checkpoint_interval: PositiveFloat = Field(10.0, description="wall-clock seconds between checkpoints")
 
     @field_validator("directory")
@@ -633,6 +635,9 @@ class Camera(_Model):
     distance: PositiveFloat | None = None
     fov: Annotated[float, Field(ge=1, le=170)] | None = Field(None, description="vertical field of view (degrees)")
     height: PositiveFloat | None = Field(None, description="2-D: world units visible vertically")
+    orbit: Annotated[float, Field(ge=-360, le=360)] | None = Field(
+        None, description="3-D: degrees the framed camera turns about the up axis over the run (0: still)")
+    follow: bool | None = Field(None, description="3-D: the framing follows the particles over the run")
 
 
 class Render(_Model):
@@ -642,6 +647,8 @@ class Render(_Model):
     theme: Literal["dark", "light"] = "dark"
     camera: Camera = Field(default_factory=Camera)
     draw_colliders: bool = True
+    trails: Annotated[int, Field(ge=0, le=100)] = Field(
+        0, description="3-D: draw each particle's path over this many previous frames (shows the flow)")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -665,6 +672,10 @@ class SceneModel(_Model):
     fields: dict[str, FieldSpec] = Field(default_factory=dict, description="named vector fields")
     output: Output = Field(default_factory=Output)
     render: Render = Field(default_factory=Render)
+    materials: dict[str, Material] = Field(default_factory=dict, description="named rigid-body materials")
+    bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies (inertia.scene.rigid_models)")
+    rigid: Rigid = Field(default_factory=Rigid, description="rigid-body solver options")
+    vehicles: dict[str, Vehicle] = Field(default_factory=dict, description="ray-cast vehicles on bodies")
     sph: dict[str, SPHTable] = Field(default_factory=dict, description="SPH fluids (inertia.fluids.sph.scene)")
     fluids: dict[str, GridFluidTable] = Field(default_factory=dict, description="grid fluids (inertia.fluids.grid.scene)")
 
@@ -689,6 +700,7 @@ class SceneModel(_Model):
 
     @model_validator(mode="after")
     def _names(self):
-        if not self.particles and not self.tracers and not self.sph and not self.fluids:
-            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group or a fluid")
+        if not self.particles and not self.tracers and not self.bodies and not self.sph and not self.fluids:
+            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group, [bodies.NAME] table "
+                             "or fluid ([sph.NAME], [fluids.NAME])")
         return self

@@ -276,6 +276,7 @@ class Viewer:
         self._add_ground(lo3, hi3, up)
         self._rest_pose: dict = {}
         self._collider_handles = self._add_colliders(t0)
+        self._body_handles = self._add_bodies(states)
 
         # Particles.
         self._particles = None
@@ -384,6 +385,37 @@ class Viewer:
             handles.append((handle, collider))
         return handles
 
+    def _add_bodies(self, states) -> list:
+        """Meshes of the rigid shapes of a state file's model (the video's tessellation and
+        colours, `inertia.render.drawables`); returns [(handle, shape row)] of the moving ones."""
+        if states is None or self.dim != 3:
+            return []
+        from ..render.drawables import ModelDrawables
+
+        drawables = ModelDrawables.from_states(states)
+        if drawables is None or not drawables.shape_meshes:
+            return []
+        self._drawables = drawables
+        body_q = states.fields.get("body_q")
+        poses = drawables.shape_poses(None if body_q is None else body_q[0])
+        handles = []
+        for s, (vertices, faces, color) in drawables.shape_meshes.items():
+            handle = self.server.scene.add_mesh_simple(
+                f"/bodies/{s}", vertices.astype(np.float32), faces.astype(np.uint32), color=tuple(int(c) for c in _rgb8(color)),
+                position=tuple(map(float, poses[s, :3])), wxyz=tuple(map(float, poses[s, 3:])), flat_shading=False)
+            if drawables.shape_body[s] >= 0:
+                handles.append((handle, s))
+        return handles
+
+    def _move_bodies(self, frame: int) -> None:
+        states = self.source.states
+        if not self._body_handles or states is None or "body_q" not in states.fields:
+            return
+        poses = self._drawables.shape_poses(states.fields["body_q"][frame])
+        for handle, s in self._body_handles:
+            handle.position = tuple(map(float, poses[s, :3]))
+            handle.wxyz = tuple(map(float, poses[s, 3:]))
+
     def _move_colliders(self, t: float) -> None:
         for handle, collider in self._collider_handles:
             if getattr(collider, "motion", None) is None or not callable(getattr(collider, "pose", None)):
@@ -409,6 +441,8 @@ class Viewer:
 
     def _show(self, frame: int) -> None:
         positions, velocities, t, active = self.source.get(frame)
+        if getattr(self, "_body_handles", None):
+            self._move_bodies(frame)
         points = np.zeros((positions.shape[0], 3), np.float32)
         points[:, : self.dim] = positions
         colors = _rgb8(self._colors(positions, velocities))

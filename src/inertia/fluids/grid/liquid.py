@@ -747,7 +747,7 @@ class LiquidFluid:
         try:
             from skimage import measure
         except ImportError as e:  # pragma: no cover - depends on the environment
-            raise ImportError("surface_mesh needs scikit-image (pip install scikit-image)") from e
+            raise ImportError("surface_mesh needs scikit-image: pip install 'inertia[surface]'") from e
         phi = self.level_set()
         h = self.cell_size
         # pad with air so surfaces touching the walls close

@@ -1,0 +1,285 @@
+"""What a state file's ``model`` adds to the particles of each frame: bodies, cloth, springs.
+
+`ModelDrawables(model)` reads the contract's arrays once (``docs/contracts.md``,
+``inertia.io.States.model``):
+
+- the shape table (``shape_type``, ``shape_body``, ``shape_local_pose (S, 7)`` position +
+  quaternion (w, x, y, z) in the body frame, ``shape_params``, ``geom_vertices``...,
+  ``shape_color (S, 3)`` optional) -> every shape tessellated once in its own frame
+  (`inertia.render.meshes.tessellate_shape`); static planes become the renderer's analytic
+  ground (`planes`);
+- ``surface_triangles (T, 3)`` global particle indices -> a cloth surface over the particle
+  positions of each frame (smooth normals per frame); its particles are not also drawn as
+  spheres (`hidden`);
+- ``spring_pairs (P, 2)`` global particle indices -> lines (except springs between two particles of a
+  surface, which the surface shows).
+
+`frame(positions, body_q)` returns the ``meshes=`` and ``lines=`` of `Renderer.frame` for one
+frame: the shapes moved by ``body_q (B, 7)`` (the body frame's position and orientation;
+world pose of a shape = body pose composed with its local pose).
+
+Limitations: planes on moving bodies are not drawn; shape colours default to a palette by body
+index (static shapes grey).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from .colormaps import GROUP_PALETTE
+from .meshes import LineSet, TriangleMesh, tessellate_shape
+
+__all__ = ["ModelDrawables", "compose_poses", "frame_options", "trail_lines"]
+
+#: Colours of cloth surfaces and spring lines when the model gives none (sRGB).
+CLOTH_COLOR = (0.86, 0.42, 0.32)
+SPRING_COLOR = (0.93, 0.86, 0.62)
+STATIC_COLOR = (0.62, 0.64, 0.68)
+
+
+def _quat_rotate(q, v):
+    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) (w, x, y, z)."""
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def _quat_mul(a, b):
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+
+def compose_poses(body_pose, local_pose):
+    """World pose (..., 7) of a shape at ``local_pose`` in a body at ``body_pose`` (both
+    position + quaternion w, x, y, z): p = R_b p_l + p_b, q = q_b q_l."""
+    body_pose, local_pose = np.asarray(body_pose, np.float64), np.asarray(local_pose, np.float64)
+    out = np.empty(np.broadcast_shapes(body_pose.shape, local_pose.shape))
+    out[..., :3] = _quat_rotate(body_pose[..., 3:], local_pose[..., :3]) + body_pose[..., :3]
+    out[..., 3:] = _quat_mul(body_pose[..., 3:], local_pose[..., 3:])
+    return out
+
+
+@njit(cache=True)
+def _pose_vertices(local_v, local_n, vertex_shape, shape_pose, out_v, out_n):
+    """World vertices and normals: each vertex rotated and moved by its shape's world pose."""
+    for i in range(local_v.shape[0]):
+        s = vertex_shape[i]
+        w, x, y, z = shape_pose[s, 3], shape_pose[s, 4], shape_pose[s, 5], shape_pose[s, 6]
+        for which in range(2):
+            src = local_v if which == 0 else local_n
+            vx, vy, vz = src[i, 0], src[i, 1], src[i, 2]
+            # v' = v + 2 w (u x v) + 2 u x (u x v), u = (x, y, z)
+            tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+            rx = vx + w * tx + (y * tz - z * ty)
+            ry = vy + w * ty + (z * tx - x * tz)
+            rz = vz + w * tz + (x * ty - y * tx)
+            if which == 0:
+                out_v[i, 0] = rx + shape_pose[s, 0]
+                out_v[i, 1] = ry + shape_pose[s, 1]
+                out_v[i, 2] = rz + shape_pose[s, 2]
+            else:
+                out_n[i, 0], out_n[i, 1], out_n[i, 2] = rx, ry, rz
+
+
+class ModelDrawables:
+    """Meshes and lines of a model (see the module docstring); ``group_colors`` (N, 3) sRGB per
+    particle, optional, colours cloth surfaces by their first vertex's group."""
+
+    def __init__(self, model: dict, *, particle_colors=None):
+        model = dict(model or {})
+        self.model = model
+        from ..geometry import shapes as S
+
+        # Shapes: one tessellation per row, concatenated with the row index per vertex.
+        self.planes: list[tuple[np.ndarray, np.ndarray]] = []
+        #: Shape row -> (local vertices (V, 3), triangles (T, 3), sRGB colour (3,)) of each drawn shape.
+        self.shape_meshes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
+        local_v, local_n, tris, tri_colors, vertex_shape, base = [], [], [], [], [], 0
+        shape_type = np.asarray(model.get("shape_type", np.zeros(0)), np.int64)
+        shape_body = np.asarray(model.get("shape_body", np.full(shape_type.shape, -1)), np.int64)
+        pose = np.asarray(model.get("shape_local_pose", np.tile([0, 0, 0, 1.0, 0, 0, 0], (len(shape_type), 1))), np.float64)
+        colors = model.get("shape_color")
+        for s in range(len(shape_type)):
+            if shape_type[s] == S.PLANE:
+                if shape_body[s] < 0:
+                    normal = _quat_rotate(pose[s, 3:], np.array([0.0, 0.0, 1.0]))
+                    self.planes.append((pose[s, :3].copy(), normal))
+                continue
+            mesh = tessellate_shape(model, s)
+            if mesh is None:
+                continue
+            v, n, t = mesh
+            if colors is not None:
+                color = np.asarray(colors[s], np.float32)
+            elif shape_body[s] < 0:
+                color = np.array(STATIC_COLOR, np.float32)
+            else:
+                color = np.asarray(GROUP_PALETTE[int(shape_body[s]) % len(GROUP_PALETTE)], np.float32)
+            self.shape_meshes[s] = (v, t, color)
+            local_v.append(v)
+            local_n.append(n)
+            tris.append(t + base)
+            tri_colors.append(np.tile(color, (t.shape[0], 1)))
+            vertex_shape.append(np.full(v.shape[0], s, np.int64))
+            base += v.shape[0]
+        self.shape_count = len(shape_type)
+        self.shape_body = shape_body
+        self.shape_local_pose = pose
+        if local_v:
+            self.local_vertices = np.ascontiguousarray(np.concatenate(local_v))
+            self.local_normals = np.ascontiguousarray(np.concatenate(local_n))
+            self.triangles = np.ascontiguousarray(np.concatenate(tris))
+            self.triangle_colors = np.concatenate(tri_colors).astype(np.float32)
+            self.vertex_shape = np.concatenate(vertex_shape)
+        else:
+            self.local_vertices = None
+        self.surface_triangles = model.get("surface_triangles")
+        if self.surface_triangles is not None:
+            self.surface_triangles = np.ascontiguousarray(self.surface_triangles, dtype=np.int64).reshape(-1, 3)
+        self.spring_pairs = model.get("spring_pairs")
+        if self.spring_pairs is not None:
+            self.spring_pairs = np.ascontiguousarray(self.spring_pairs, dtype=np.int64).reshape(-1, 2)
+            if self.surface_triangles is not None and self.surface_triangles.size and self.spring_pairs.size:
+                # springs inside a shaded surface (cloth) are the surface: draw only the others as lines
+                covered = np.zeros(int(max(self.spring_pairs.max(), self.surface_triangles.max())) + 1, bool)
+                covered[self.surface_triangles.reshape(-1)] = True
+                keep = ~(covered[self.spring_pairs[:, 0]] & covered[self.spring_pairs[:, 1]])
+                self.spring_pairs = np.ascontiguousarray(self.spring_pairs[keep])
+        self.particle_colors = None if particle_colors is None else np.asarray(particle_colors, np.float32)
+
+    @classmethod
+    def from_states(cls, states, *, particle_colors=None) -> "ModelDrawables | None":
+        """Drawables of a `States` (its ``model`` dict), or None when it has nothing to draw."""
+        model = getattr(states, "model", None)
+        if not model or states.dim != 3:
+            return None
+        drawables = cls(model, particle_colors=particle_colors)
+        return drawables if not drawables.empty else None
+
+    @property
+    def empty(self) -> bool:
+        return self.local_vertices is None and self.surface_triangles is None and self.spring_pairs is None and not self.planes
+
+    def plane_colliders(self) -> list:
+        """Static planes as `inertia.colliders.Plane` (drawn as the renderer's ground)."""
+        from ..colliders import Plane
+
+        return [Plane(point=tuple(p), normal=tuple(n)) for p, n in self.planes]
+
+    def hidden(self, count: int) -> np.ndarray | None:
+        """(N,) bool: particles drawn as a surface, so not as spheres (None when there are none)."""
+        if self.surface_triangles is None or self.surface_triangles.size == 0:
+            return None
+        mask = np.zeros(count, dtype=bool)
+        mask[self.surface_triangles.reshape(-1)] = True
+        return mask
+
+    def shape_poses(self, body_q) -> np.ndarray:
+        """World poses (S, 7) of the shapes for body poses ``body_q (B, 7)`` (None: at rest)."""
+        pose = self.shape_local_pose
+        if body_q is None or self.shape_count == 0:
+            return pose
+        body_q = np.asarray(body_q, np.float64)
+        out = pose.copy()
+        moving = self.shape_body >= 0
+        out[moving] = compose_poses(body_q[self.shape_body[moving]], pose[moving])
+        return out
+
+    def body_vertices(self, body_q) -> tuple[np.ndarray, np.ndarray] | None:
+        """World vertices and normals of every tessellated shape at ``body_q``."""
+        if self.local_vertices is None:
+            return None
+        poses = np.ascontiguousarray(self.shape_poses(body_q))
+        v = np.empty_like(self.local_vertices)
+        n = np.empty_like(self.local_normals)
+        _pose_vertices(self.local_vertices, self.local_normals, self.vertex_shape, poses, v, n)
+        return v, n
+
+    def frame(self, positions=None, body_q=None, *, spring_width_px: float = 1.6) -> dict:
+        """``{"meshes": [...], "lines": [...]}`` for `Renderer.frame` at one frame."""
+        meshes, lines = [], []
+        moved = self.body_vertices(body_q)
+        if moved is not None:
+            meshes.append(TriangleMesh(moved[0], moved[1], self.triangles, self.triangle_colors))
+        if positions is not None:
+            pos = np.ascontiguousarray(positions, dtype=np.float64)
+            if self.surface_triangles is not None and self.surface_triangles.size:
+                color = np.array(CLOTH_COLOR, np.float32)
+                if self.particle_colors is not None:
+                    color = self.particle_colors[self.surface_triangles[:, 0]]
+                meshes.append(TriangleMesh(pos, None, self.surface_triangles, color))
+            if self.spring_pairs is not None and self.spring_pairs.size:
+                lines.append(LineSet(pos, self.spring_pairs, np.array(SPRING_COLOR), spring_width_px))
+        return {"meshes": meshes, "lines": lines}
+
+    def bounds_points(self, body_q_frames=None) -> np.ndarray | None:
+        """World points (M, 3) bounding the shapes over a run (``body_q_frames (F, B, 7)``), for
+        framing the camera: the tessellated vertices at a sample of frames."""
+        if self.local_vertices is None:
+            return None
+        if body_q_frames is None or len(body_q_frames) == 0:
+            return self.body_vertices(None)[0]
+        frames = np.asarray(body_q_frames)
+        picks = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), 12)).astype(int))
+        stride = max(1, self.local_vertices.shape[0] // 4000)
+        return np.concatenate([self.body_vertices(frames[f])[0][::stride] for f in picks])
+
+
+#: Colour of motion trails (sRGB) and the opacity of their newest segment.
+TRAIL_COLOR = (0.9, 0.93, 1.0)
+TRAIL_OPACITY = 0.45
+
+
+def trail_lines(states, f: int, frames: int, *, active=None, max_particles: int = 4000) -> "LineSet | None":
+    """Each particle's path over the last ``frames`` frames up to ``f`` as faint lines (the flow
+    made visible: wind, vortices), fading from ``TRAIL_OPACITY`` at the particle to 0; at most
+    ``max_particles`` particles (an even stride). Segments touching an inactive slot, a jump
+    (respawn) longer than 10x the median step, or a NaN are left out."""
+    first = max(0, f - int(frames))
+    if frames <= 0 or f == first:
+        return None
+    n = states.particle_count
+    pick = np.arange(0, n, max(1, -(-n // max_particles)))
+    path = np.asarray(states.positions[first:f + 1][:, pick], np.float64)  # (K, M, 3), oldest first
+    k, m = path.shape[0], path.shape[1]
+    ok = np.all(np.isfinite(path), axis=2)
+    if "active" in states.fields:
+        ok &= np.asarray(states.fields["active"][first:f + 1][:, pick], bool)
+    elif active is not None:
+        ok &= np.asarray(active, bool)[pick][None]
+    step = np.linalg.norm(np.diff(path, axis=0), axis=2)  # (K - 1, M)
+    good = ok[1:] & ok[:-1]
+    if not good.any():
+        return None
+    typical = float(np.median(step[good])) if good.any() else 0.0
+    if typical > 0:
+        good &= step <= 10.0 * typical
+    seg, part = np.nonzero(good)
+    if seg.size == 0:
+        return None
+    points = path.reshape(-1, 3)
+    pairs = np.stack([seg * m + part, (seg + 1) * m + part], axis=1)
+    opacity = TRAIL_OPACITY * (seg + 1.0) / (k - 1.0)
+    return LineSet(points, pairs, np.array(TRAIL_COLOR), 1.2, opacity)
+
+
+def frame_options(drawables: "ModelDrawables | None", states, f: int, active=None, *, trails: int = 0) -> dict:
+    """Keyword arguments for `Renderer.frame` at frame ``f`` of a run: ``meshes``, ``lines``
+    (springs, and motion trails over the last ``trails`` frames in 3-D) and ``active`` (the
+    particles drawn as a surface switched off)."""
+    options = {"meshes": [], "lines": []}
+    if drawables is not None:
+        body_q = states.fields.get("body_q")
+        options = drawables.frame(states.positions[f], None if body_q is None else body_q[f])
+        hidden = drawables.hidden(states.particle_count)
+        if hidden is not None:
+            active = ~hidden if active is None else (np.asarray(active, bool) & ~hidden)
+    if trails and states.dim == 3:
+        trail = trail_lines(states, f, trails, active=active)
+        if trail is not None:
+            options["lines"] = [trail] + options["lines"]
+    options["active"] = active
+    return options

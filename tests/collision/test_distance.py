@@ -1,0 +1,66 @@
+"""distance / toi: the kind-set dispatch (``sdf_in``, ``lower_bound_in``, ``segment_toi_in``)
+gives the generic dispatch's bits for the kinds it holds and leaves the others out; the
+particle stage runs the kernels of its scene's kind set (``particle_kernels.kernels_for``)."""
+
+import numpy as np
+from numba import njit
+
+import inertia as ia
+from inertia.collision import distance as D
+from inertia.collision import particle_kernels as pk
+from inertia.collision import toi
+
+C = ia.colliders
+
+
+@njit
+def _sample(kinds, kind, cf, ci, pts, ends, out):
+    for i in range(pts.shape[0]):
+        x, y, z = pts[i, 0], pts[i, 1], pts[i, 2]
+        d, gx, gy, gz = D.sdf_in(kinds, kind, cf, 0, ci, 0, x, y, z)
+        lb = D.lower_bound_in(kinds, kind, cf, 0, ci, 0, x, y, z)
+        hit, sig, nx, ny, nz = toi.segment_toi_in(kinds, kind, cf, 0, ci, 0, x, y, z, ends[i, 0], ends[i, 1],
+                                                  ends[i, 2], 0.01, 1e-9, 32)
+        out[i, 0], out[i, 1], out[i, 2], out[i, 3], out[i, 4] = d, gx, gy, gz, lb
+        out[i, 5], out[i, 6], out[i, 7], out[i, 8], out[i, 9] = hit, sig, nx, ny, nz
+
+
+def _run(kinds, shape, pts, ends):
+    out = np.empty((len(pts), 10))
+    _sample(D.kinds_token(kinds), shape.kind, shape._cf, shape._ci, pts, ends, out)
+    return out
+
+
+def test_kind_set_dispatch_gives_the_generic_bits_and_drops_absent_kinds():
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-1.5, 1.5, (64, 3))
+    ends = pts + rng.normal(0.0, 0.5, (64, 3))
+    every = set(range(D.GRID + 1))  # the generic dispatch (``sdf`` is ``sdf_in(ALL_KINDS, ...)``)
+    shapes = [C.Plane(point=(0, 0, 0.1), normal=(0, 0.6, 0.8)), C.Sphere(center=(0.2, 0, 0), radius=0.5),
+              C.Box(center=(0, 0.1, 0), half_extents=(0.3, 0.4, 0.5)),
+              C.Container(center=(0, 0, 0), half_extents=(1.0, 1.2, 0.9))]
+    hits = 0
+    for shape in shapes:
+        want = _run(every, shape, pts, ends)
+        assert np.isfinite(want).all()
+        hits += int(want[:, 5].sum())
+        np.testing.assert_array_equal(_run({shape.kind}, shape, pts, ends), want)
+    assert hits > 20  # the segments do meet the shapes
+    # a kind outside the set is not compiled in: it reads as "no shape" (like CALLABLE)
+    got = _run({D.PLANE}, shapes[2], pts, ends)
+    assert np.all(got[:, 0] == D.BIG) and not got[:, 5].any()
+
+
+def test_stage_runs_the_kernels_of_its_kind_set():
+    ps = ia.ParticleSystem(np.array([[0.0, 0.0, 0.5]]), np.zeros((1, 3)), radius=0.05)
+    ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
+    ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.5)
+    bundle = pk.kernels_for(ps._collision.cint)
+    assert bundle is pk.kernels_for([D.PLANE, D.CONTAINER]) and bundle.kinds == pk.LIGHT_KINDS
+    assert repr(bundle) == "ParticleKernels(plane, sphere, container)"
+    assert pk.kernels_for([D.PLANE, D.BOX]).kinds == pk.ALL_KINDS
+    ia.Simulation(ps, integrator="rk4", dt=1 / 240).run(0.5)
+    # the light token: only the plane, sphere and container entries are compiled in
+    tokens = [[str(t) for t in sig[-1].types] for sig in bundle.step_and_collide.dispatched.serial.signatures]
+    assert ["bool", "bool", "none", "none", "none", "bool", "none"] in tokens
+    assert ps.x[0, 2] >= 0.05 - 1e-6
