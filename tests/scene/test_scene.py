@@ -21,7 +21,7 @@ def test_examples_are_bundled():
 @pytest.mark.parametrize("path", EXAMPLES, ids=lambda p: p.stem)
 def test_every_example_builds(path):
     world = load_scene(path)
-    assert (world.particle_count > 0 or world.rigid_scene is not None) and world.duration > 0
+    assert (world.particle_count > 0 or world.rigid_scene is not None or world.fluids) and world.duration > 0
     assert read_scene(path).model.description
 
 

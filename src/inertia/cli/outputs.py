@@ -95,8 +95,11 @@ def _group_colors(states, renderer):
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
     from inertia.render.drawables import ModelDrawables, frame_options
+    from inertia.render.fluid_particles import fluid_legend, frame_grids, paint_grids, with_fluid_particles
 
+    states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
+    frame_grids(renderer, states)  # 2-D grid fluids: framed when there is no particle, painted below
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:
@@ -105,6 +108,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
     groups = states.groups()
     radius = states.radius()
     legend = _legend(states, renderer, render)
+    legend = fluid_legend(states, renderer, render) if legend is None else legend
     indices = range(states.frame_count) if frames is None else frames
     for f in indices:
         image = renderer.frame(
@@ -112,6 +116,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             velocities=None if states.velocities is None else states.velocities[f],
             colors=colors, groups=groups, colliders=draw, t=float(states.times[f]),
             **frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0))))
+        paint_grids(image, states, f, renderer)
         if legend is not None:
             from inertia.render.legend import overlay
 

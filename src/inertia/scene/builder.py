@@ -27,6 +27,7 @@ from ..particles.tracers import Tracers
 from ..world import World, fingerprint
 from . import models as M
 from .errors import Issue, SceneError, did_you_mean
+from .fluids import add_grid_fluids, add_sph_fluids
 
 __all__ = ["build_world", "derive_seed", "scene_fingerprint", "build_colliders"]
 
@@ -674,6 +675,8 @@ class _Builder:
             self.particle_group(world, i, group, names)
         for i, group in enumerate(m.tracers):
             self.tracer_group(world, i, group, names[len(m.particles) + i])
+        add_sph_fluids(self, world)
+        add_grid_fluids(self, world)
         return world
 
 

@@ -34,6 +34,7 @@ from typing import Annotated, Any, Literal, Union
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from ..ode.integrators import available as _available_integrators
+from .fluids import GridFluidTable, SPHTable
 from .rigid_models import Body, Material, Rigid, Vehicle
 
 __all__ = [
@@ -675,6 +676,8 @@ class SceneModel(_Model):
     bodies: dict[str, Body] = Field(default_factory=dict, description="rigid bodies (inertia.scene.rigid_models)")
     rigid: Rigid = Field(default_factory=Rigid, description="rigid-body solver options")
     vehicles: dict[str, Vehicle] = Field(default_factory=dict, description="ray-cast vehicles on bodies")
+    sph: dict[str, SPHTable] = Field(default_factory=dict, description="SPH fluids (inertia.fluids.sph.scene)")
+    fluids: dict[str, GridFluidTable] = Field(default_factory=dict, description="grid fluids (inertia.fluids.grid.scene)")
 
     @model_validator(mode="before")
     @classmethod
@@ -697,6 +700,7 @@ class SceneModel(_Model):
 
     @model_validator(mode="after")
     def _names(self):
-        if not self.particles and not self.tracers and not self.bodies:
-            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group or [bodies.NAME] table")
+        if not self.particles and not self.tracers and not self.bodies and not self.sph and not self.fluids:
+            raise ValueError("a scene needs at least one [[particles]] or [[tracers]] group, [bodies.NAME] table "
+                             "or fluid ([sph.NAME], [fluids.NAME])")
         return self

@@ -213,6 +213,19 @@ def estimate_resources(model: M.SceneModel) -> ResourceEstimate:
         key = f"bodies.{name}" + (".array.count" if body.array is not None else ".pyramid.base" if body.pyramid is not None else "")
         est.memory += n * BYTES_PER_BODY
         est.items[key] = (n * BYTES_PER_BODY, f"{n:,} rigid bodies")
+    for name, table in model.sph.items():
+        from .fluids import sph_memory
+
+        n, cost = sph_memory(table)
+        est.memory += cost
+        est.particles += n
+        est.items[f"sph.{name}.spacing"] = (cost, f"an SPH fluid of {n:,} particles")
+    for name, table in model.fluids.items():
+        from .fluids import grid_memory
+
+        cells, cost = grid_memory(table)
+        est.memory += cost
+        est.items[f"fluids.{name}.shape"] = (cost, f"a fluid grid of {cells:,} cells")
     est.groups = len(model.particles) + len(model.tracers)
     est.duration, est.substeps = sim.duration, sim.substeps
     est.steps = math.ceil(sim.duration / sim.dt - 1e-9) * float(sim.substeps)

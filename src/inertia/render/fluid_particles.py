@@ -1,0 +1,207 @@
+"""SPH fluids in rendered runs: the fluid's particles drawn beside the particle groups, coloured
+by speed, with a colour bar.
+
+A run records each particle fluid's ``frame_arrays()`` as fields ``fluid/<name>/x`` (F, C, D),
+``fluid/<name>/v`` (F, C, D) and ``fluid/<name>/active`` (F, C) (C: the fluid's capacity) and its
+``spacing`` in ``States.model`` (see `inertia.world.Run`). ``with_fluid_particles(states)`` returns
+a `States` whose particles are the groups' followed by every fluid's, so the existing renderer
+draws them unchanged:
+
+- positions / velocities (F, N + sum C, D): the groups' (velocities zero when not recorded),
+  then each fluid's; the ``active`` field masks the fluid's dead rows;
+- radius: the groups' radii, and half the lattice spacing for fluid particles (they touch at rest);
+- the per-particle ``group`` index is dropped, so ``color_by = "auto"`` colours every particle by
+  speed on one scale for the whole run (`inertia.render.colormaps.run_speed_max`).
+
+``speed_colorbar(vmax)`` draws the colour bar (matplotlib's Agg canvas) laid over every frame with
+`inertia.render.legend.overlay`.
+
+Recorded 2-D grid fluids (``fluid/<name>/speed`` (F, nx, ny) with ``origin``, ``cell_size`` in
+``States.model``) are painted as colour maps under the particles: ``density`` in "magma" when
+recorded (smoke), else ``speed`` in the speed map, each on one scale for the whole run (the maps of
+`inertia.render.fluid_grid`); ``frame_grids`` frames the camera on them when there is no particle.
+
+Limitations: grid colour maps are pasted over the frame's background (nearest cell per pixel,
+2-D orthographic cameras only) before nothing else is drawn: particles of the same frame are not
+drawn over them (a fluid-only scene shows the grid alone); 3-D grids are not drawn. When the groups and the fluid differ in dimension (a 3-D group with a 2-D fluid)
+the fluid is not drawn; fluids are spheres/discs (no liquid surface: that is
+`inertia.fluids.sph.surface` through marching cubes, not wired into `inertia run` yet); grid
+fluids (no ``x``) are left to `inertia.render.fluid_grid`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.states import States
+
+__all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
+           "frame_grids", "paint_grids"]
+
+
+def particle_fluids(states) -> list[str]:
+    """Names of the particle fluids a run recorded (those with ``fluid/<name>/x`` frames)."""
+    names = []
+    for key in states.fields:
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == "fluid" and parts[2] == "x" and f"fluid/{parts[1]}/v" in states.fields:
+            names.append(parts[1])
+    return names
+
+
+def with_fluid_particles(states) -> States:
+    """``states`` with every particle fluid's particles appended (see the module docstring);
+    ``states`` itself when there is none to draw."""
+    names = particle_fluids(states)
+    frames, n = states.frame_count, states.particle_count
+    dims = {states.fields[f"fluid/{name}/x"].shape[2] for name in names}
+    if not names and n == 0 and states.dim != 2 and grid_fluids(states):
+        # a run of 2-D grid fluids alone: a 2-D view (worlds without groups record 3-D positions)
+        return States(states.times, np.zeros((frames, 0, 2)), np.zeros((frames, 0, 2)), dict(states.fields),
+                      {}, dict(states.metadata, dim=2), states.model)
+    if not names or len(dims) != 1 or (n > 0 and dims != {states.dim}):
+        return states
+    dim = dims.pop()
+    pos = [np.asarray(states.positions, np.float64)[:, :, :dim] if n == 0 else np.asarray(states.positions, np.float64)]
+    vel = [np.zeros((frames, n, dim)) if states.velocities is None or n == 0 else
+           np.asarray(states.velocities, np.float64)]
+    active = [np.ones((frames, n), bool) if states.active(0) is None else
+              np.broadcast_to(np.asarray([states.active(f) for f in range(frames)], bool), (frames, n))]
+    base_radius = states.radius()
+    radius = [np.zeros(n) if base_radius is None else np.broadcast_to(np.asarray(base_radius, np.float64), (n,))]
+    for name in names:
+        x = np.asarray(states.fields[f"fluid/{name}/x"], np.float64)
+        cap = x.shape[1]
+        pos.append(x)
+        vel.append(np.asarray(states.fields[f"fluid/{name}/v"], np.float64))
+        alive = states.fields.get(f"fluid/{name}/active")
+        active.append(np.ones((frames, cap), bool) if alive is None else np.asarray(alive, bool))
+        spacing = states.model.get(f"fluid/{name}/spacing")
+        radius.append(np.full(cap, 0.0 if spacing is None else 0.5 * float(np.ravel(spacing)[0])))
+    total = sum(p.shape[1] for p in pos)
+    fields = dict(states.fields)
+    fields["active"] = np.concatenate(active, axis=1)
+    static = {"radius": np.concatenate(radius)}
+    if "radius" in fields:  # per-frame radii of the groups, then the fluids' constant ones
+        fields["radius"] = np.concatenate([np.asarray(fields["radius"], np.float64)[:, :n],
+                                           np.broadcast_to(static["radius"][n:], (frames, total - n))], axis=1)
+    metadata = dict(states.metadata, dim=dim, particle_count=total)
+    return States(states.times, np.concatenate(pos, axis=1), np.concatenate(vel, axis=1), fields, static, metadata,
+                  states.model)
+
+
+def speed_colorbar(vmax: float, *, frame_height: int = 540, theme: str = "dark", cmap: str | None = None) -> np.ndarray:
+    """RGBA image (h, w, 4) uint8 of a horizontal colour bar from 0 to ``vmax`` [m/s] in the
+    renderer's speed colour map, labelled "speed (m/s)", to lay over frames."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import ListedColormap
+    from matplotlib.figure import Figure
+
+    from .colormaps import DEFAULT_SPEED_MAP, colormap
+
+    if not np.isfinite(vmax) or vmax <= 0:
+        raise ValueError(f"speed_colorbar: vmax must be a finite speed > 0 (m/s); got {vmax!r}")
+    table = colormap(cmap or DEFAULT_SPEED_MAP, np.linspace(0.0, 1.0, 256), vmin=0.0, vmax=1.0)
+    dpi = 100.0 * max(frame_height, 120) / 540.0
+    text = "#e6e8ec" if theme == "dark" else "#24262b"
+    fig = Figure(figsize=(2.2, 0.62), dpi=dpi)
+    fig.patch.set_alpha(0.0)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.08, 0.55, 0.84, 0.2))
+    ax.imshow(np.linspace(0.0, 1.0, 256)[None, :], aspect="auto", cmap=ListedColormap(np.asarray(table)[:, :3]),
+              extent=(0.0, vmax, 0.0, 1.0))
+    ax.set_yticks([])
+    ax.set_xticks([0.0, vmax])
+    ax.set_xticklabels(["0", f"{vmax:.3g}"], color=text, fontsize=8)
+    ax.tick_params(colors=text, length=2, pad=1)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+    ax.set_title("speed (m/s)", color=text, fontsize=8, pad=2)
+    canvas.draw()
+    image = np.asarray(canvas.buffer_rgba(), dtype=np.uint8).copy()
+    rows = np.flatnonzero(image[..., 3].max(axis=1) > 0)
+    cols = np.flatnonzero(image[..., 3].max(axis=0) > 0)
+    if rows.size and cols.size:
+        image = image[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+    return np.ascontiguousarray(image)
+
+
+def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | None:
+    """The speed colour bar when ``states`` holds fluid particles and the renderer colours by speed."""
+    from .colormaps import resolve_color_mode
+
+    if not particle_fluids(states) or states.velocities is None or renderer.speed_max is None:
+        return None
+    if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) != "speed":
+        return None
+    try:
+        return speed_colorbar(float(renderer.speed_max), frame_height=renderer.height,
+                              theme=(render or {}).get("theme", "dark"), cmap=renderer.colormap)
+    except ImportError:  # pragma: no cover - matplotlib is in the [cli] extra
+        return None
+
+
+def grid_fluids(states) -> list[tuple[str, str]]:
+    """(name, quantity) of the recorded 2-D grid fluids: ``density`` when recorded, else ``speed``."""
+    out = []
+    for key, value in states.fields.items():
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == "fluid" and parts[2] == "speed" and np.ndim(value) == 3 \
+                and f"fluid/{parts[1]}/origin" in states.model and f"fluid/{parts[1]}/cell_size" in states.model:
+            quantity = "density" if f"fluid/{parts[1]}/density" in states.fields else "speed"
+            out.append((parts[1], quantity))
+    return out
+
+
+def _extent(states, name):
+    origin = np.asarray(states.model[f"fluid/{name}/origin"], np.float64).ravel()[:2]
+    shape = np.asarray(states.fields[f"fluid/{name}/speed"].shape[1:3], np.float64)
+    return origin, origin + shape * float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+
+
+def frame_grids(renderer, states) -> None:
+    """A 2-D orthographic camera on the grids when the run has grids and no particle to frame."""
+    from .camera import Camera
+
+    grids = grid_fluids(states)
+    if not grids or renderer.dim != 2 or states.particle_count > 0:
+        return
+    lo = np.min([_extent(states, n)[0] for n, _ in grids], axis=0)
+    hi = np.max([_extent(states, n)[1] for n, _ in grids], axis=0)
+    aspect = renderer.width / renderer.height
+    height = 1.1 * max(hi[1] - lo[1], (hi[0] - lo[0]) / aspect)
+    renderer.camera = Camera.plane_2d(0.5 * (lo + hi), height)
+
+
+def paint_grids(image, states, frame: int, renderer, scales: dict | None = None) -> np.ndarray:
+    """Paint every recorded 2-D grid fluid of ``frame`` into ``image`` (H, W, 3) uint8 in place
+    (nearest cell per pixel inside the grid's rectangle); ``scales``: name -> colour-map maximum
+    (default: the run's 99th percentile)."""
+    from .colormaps import colormap
+
+    if renderer.dim != 2 or renderer.camera is None:
+        return image
+    h, w = image.shape[:2]
+    for name, quantity in grid_fluids(states):
+        data = np.asarray(states.fields[f"fluid/{name}/{quantity}"])
+        vmax = (scales or {}).get(name)
+        if vmax is None:
+            finite = data[:: max(1, data.shape[0] // 50)]
+            vmax = float(np.percentile(finite[np.isfinite(finite)], 99.0)) if np.isfinite(finite).any() else 1.0
+            vmax = vmax if vmax > 0 else 1.0
+        lo, hi = _extent(states, name)
+        px, py, _ = renderer.camera.project(np.array([lo, hi]), w, h)
+        x0, x1 = int(np.clip(np.ceil(min(px)), 0, w)), int(np.clip(np.floor(max(px)), 0, w))
+        y0, y1 = int(np.clip(np.ceil(min(py)), 0, h)), int(np.clip(np.floor(max(py)), 0, h))
+        if x1 <= x0 or y1 <= y0:
+            continue
+        nx, ny = data.shape[1:3]
+        ci = np.clip(((np.arange(x0, x1) + 0.5 - min(px)) / (max(px) - min(px)) * nx).astype(int), 0, nx - 1)
+        cj = np.clip(((max(py) - np.arange(y0, y1) - 0.5) / (max(py) - min(py)) * ny).astype(int), 0, ny - 1)
+        values = data[frame][ci[None, :], cj[:, None]]
+        rgb = colormap("magma" if quantity == "density" else "speed", values, vmin=0.0, vmax=vmax)
+        image[y0:y1, x0:x1] = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
+    return image
