@@ -8,6 +8,8 @@ stay small; the references are Archimedes' principle and the shape's signed dist
 import numpy as np
 import pytest
 
+from inertia.dynamics.particle_coupling import apply_body_impulses
+
 from inertia.fluids.sph import SPHFluid, sample_block
 from inertia.fluids.sph import coupling
 from inertia.geometry import shapes as S
@@ -33,6 +35,7 @@ def test_shape_signed_distances_against_closed_forms():
 
 
 def test_apply_body_impulses_closed_form():
+    # the one helper every coupled system uses (inertia.dynamics.particle_coupling):
     # dv = J / m and dw = I^-1 L for a box of mass m = rho V and I_zz = m (a^2 + b^2) / 12.
     b = ModelBuilder(gravity=(0, 0, 0))
     body = b.add_body(position=(0, 0, 1))
@@ -43,8 +46,8 @@ def test_apply_body_impulses_closed_form():
     state = model.state()
     m = 500.0 * 0.2 * 0.4 * 0.6
     izz = m * (0.2 ** 2 + 0.4 ** 2) / 12
-    coupling.apply_body_impulses(model, state, np.array([[1.0, 0, 0], [5.0, 0, 0]]),
-                                 np.array([[0, 0, 2.0], [0, 0, 3.0]]))
+    apply_body_impulses(model, state, np.array([[1.0, 0, 0], [5.0, 0, 0]]),
+                        np.array([[0, 0, 2.0], [0, 0, 3.0]]))
     assert np.allclose(state.body_qd[0], [0, 0, 2.0 / izz, 1.0 / m, 0, 0])
     assert np.all(state.body_qd[1] == 0.0)
 

@@ -14,7 +14,8 @@ shape and stored in the body frame (centre of mass, principal axes); static shap
 static body) on the fluid's world lattice. ``SPHFluid.advance(dt, rigid)`` poses the bands from
 ``rigid.state.body_q/body_qd``, runs fluid steps that cover dt, and pushes the bodies back with the
 impulse sum_steps F dt (linear) and sum_steps T dt (angular, about the centre of mass) written into
-``body_qd`` (``apply_body_impulses``: dv = J / m, dw = I_world^-1 L; dynamic bodies only).
+``body_qd`` (``inertia.dynamics.particle_coupling.apply_body_impulses``: dv = J / m, dw = I_world^-1 L;
+dynamic bodies only).
 
 Limitations
 - 3-D fluids only (the Model is 3-D); a 2-D scene is a thin 3-D fluid periodic across its depth.
@@ -33,7 +34,7 @@ import numpy as np
 
 from ...geometry import shapes as S
 
-__all__ = ["shape_signed_distance", "sample_model", "apply_body_impulses", "quat_to_matrices"]
+__all__ = ["shape_signed_distance", "sample_model", "quat_to_matrices"]
 
 SAMPLED_TYPES = (S.SPHERE, S.BOX, S.CAPSULE, S.CYLINDER, S.CONVEX_HULL, S.PLANE)
 
@@ -169,19 +170,3 @@ def _compose(a, b):
     out[3:7] = (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
                 w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
     return out
-
-
-def apply_body_impulses(model, state, linear_impulse, angular_impulse_about_com, wake_threshold=0.0):
-    """Velocity change of dynamic bodies from impulses (B, 3): dv = J / m, dw = I_world^-1 L with
-    I_world^-1 = R diag(1 / I_principal) R^T (static and kinematic bodies have zero inverse mass and
-    inertia, so they are unchanged). Bodies whose impulse exceeds ``wake_threshold`` [N s] are woken.
-    (A stand-in for core-world's ``inertia.dynamics.particle_coupling.apply_body_impulses``.)"""
-    inv_m = np.asarray(model.body_inv_mass, float)
-    inv_i = np.asarray(model.body_inv_inertia, float)
-    rot = quat_to_matrices(state.body_q[:, 3:7])
-    local = np.einsum("bji,bj->bi", rot, angular_impulse_about_com) * inv_i
-    state.body_qd[:, 0:3] += np.einsum("bij,bj->bi", rot, local)
-    state.body_qd[:, 3:6] += linear_impulse * inv_m[:, None]
-    hit = (inv_m > 0) & (np.abs(linear_impulse).max(axis=1) > wake_threshold)
-    state.body_awake[hit] = True
-    state.body_sleep_time[hit] = 0.0

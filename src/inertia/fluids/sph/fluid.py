@@ -74,6 +74,7 @@ import numpy as np
 
 from ... import _validate
 from ...collision import broadphase as _bp
+from ...dynamics.particle_coupling import apply_body_impulses
 from ...errors import SimulationDiverged
 from . import kernels as _k
 from . import neighbours as _nb
@@ -499,7 +500,7 @@ class SPHFluid:
         """The World protocol: advance the fluid by ``dt`` [s] in fluid steps no longer than its
         own limit (adaptive or fixed dt), coupled with ``rigid`` (a RigidWorld or None): the bands
         follow ``rigid.state.body_q/body_qd`` and the fluid's impulse on every dynamic body over dt
-        is written into ``body_qd`` (``coupling.apply_body_impulses``). Returns the number of
+        is written into ``body_qd`` (``dynamics.particle_coupling.apply_body_impulses``). Returns the number of
         fluid steps taken; ``body_force`` / ``body_torque`` then hold the mean force [N] and
         torque [N m] over dt."""
         from . import coupling
@@ -529,7 +530,7 @@ class SPHFluid:
             self.body_force[:] = impulse / dt
             self.body_torque[:] = angular / dt
             if rigid is not None:
-                coupling.apply_body_impulses(rigid.model, rigid.state, impulse, angular)
+                apply_body_impulses(rigid.model, rigid.state, impulse, angular)
         return steps
 
     # ------------------------------------------------------------------ World protocol: state
