@@ -120,13 +120,9 @@ def speed_colorbar(vmax: float, *, frame_height: int = 540, theme: str = "dark",
     for spine in ax.spines.values():
         spine.set_visible(False)
     ax.set_title("speed (m/s)", color=text, fontsize=8, pad=2)
-    canvas.draw()
-    image = np.asarray(canvas.buffer_rgba(), dtype=np.uint8).copy()
-    rows = np.flatnonzero(image[..., 3].max(axis=1) > 0)
-    cols = np.flatnonzero(image[..., 3].max(axis=0) > 0)
-    if rows.size and cols.size:
-        image = image[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
-    return np.ascontiguousarray(image)
+    from .legend import cropped_canvas
+
+    return cropped_canvas(canvas)
 
 
 def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | None:

@@ -46,9 +46,14 @@ def legend_image(labels: Sequence[str], colors, *, frame_height: int = 540, them
                         handletextpad=0.4, borderpad=0.5, labelspacing=0.35, fancybox=True)
     legend.get_frame().set_facecolor(face)
     legend.get_frame().set_edgecolor("none")
+    return cropped_canvas(canvas)
+
+
+def cropped_canvas(canvas) -> np.ndarray:
+    """Draw a matplotlib Agg canvas with a transparent background and return its RGBA pixels
+    (H, W, 4) uint8, cropped to what was drawn (legends, colour bars)."""
     canvas.draw()
     image = np.asarray(canvas.buffer_rgba(), dtype=np.uint8).copy()
-    # Crop to the drawn box.
     rows = np.flatnonzero(image[..., 3].max(axis=1) > 0)
     cols = np.flatnonzero(image[..., 3].max(axis=0) > 0)
     if rows.size and cols.size:

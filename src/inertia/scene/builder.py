@@ -26,7 +26,7 @@ from ..particles.system import ParticleSystem
 from ..particles.tracers import Tracers
 from ..world import World, fingerprint
 from . import models as M
-from .errors import Issue, SceneError, did_you_mean
+from .errors import Issue, SceneError, did_you_mean, read_mesh_file
 from .fluids import add_grid_fluids, add_sph_fluids
 
 __all__ = ["build_world", "derive_seed", "scene_fingerprint", "build_colliders"]
@@ -422,18 +422,10 @@ class _Builder:
         file = self.file(spec.file, f"{path}.file")
         source = str(file)
         if spec.scale != 1.0 or spec.translation is not None:
-            try:
-                import trimesh
-            except ImportError:
-                self.fail(path, "mesh files need trimesh: pip install inertia[mesh]")
-            try:
-                mesh = trimesh.load(str(file), force="mesh")
-            except Exception as exc:  # noqa: BLE001
-                self.fail(f"{path}.file", f"cannot read {file} as a mesh: {exc}")
-            vertices = np.asarray(mesh.vertices, dtype=np.float64) * spec.scale
+            vertices, faces = read_mesh_file(file, path, self.fail, spec.scale)
             if spec.translation is not None:
                 vertices = vertices + self.vec(spec.translation, f"{path}.translation")
-            source = (vertices, np.asarray(mesh.faces, dtype=np.int64))
+            source = (vertices, faces)
         kwargs = dict(resolution=spec.resolution, signed=spec.signed, thickness=spec.thickness)
         if spec.motion is not None:
             kwargs["motion"] = self._motion(spec.motion, f"{path}.motion", np.zeros(3))

@@ -20,6 +20,7 @@ import typing
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
 from pydantic import BaseModel, ValidationError
 
 __all__ = ["SceneError", "Issue", "format_path", "did_you_mean", "from_validation_error"]
@@ -255,3 +256,17 @@ def from_validation_error(error: ValidationError, root, source) -> SceneError:
         else:
             issues.extend(Issue(path, m) for m in messages)
     return SceneError(source, issues)
+
+
+def read_mesh_file(file, path: str, fail, scale: float = 1.0):
+    """(vertices (V, 3) float64 scaled by ``scale``, faces (F, 3) int64) of a mesh file read with
+    trimesh; ``fail(key_path, message)`` reports a missing extra or an unreadable file."""
+    try:
+        import trimesh
+    except ImportError:
+        fail(path, "mesh files need trimesh: pip install inertia[mesh]")
+    try:
+        mesh = trimesh.load(str(file), force="mesh")
+    except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds
+        fail(f"{path}.file", f"cannot read {file} as a mesh: {exc}")
+    return np.asarray(mesh.vertices, dtype=np.float64) * scale, np.asarray(mesh.faces, dtype=np.int64)

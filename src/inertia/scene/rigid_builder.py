@@ -20,7 +20,7 @@ import numpy as np
 
 from ..geometry import shapes as S
 from . import rigid_models as R
-from .errors import Issue, SceneError, did_you_mean
+from .errors import Issue, SceneError, did_you_mean, read_mesh_file
 
 __all__ = ["RigidScene", "VehicleController", "build_rigid", "rigid_world", "step_scene", "body_copies"]
 
@@ -264,15 +264,7 @@ class _RigidBuilder:
             v = np.asarray(spec.vertices, dtype=np.float64) * spec.scale
             return v, np.asarray(spec.triangles, dtype=np.int64)
         file = self.file(spec.file, f"{path}.file")
-        try:
-            import trimesh
-        except ImportError:
-            self.fail(path, "mesh files need trimesh: pip install inertia[mesh]")
-        try:
-            mesh = trimesh.load(str(file), force="mesh")
-        except Exception as exc:  # noqa: BLE001
-            self.fail(f"{path}.file", f"cannot read {file} as a mesh: {exc}")
-        return np.asarray(mesh.vertices, dtype=np.float64) * spec.scale, np.asarray(mesh.faces, dtype=np.int64)
+        return read_mesh_file(file, path, self.fail, spec.scale)
 
 
 def _rotate(q, v):
