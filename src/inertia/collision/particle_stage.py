@@ -104,8 +104,10 @@ Limitations
   radius per step can pass through each other.
 - A particle rests on one collider at a time (the force filter uses that normal); in corners
   the other walls act through the end-of-step projection.
-- Unbaked ``SDF`` colliders are handled in NumPy after the compiled pass (one impact per step,
-  no resting-contact filter, temporary arrays each step); bake them for full treatment.
+- Unbaked ``SDF`` colliders are handled in NumPy after the compiled pass with the kernels'
+  parabolic path and response (``_collide_callables``), but one impact per collider per step,
+  no resting-contact filter (a resting particle is projected back each step) and temporary
+  arrays each step; bake them for full treatment.
 - The pair solver is iterative: piles of thousands settle over a few tenths of a second and
   keep compacting slowly (particles creeping into gaps at cm/s); supported contacts do not
   conserve momentum (the ground takes it), free pairs do.
