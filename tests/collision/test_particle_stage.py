@@ -183,3 +183,95 @@ def test_fused_collision_pass_is_deterministic_at_1_and_2_threads(monkeypatch):
     finally:
         numba.set_num_threads(before)
     assert set(hashes) == {FUSED_GOLDEN}
+
+
+# --- issue 8: the NumPy path of unbaked SDF colliders matches the compiled kernels ---------------
+# Closed forms (gravity g, restitution e, drop height h0): apex after bounce n: e^(2n) h0; time to
+# rest: sqrt(2 h0 / g) (1 + e) / (1 - e). Before the fix the unbaked path used the straight path,
+# kept the velocity gained inside (a posteriori) and never rested for e = 0.9.
+from .conftest import G, particles  # noqa: E402
+
+
+def _floor_sdf(points):
+    return points[:, 2]
+
+
+def _floor_gradient(points):
+    return np.tile([0.0, 0.0, 1.0], (points.shape[0], 1))
+
+
+def _sdf_drop(h0, e, dt, mode, integrator="rk4", vz=0.0, compiled=False):
+    ps = particles([[0.0, 0.0, h0]], [[0.0, 0.0, vz]])
+    floor = C.Plane() if compiled else C.SDF(_floor_sdf, gradient=_floor_gradient)
+    ps.add_collider(floor, restitution=e)
+    ps.collision_mode = mode
+    return ps, ia.Simulation(ps, integrator=integrator, dt=dt)
+
+
+def _last_moving(ps, sim, t_end):
+    last = 0.0
+    while sim.t < t_end:
+        z_before = ps.x[0, 2]
+        sim.step()
+        if abs(ps.x[0, 2] - z_before) > 1e-12 or ps.v[0, 2] != 0.0:
+            last = sim.t
+    return last
+
+
+@pytest.mark.parametrize("mode", ["a_priori", "a_posteriori"])
+@pytest.mark.parametrize("e", [0.5, 0.6, 0.7, 0.8, 0.9])
+def test_unbaked_sdf_ball_rests_at_the_geometric_series_time(one_thread, e, mode):
+    h0, dt = 1.0, 1 / 600
+    t_rest = np.sqrt(2 * h0 / G) * (1 + e) / (1 - e)
+    ps, sim = _sdf_drop(h0, e, dt, mode)
+    assert _last_moving(ps, sim, 1.25 * t_rest) == pytest.approx(t_rest, rel=0.05)
+    assert ps.v[0, 2] == 0.0 and abs(ps.x[0, 2]) <= 1e-6
+
+
+@pytest.mark.parametrize("integrator", ["rk4", "semi_implicit_euler"])
+def test_unbaked_sdf_apex_heights(one_thread, integrator):
+    # the velocity lag of symplectic Euler is handed on as in the kernels, so both methods give
+    # the exact apexes up to sampling at steps (<= g dt^2 / 8 = 3.4e-6 m, 2e-5 of the 8th apex);
+    # the issue asks 2 %, we hold 0.1 %. Before the fix: +4 % (rk4) and -4 % (symplectic Euler)
+    # by the 8th apex
+    h0, e, dt = 1.0, 0.9, 1 / 600
+    ps, sim = _sdf_drop(h0, e, dt, "a_priori", integrator)
+    apexes, z_prev, rising = [], ps.x[0, 2], False
+    for _ in range(12 * 600):
+        sim.step()
+        z = ps.x[0, 2]
+        if rising and z < z_prev:
+            apexes.append(z_prev)
+            if len(apexes) == 8:
+                break
+        rising, z_prev = z > z_prev, z
+    np.testing.assert_allclose(apexes, h0 * e ** (2 * np.arange(1, 9)), rtol=1e-3)
+
+
+def test_unbaked_sdf_bounce_keeps_gravity_and_matches_the_compiled_plane():
+    # issue 8 reproducer: in 0.0346 m/s (above the resting threshold 2 g dt), out e times that
+    # (below it); the exact step: impact at t*, then e v_in up for dt - t* under gravity
+    z0, v0, e, dt = 2.3076e-5, -0.027334, 0.9, 1 / 600
+    t_star = (v0 + np.sqrt(v0 * v0 + 2 * G * z0)) / G
+    v_in, rem = -v0 + G * t_star, dt - t_star
+    energy0 = 0.5 * v0 * v0 + G * z0
+    finals = []
+    for compiled in (False, True):
+        ps, sim = _sdf_drop(z0, e, dt, "a_priori", vz=v0, compiled=compiled)
+        sim.step()
+        assert ps.v[0, 2] == pytest.approx(e * v_in - G * rem, rel=1e-9)  # 0.02213
+        energy1 = 0.5 * ps.v[0, 2] ** 2 + G * ps.x[0, 2]
+        assert energy1 == pytest.approx(0.5 * (e * v_in) ** 2, rel=1e-9) and energy1 < energy0
+        finals.append(ps.state.copy())
+    np.testing.assert_allclose(finals[0], finals[1], rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("mode", ["a_priori", "a_posteriori"])
+def test_unbaked_sdf_trajectory_agrees_with_the_compiled_plane(one_thread, mode):
+    h0, e, dt = 1.0, 0.8, 1 / 600
+    runs = [_sdf_drop(h0, e, dt, mode, compiled=c) for c in (False, True)]
+    for _ in range(1200):
+        for ps, sim in runs:
+            sim.step()
+        np.testing.assert_allclose(runs[0][0].x[0, 2], runs[1][0].x[0, 2], atol=1e-9)
+    np.testing.assert_allclose(runs[0][0].v, runs[1][0].v, atol=1e-7)

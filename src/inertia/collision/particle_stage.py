@@ -104,8 +104,10 @@ Limitations
   radius per step can pass through each other.
 - A particle rests on one collider at a time (the force filter uses that normal); in corners
   the other walls act through the end-of-step projection.
-- Unbaked ``SDF`` colliders are handled in NumPy after the compiled pass (one impact per step,
-  no resting-contact filter, temporary arrays each step); bake them for full treatment.
+- Unbaked ``SDF`` colliders are handled in NumPy after the compiled pass with the kernels'
+  parabolic path and response (``_collide_callables``), but one impact per collider per step,
+  no resting-contact filter (a resting particle is projected back each step) and temporary
+  arrays each step; bake them for full treatment.
 - The pair solver is iterative: piles of thousands settle over a few tenths of a second and
   keep compacting slowly (particles creeping into gaps at cm/s); supported contacts do not
   conserve momentum (the ground takes it), free pairs do.
@@ -653,6 +655,37 @@ class ParticleCollisionStage:
 
 
 # --- NumPy path for unbaked SDF colliders ------------------------------------------------------
+# The same response as the compiled kernels (``particle_kernels._full_path``), vectorised over the
+# particles: the step's path is the parabola through the integrator's start and end points
+# (p(t) = s + w t + a t^2 / 2, a = (v1 - v0) / h the step's average acceleration), the impact time
+# is a fraction of the step on that path (``toi.path_fraction``), a real bounce leaves under
+# gravity, a slow one is held (the acceleration into the surface and the integrator's lag along
+# the normal are cancelled for the rest of the step), and the a-posteriori projection drops the
+# velocity gained inside. Limitations: one impact per callable collider per step (the end
+# projection catches the rest); the path starts from the step's start even when a compiled
+# collider changed the particle earlier in the same step.
+def _np_path_fraction(chord_in, accel_in, sigma):
+    """Vectorised ``toi.path_fraction`` over (M,) arrays."""
+    qa, qb, qc = accel_in, chord_in - accel_in, -chord_in * sigma
+    straight = (chord_in >= 0.0) | (np.abs(qa) <= 1e-12 * np.abs(chord_in))
+    disc = np.sqrt(np.maximum(qb * qb - 4.0 * qa * qc, 0.0))
+    q = -0.5 * (qb + np.copysign(disc, qb))
+    safe_qa = np.where(straight, 1.0, qa)
+    r1 = q / safe_qa
+    r2 = np.divide(qc, q, out=r1.copy(), where=q != 0.0)
+    lo, hi = np.minimum(r1, r2), np.maximum(r1, r2)
+    eps = 1e-12
+    departing = (qc == 0.0) & (qb > 0.0)
+    take_lo = (lo >= -eps) & (lo <= 1.0 + eps) & ~(departing & (lo <= eps))
+    take_hi = (hi >= -eps) & (hi <= 1.0 + eps)
+    tau = np.where(take_lo, np.clip(lo, 0.0, 1.0), np.where(take_hi, np.clip(hi, 0.0, 1.0), sigma))
+    return np.where(straight, sigma, tau)
+
+
+def _rowdot(a, b):
+    return (a * b).sum(1)
+
+
 def _collide_callables(d, system, t, dt):
     x, v = system.x, system.v
     dim = x.shape[1]
@@ -662,75 +695,157 @@ def _collide_callables(d, system, t, dt):
     changed = np.zeros(idx.size, bool)
     tol = d.distance_tolerance
     r = system.radius[idx]
+    # the integrator's step: start (s, sv), end (e, ev), average acceleration, path slope, lag
+    ex, ev = x[idx], v[idx]
+    started = d.active0[idx][:, None]
+    sx = np.where(started, d.x0[idx], ex)
+    sv = np.where(started, d.v0[idx], ev)
+    acc = (ev - sv) / dt
+    lag = np.where(started, sv - ((ex - sx) / dt - 0.5 * acc * dt), 0.0)
+    ws = sv - lag              # the path's velocity at the segment start
+    pv = ev - lag              # ... and at the end
+    s_start = np.zeros(idx.size)  # the segment start as a fraction of the step
+    collider_poses = []
     for k, col in d.callables:
-        e, mu = d.restitution[k], d.friction[k]
         p0, r0 = col.pose(t)
         p1, r1 = col.pose(t + dt)
         ref = col._ref[:dim]
+        rot0, rot1 = r0[:dim, :dim], r1[:dim, :dim]
 
         def to_rest(points, p, rot, ref=ref):
-            return ref + (points - p[:dim]) @ rot[:dim, :dim]
+            return ref + (points - p[:dim]) @ rot
 
         def to_world(points, p, rot, ref=ref):
-            return p[:dim] + (points - ref) @ rot[:dim, :dim].T
+            return p[:dim] + (points - ref) @ rot.T
 
-        xe, ve = x[idx], v[idx]
-        x0 = d.x0[idx]
-        if d.mode == "a_priori":
-            ls, le = to_rest(x0, p0, r0), to_rest(xe, p1, r1)
-            f0 = col.evaluate_rest(ls)[0] - r
-            f1 = col.evaluate_rest(le)[0] - r
-            length = np.linalg.norm(le - ls, axis=1)
-            cand = np.flatnonzero((np.abs(f0) + np.abs(f1) - length <= 2 * tol) & (f0 > tol) & (length > 0))
-            if cand.size:
-                # conservative advancement on the candidates (vectorised over particles)
-                sigma = np.zeros(cand.size)
-                f = f0[cand].copy()
-                hit = np.zeros(cand.size, bool)
-                live = np.ones(cand.size, bool)
-                seg = le[cand] - ls[cand]
-                for _ in range(d.max_iterations * 4):
-                    sigma[live] += 0.9 * f[live] / length[cand][live]
-                    live &= sigma <= 1.0
-                    if not live.any():
-                        break
-                    f[live] = col.evaluate_rest(ls[cand][live] + sigma[live, None] * seg[live])[0] - r[cand][live]
-                    hit |= live & (f <= tol)
-                    live &= ~hit
-                hit |= live  # iteration cap: stop conservatively
-                if hit.any():
-                    rows = cand[hit]
-                    s = sigma[hit][:, None]
-                    lc = ls[rows] + s * seg[hit]
-                    _, g = col.evaluate_rest(lc)
-                    w0, w1 = to_world(lc, p0, r0), to_world(lc, p1, r1)
-                    xc = w0 + s * (w1 - w0)
-                    u = (w1 - w0) / dt
-                    n0, n1 = g @ r0[:dim, :dim].T, g @ r1[:dim, :dim].T
-                    n = n0 + s * (n1 - n0)
-                    n /= np.linalg.norm(n, axis=1)[:, None]
-                    v0 = d.v0[idx[rows]]
-                    vc = v0 + s * (ve[rows] - v0)
-                    pushed_in = np.minimum(0, ((ve[rows] - v0) * n).sum(1))[:, None]
-                    vc = _np_response(vc, u, n, e, mu, 2 * np.abs(pushed_in) + d.rest_speed)
-                    xe[rows] = xc + (1 - s) * dt * vc
-                    ve[rows] = vc
-                    changed[rows] = True
-        # end-of-step projection
-        le = to_rest(xe, p1, r1)
+        collider_poses.append((k, col, p0, rot0, p1, rot1, to_rest, to_world))
+        if d.mode != "a_priori":
+            continue
+        e_k, mu = d.restitution[k], d.friction[k]
+        # the chord of the rest of the step in the rest frame (start through the interpolated pose)
+        a0, a1 = to_rest(sx, p0, rot0), to_rest(sx, p1, rot1)
+        ls = a0 + s_start[:, None] * (a1 - a0)
+        le = to_rest(ex, p1, rot1)
+        f0 = col.evaluate_rest(ls)[0] - r
+        f1 = col.evaluate_rest(le)[0] - r
+        length = np.linalg.norm(le - ls, axis=1)
+        cand = np.flatnonzero((np.abs(f0) + np.abs(f1) - length <= 2 * tol) & (f0 > tol) & (length > 0))
+        if not cand.size:
+            continue
+        # conservative advancement along the chord (vectorised over the candidates)
+        sigma = np.zeros(cand.size)
+        f = f0[cand].copy()
+        hit = np.zeros(cand.size, bool)
+        live = np.ones(cand.size, bool)
+        seg = le[cand] - ls[cand]
+        for _ in range(d.max_iterations * 4):
+            sigma[live] += 0.9 * f[live] / length[cand][live]
+            live &= sigma <= 1.0
+            if not live.any():
+                break
+            f[live] = col.evaluate_rest(ls[cand][live] + sigma[live, None] * seg[live])[0] - r[cand][live]
+            hit |= live & (f <= tol)
+            live &= ~hit
+        hit |= live  # iteration cap: stop conservatively
+        if not hit.any():
+            continue
+        rows = cand[hit]
+        sig = np.minimum(sigma[hit], 1.0)
+        lc = ls[rows] + sig[:, None] * seg[hit]
+        fc, g = col.evaluate_rest(lc)
+        # advancement stops up to tol before the surface: Newton steps along the chord to the
+        # root where the chord crosses it (exact for a plane after one), kept inside [sigma, 1]
+        crosses = f1[rows] < 0.0
+        for _ in range(3):
+            slope = _rowdot(g, seg[hit])
+            step = crosses & (slope < 0.0)
+            if not step.any():
+                break
+            sig = np.where(step, np.clip(sig - (fc - r[rows]) / np.where(step, slope, -1.0), sig, 1.0), sig)
+            lc = ls[rows] + sig[:, None] * seg[hit]
+            fc, g = col.evaluate_rest(lc)
+        # chord fraction -> time fraction on the path (tangent plane at the hit)
+        n0 = g @ rot0.T
+        span = (1.0 - s_start[rows]) * dt
+        chord_in = _rowdot(g, seg[hit])
+        accel_in = 0.5 * _rowdot(n0, acc[rows]) * span * span
+        tau = _np_path_fraction(chord_in, accel_in, sig)
+        best = s_start[rows] + tau * (1.0 - s_start[rows])
+        t_hit = ((best - s_start[rows]) * dt)[:, None]
+        a_r = acc[rows]
+        c = sx[rows] + ws[rows] * t_hit + 0.5 * a_r * t_hit * t_hit
+        cv = ws[rows] + t_hit * a_r
+        w0, w1 = to_world(lc, p0, rot0), to_world(lc, p1, rot1)
+        u = (w1 - w0) / dt
+        n1 = g @ rot1.T
+        n = n0 + best[:, None] * (n1 - n0)
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        an = _rowdot(a_r, n)
+        threshold = (2.0 * np.maximum(0.0, -an) * dt + d.rest_speed)[:, None]
+        held = (an < 0.0) & (-_rowdot(cv - u, n) <= threshold[:, 0])
+        cv = _np_response(cv, u, n, e_k, mu, threshold)
+        # a slow impact is held: no acceleration into the surface nor lag along the normal for
+        # the rest of the step; a real bounce keeps both (it leaves under gravity)
+        hm = held[:, None]
+        a_r = np.where(hm, a_r - an[:, None] * n, a_r)
+        lag_r = lag[rows]
+        lag[rows] = np.where(hm, lag_r - _rowdot(lag_r, n)[:, None] * n, lag_r)
+        rem = ((1.0 - best) * dt)[:, None]
+        ex[rows] = c + rem * cv + 0.5 * rem * rem * a_r
+        pv[rows] = cv + rem * a_r
+        acc[rows] = a_r
+        sx[rows], ws[rows], s_start[rows] = c, cv, best
+        changed[rows] = True
+    # end-of-step projection (the a-posteriori response; a safety net a priori)
+    for k, col, p0, rot0, p1, rot1, to_rest, to_world in collider_poses:
+        e_k, mu = d.restitution[k], d.friction[k]
+        le = to_rest(ex, p1, rot1)
         dist, g = col.evaluate_rest(le)
         f = dist - r
-        rows = np.flatnonzero(f < -tol)
-        if rows.size:
-            n = g[rows] @ r1[:dim, :dim].T
-            xe[rows] -= f[rows, None] * n
-            u = (to_world(le[rows], p1, r1) - to_world(le[rows], p0, r0)) / dt
-            dv = ((ve[rows] - d.v0[idx[rows]]) * n).sum(1)
-            ve[rows] = _np_response(ve[rows], u, n, e, mu, 2 * np.abs(np.minimum(0, dv))[:, None] + d.rest_speed)
-            changed[rows] = True
-        x[idx] = xe
-        v[idx] = ve
-    return int(changed.sum())
+        near = np.flatnonzero(f < tol)
+        if not near.size:
+            continue
+        n = g[near] @ rot1.T
+        u = (to_world(le[near], p1, rot1) - to_world(le[near], p0, rot0)) / dt
+        heading_in = _rowdot(pv[near] - u, n) < 0.0
+        keep = (f[near] < -tol) | heading_in
+        rows, n, u, heading_in = near[keep], n[keep], u[keep], heading_in[keep]
+        if not rows.size:
+            continue
+        fr = f[rows]
+        ex[rows] -= np.minimum(fr, 0.0)[:, None] * n
+        changed[rows] = True
+        resp = heading_in
+        if not resp.any():
+            continue
+        rows, n, u, fr = rows[resp], n[resp], u[resp], fr[resp]
+        an = _rowdot(acc[rows], n)
+        cv = pv[rows]
+        span = (1.0 - s_start[rows]) * dt
+        if d.mode != "a_priori":
+            # detected after the fact: the velocity gained inside is not kept. The impact time
+            # on the path from the signed distances at the segment's start and end
+            gained = (an < 0.0) & (fr < 0.0) & (span > 0.0)
+            if gained.any():
+                fs = col.evaluate_rest(to_rest(sx[rows], p0, rot0))[0] - r[rows]
+                inside = span.copy()  # started inside: the whole step
+                out = gained & (fs > 0.0)
+                if out.any():
+                    fo, so, sp = fr[out], fs[out], span[out]
+                    tau = _np_path_fraction(fo - so, 0.5 * an[out] * sp * sp, so / (so - fo))
+                    inside[out] = (1.0 - tau) * sp
+                cv = cv - np.where(gained, an * inside, 0.0)[:, None] * n
+        threshold = (2.0 * np.maximum(0.0, -an) * dt + d.rest_speed)[:, None]
+        held = (an < 0.0) & (-_rowdot(cv - u, n) <= threshold[:, 0])
+        pv[rows] = _np_response(cv, u, n, e_k, mu, threshold)
+        lag_r = lag[rows]
+        lag[rows] = np.where(held[:, None], lag_r - _rowdot(lag_r, n)[:, None] * n, lag_r)
+    # the velocity handed to the next step: the path's plus the integrator's lag
+    rows = np.flatnonzero(changed)
+    if rows.size:
+        x[idx[rows]] = ex[rows]
+        v[idx[rows]] = pv[rows] + lag[rows]
+    return int(rows.size)
 
 
 def _np_response(v, u, n, restitution, friction, rest_speed):
