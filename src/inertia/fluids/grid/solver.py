@@ -148,13 +148,16 @@ class GridFluid:
     max_dt : largest substep in ``advance``, s (default inf).
     obstacles : list of colliders (``inertia.colliders``) of the grid's dimension.
     parallel : None (default: parallel kernels from 65536 cells up), True or False.
+    fluid_density : rho, kg/m^3 (default 1.2, air): converts the projection's phi = p dt / rho into
+        the pressure that pushes rigid bodies (``advance(dt, rigid)``, see `bind_rigid`).
     """
 
     def __init__(self, shape, cell_size, *, origin=None, boundaries=None, viscosity=0.0,
                  advection="maccormack", pressure_solver="mgpcg", tolerance=1e-6,
                  max_iterations=None, scalars=("density", "temperature"), ambient_temperature=0.0,
                  buoyancy=(0.0, 0.0), up=None, body_acceleration=None, dissipation=None,
-                 vorticity_confinement=0.0, cfl=1.0, max_dt=np.inf, obstacles=(), parallel=None):
+                 vorticity_confinement=0.0, cfl=1.0, max_dt=np.inf, obstacles=(), parallel=None,
+                 fluid_density=1.2):
         self.grid = g = MACGrid(shape, cell_size, origin)
         if parallel not in (None, True, False):
             raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
@@ -164,6 +167,7 @@ class GridFluid:
         self._k = K.KernelSet(K, self.parallel)
         dim = self.dim = g.dim
         self.viscosity = positive_scalar(viscosity, "viscosity", allow_zero=True)
+        self.fluid_density = positive_scalar(fluid_density, "fluid_density")
         if advection not in ADVECTION:
             raise ValueError(f"advection must be one of {ADVECTION}; got {advection!r}")
         self.advection = advection
@@ -270,6 +274,14 @@ class GridFluid:
         self._vertex_pts = g.vertex_positions() if self.obstacles else None
         self._face_pts = [g.face_positions(a) for a in range(dim)] if self.obstacles else None
         self._cell_solid = np.zeros((nx, ny, nz), dtype=np.bool_)
+        # rigid bodies (bind_rigid): one BodyShape obstacle per supported shape row
+        self._rigid = None
+        self._rigid_obstacles = []
+        self._owner_body = np.zeros(0, np.int64)      # body of each obstacle (-1: a collider)
+        # closed obstacle faces (obstacles stage): flat face index, open fraction, owner body
+        self._cut = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)) for _ in range(3)]
+        self.body_force = np.zeros((0, 3))            # N, last substep's pressure force (project)
+        self.body_torque = np.zeros((0, 3))           # N m, about each body's centre of mass
         self._update_solids(0.0, check_domain=True)
 
     # ------------------------------------------------------------------------ boundary data
@@ -313,9 +325,10 @@ class GridFluid:
         """Face fractions and solid velocities from the domain sides and the obstacles."""
         g = self.grid
         dim = self.dim
-        if self.obstacles:
+        obstacles = self.obstacles + self._rigid_obstacles
+        if obstacles:
             sdf = None
-            for o in self.obstacles:
+            for o in obstacles:
                 d = np.asarray(o.signed_distance(self._vertex_pts, t), dtype=np.float64)
                 sdf = d if sdf is None else np.minimum(sdf, d)
             if check_domain and np.all(sdf < 0):
@@ -337,11 +350,12 @@ class GridFluid:
             for a in range(dim):
                 pts = self._face_pts[a]
                 closed = np.flatnonzero(self._frac[a].reshape(-1) < 1.0)
+                owner = np.zeros(closed.size, np.int64)
                 if closed.size:
                     p = pts[closed]
                     best = None
                     vel = np.zeros(closed.size)
-                    for o in self.obstacles:
+                    for i, o in enumerate(obstacles):
                         d = np.asarray(o.signed_distance(p, t))
                         vo = np.asarray(o.velocity(p, t))[:, a]
                         if best is None:
@@ -350,10 +364,14 @@ class GridFluid:
                             take = d < best
                             best = np.where(take, d, best)
                             vel = np.where(take, vo, vel)
+                            owner = np.where(take, i, owner)
                     self._solid[a].reshape(-1)[closed] = vel
+                body = (np.concatenate([np.full(len(self.obstacles), -1, np.int64), self._owner_body])[owner]
+                        if closed.size else owner)
+                self._cut[a] = (closed.astype(np.int64), self._frac[a].reshape(-1)[closed].copy(), body)
             cells = g.cell_positions()
             inside = np.full(cells.shape[0], False)
-            for o in self.obstacles:
+            for o in obstacles:
                 inside |= np.asarray(o.signed_distance(cells, t)) < 0
             self._cell_solid[...] = inside.reshape(self._cell_solid.shape)
         else:
@@ -612,6 +630,8 @@ class GridFluid:
         self._forces(dt)
         self._diffuse(dt)
         self.last_pressure_iterations = self.project(dt)
+        if self._rigid is not None:
+            self._push_bodies(dt)
         self._dissipate(dt)
         self._check_finite()
         self.time += dt
@@ -630,10 +650,12 @@ class GridFluid:
     def advance(self, frame_dt, rigid=None):
         """Advance by frame_dt seconds in CFL-limited substeps; returns the substep count.
 
-        `rigid` is the World protocol's RigidWorld argument (docs/contracts.md); rigid bodies
-        are not coupled to the grid yet, so it is accepted and ignored (colliders passed as
-        ``obstacles`` still act, moving ones included)."""
+        `rigid` is the World protocol's RigidWorld argument (docs/contracts.md): when given (and
+        it has shape rows) its shapes are obstacles of a 3-D grid at the bodies' current poses and
+        velocities, and the fluid's pressure pushes its dynamic bodies (`bind_rigid`)."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
+        if rigid is not None and rigid is not self._rigid and self.dim == 3:
+            self.bind_rigid(rigid)   # (2-D grids ignore the 3-D rigid world)
         done = 0.0
         n = 0
         while done < frame_dt * (1 - 1e-12):
@@ -645,6 +667,61 @@ class GridFluid:
             done += dt
             n += 1
         return n
+
+    # ------------------------------------------------------------------------ rigid coupling
+    def bind_rigid(self, rigid):
+        """Couple to a rigid world (anything with ``.model`` and ``.state``; `advance` calls this).
+
+        Every shape row of ``rigid.model`` becomes an obstacle (a `BodyShape`: world pose
+        ``body_q[shape_body] o shape_local_pose``, static rows baked in) whose surface moves with its
+        body (v + w x r in the boundary condition); face fractions are rebuilt every step while a
+        kinematic or dynamic body exists. After each projection the pressure on the cut faces of
+        each body becomes an impulse dt F (and dt tau about its centre of mass), applied with
+        `inertia.dynamics.particle_coupling.apply_body_impulses`. Rows the signed distance does not
+        cover (heightfield, SDF) are skipped. 3-D grids only."""
+        from ...collision.shapes import BodyShape
+        if self.dim != 3:
+            raise ValueError(f"rigid bodies couple to 3-D grids only; this grid has dim {self.dim}")
+        model = rigid.model
+        obst, owner = [], []
+        for s in range(int(model.shape_count)):
+            bs = BodyShape(model, s)
+            if getattr(bs, "unsupported", False):
+                continue
+            if bs.moving:
+                b = bs.body
+                bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
+            obst.append(bs)
+            owner.append(bs.body if bs.moving else -1)
+        self._rigid = rigid
+        self._rigid_obstacles = obst
+        self._owner_body = np.asarray(owner, np.int64)
+        nb = int(model.body_count)
+        self.body_force = np.zeros((nb, 3))
+        self.body_torque = np.zeros((nb, 3))
+        self._impulse = (np.zeros((nb, 3)), np.zeros((nb, 3)))
+        if self._vertex_pts is None:
+            g = self.grid
+            self._vertex_pts = g.vertex_positions()
+            self._face_pts = [g.face_positions(a) for a in range(self.dim)]
+        self._moving = self._moving or bool(np.any(self._owner_body >= 0))
+        self._update_solids(self.time)
+
+    def _push_bodies(self, dt):
+        """Pressure impulse on each body from the cut faces (obstacles stage's ``_cut``)."""
+        lin, ang = self._impulse
+        lin[...] = 0.0
+        ang[...] = 0.0
+        body_q = self._rigid.state.body_q
+        for a in range(3):
+            faces, open_frac, body = self._cut[a]
+            if faces.size:
+                _pressure_impulses(self.phi, faces, open_frac, body, a, self.ctx.h, self.grid.origin3,
+                                   self.fluid_density, body_q, lin, ang)
+        np.multiply(lin, 1.0 / dt, out=self.body_force)
+        np.multiply(ang, 1.0 / dt, out=self.body_torque)
+        from ...dynamics.particle_coupling import apply_body_impulses
+        apply_body_impulses(self._rigid.model.bodies(), self._rigid.state, lin, ang)
 
     def _check_finite(self):
         for a in range(self.dim):
@@ -716,7 +793,7 @@ class GridFluid:
         self.phi[...] = state["phi"]
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
-        if self._moving:
+        if self._moving or self._rigid is not None:
             self._update_solids(self.time)
 
     def frame_arrays(self):
@@ -746,3 +823,49 @@ class GridFluid:
         for a in self._vel[:self.dim] + self._scal:
             hsh.update(np.ascontiguousarray(a).tobytes())
         return hsh.hexdigest()
+
+
+@K.njit(cache=True)
+def _pressure_impulses(phi, faces, open_frac, body, axis, h, origin, rho, body_q, lin, ang):
+    """Pressure impulse on the bodies owning closed faces: J_axis = -rho h^2 (1 - A) (phi_R - phi_L)
+    per face (phi = p dt / rho, so J = dt F), torque (x_face - c) x J about the body's centre c.
+    Summed over the solid's faces this is -dt (integral of grad p over its volume) = -dt (surface
+    integral of p n): runs of fully closed faces telescope to the pressures of the fluid cells at
+    their ends, so solid cells' phi drops out. Faces on the domain sides are walls (skipped).
+    Serial, in face order: deterministic."""
+    nx, ny, nz = phi.shape
+    fy = ny + (1 if axis == 1 else 0)
+    fz = nz + (1 if axis == 2 else 0)
+    for m in range(faces.shape[0]):
+        b = body[m]
+        if b < 0:
+            continue
+        f = faces[m]
+        k = f % fz
+        j = (f // fz) % fy
+        i = f // (fz * fy)
+        idx = i if axis == 0 else (j if axis == 1 else k)
+        na = nx if axis == 0 else (ny if axis == 1 else nz)
+        if idx == 0 or idx == na:
+            continue
+        il, jl, kl = i, j, k
+        if axis == 0:
+            il -= 1
+        elif axis == 1:
+            jl -= 1
+        else:
+            kl -= 1
+        J = -rho * h * h * (1.0 - open_frac[m]) * (phi[i, j, k] - phi[il, jl, kl])
+        x = origin[0] + (i + (0.0 if axis == 0 else 0.5)) * h - body_q[b, 0]
+        y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
+        z = origin[2] + (k + (0.0 if axis == 2 else 0.5)) * h - body_q[b, 2]
+        lin[b, axis] += J
+        if axis == 0:      # r x (J e_x) = (0, z J, -y J)
+            ang[b, 1] += z * J
+            ang[b, 2] -= y * J
+        elif axis == 1:    # r x (J e_y) = (-z J, 0, x J)
+            ang[b, 0] -= z * J
+            ang[b, 2] += x * J
+        else:              # r x (J e_z) = (y J, -x J, 0)
+            ang[b, 0] += y * J
+            ang[b, 1] -= x * J
