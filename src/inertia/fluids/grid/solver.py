@@ -40,6 +40,13 @@ Limitations
   walls); obstacles are no-penetration (the solid's normal velocity) with free slip.
 - Obstacles see the field at the step start: a moving obstacle's fractions are rebuilt once
   per step from its signed distance at the step's end time.
+- Rigid bodies (``advance(dt, rigid)`` / `bind_rigid`, 3-D only): shape rows are obstacles at the
+  bodies' current poses (the rigid stage has already moved them; the pose is held over the
+  fluid's substeps, the velocity is updated by each substep's impulse). Only pressure pushes
+  bodies (no viscous stress); the coupling is explicit (weak): a body much lighter than the fluid
+  it displaces (added mass) can oscillate or blow up. The force is the pressure on the cut-cell
+  faces, exactly rho g V_grid in a fluid at rest, V_grid the cut-cell volume (O(h^2) below V for
+  convex bodies). Heightfield and SDF rows are skipped.
 - The velocity field handed out (``velocity_field()``) is the current grid state; its ``t``
   argument is ignored.
 """
