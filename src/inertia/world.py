@@ -1047,7 +1047,8 @@ def model_file_arrays(world: World) -> dict[str, np.ndarray]:
       ``shape_vert_count (S,) int32`` into ``geom_vertices (V, 3)``, ``shape_tri_start`` /
       ``shape_tri_count (S,) int32`` into ``geom_triangles (T, 3) int32`` (rows of geom_vertices:
       the outward hull of a convex hull, a mesh's triangles, a heightfield's grid cells), and
-      ``body_type``, ``body_source (B,) int32``, ``body_com_pose (B, 7)``;
+      ``body_type``, ``body_source (B,) int32``, ``body_com_pose (B, 7)``, and ``shape_color (S, 3)
+      float32`` (sRGB in 0..1, NaN for the default colour) when the scene gives bodies a ``color``;
     - ``spring_pairs (P, 2) int64``: global particle indices of every Springs force's pairs;
     - ``surface_triangles (T, 3) int64``: global particle indices of the groups' ``triangles=``;
     - ``fluid/<name>/<key>``: each fluid's ``static_arrays()``.
@@ -1095,6 +1096,12 @@ def model_file_arrays(world: World) -> dict[str, np.ndarray]:
             total += len(local)
         out["shape_tri_start"], out["shape_tri_count"] = tri_start, tri_count
         out["geom_triangles"] = (np.concatenate(tris) if tris else np.zeros((0, 3))).astype(np.int32)
+        colors = getattr(getattr(world, "rigid_scene", None), "shape_colors", None)
+        if colors is not None and np.isfinite(colors).any():
+            # The scene's `color` of each body's shapes (rows the colliders appended: NaN = default).
+            shape_color = np.full((ns, 3), np.nan, np.float32)
+            shape_color[:min(ns, len(colors))] = np.asarray(colors, np.float32)[:ns]
+            out["shape_color"] = shape_color
     pairs, surfaces = [], []
     for g in world.groups:
         for force in getattr(g.system, "forces", ()):

@@ -327,3 +327,30 @@ def test_vehicle_drives_in_the_coupled_world_as_in_the_bare_rigid_world():
     step_scene(bare, rs, 60)
     np.testing.assert_allclose(world.rigid.state.body_q, bare.state.body_q, rtol=0, atol=1e-9)
     assert world.rigid.state.body_q[0, 0] > 0.5          # it drove forward
+
+
+def test_scene_colours_reach_the_state_file_and_the_drawn_meshes(write_scene):
+    """A body's `color` is written to model.npz (`shape_color`) and drawn with it; bodies without one
+    (NaN rows) and the colliders' rows take the default palette."""
+    from inertia.render.drawables import ModelDrawables
+    from inertia.scene.builder import build_world
+    from inertia.world import model_file_arrays
+
+    scene = read_scene(write_scene(HEAD + """
+[bodies.ground]
+motion = "static"
+shape = { type = "box", half_extents = [1.0, 1.0, 0.1] }
+[bodies.crate]
+shape = { type = "box", half_extents = [0.1, 0.1, 0.1] }
+position = [0.0, 0.0, 1.0]
+color = "#d04030"
+"""))
+    world = build_world(scene.model)
+    arrays = model_file_arrays(world)
+    crate = list(world.model.body_name).index("crate")
+    row = int(np.flatnonzero(np.asarray(world.model.shape_body) == crate)[0])
+    np.testing.assert_allclose(arrays["shape_color"][row], [0xd0 / 255, 0x40 / 255, 0x30 / 255], rtol=1e-6)
+    drawn = ModelDrawables(arrays)
+    np.testing.assert_allclose(drawn.shape_meshes[row][2], [0xd0 / 255, 0x40 / 255, 0x30 / 255], rtol=1e-6)
+    ground = int(np.flatnonzero(~np.isfinite(arrays["shape_color"][:, 0]))[0])
+    assert np.all(np.isfinite(drawn.shape_meshes[ground][2]))      # default colour, not NaN

@@ -112,7 +112,7 @@ class ModelDrawables:
             if mesh is None:
                 continue
             v, n, t = mesh
-            if colors is not None:
+            if colors is not None and s < len(colors) and np.isfinite(colors[s]).all():
                 color = np.asarray(colors[s], np.float32)
             elif shape_body[s] < 0:
                 color = np.array(STATIC_COLOR, np.float32)
