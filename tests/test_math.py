@@ -162,3 +162,28 @@ def test_spatial_cross_products():
                                    atol=1e-14)
         # the power pairing is invariant: (v x m) . f + m . (v x* f) = 0
         assert abs(im.spatial_cross_motion(v, m) @ f + m @ im.spatial_cross_force(v, f)) < 1e-13
+
+
+def _matrix(q):
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def test_numpy_compose_poses_and_rotate_vectors_match_rotation_matrices():
+    """The NumPy batch helpers against R(q) built from the quaternion (Shoemake 1985), one row and broadcast."""
+    from inertia.math import compose_poses, rotate_vectors
+    rng = np.random.default_rng(3)
+    qa, qb = rng.normal(size=(5, 4)), rng.normal(size=(5, 4))
+    qa /= np.linalg.norm(qa, axis=1, keepdims=True)
+    qb /= np.linalg.norm(qb, axis=1, keepdims=True)
+    a = np.concatenate([rng.normal(size=(5, 3)), qa], axis=1)
+    b = np.concatenate([rng.normal(size=(5, 3)), qb], axis=1)
+    out = compose_poses(a, b)
+    for k in range(5):
+        ra, rb = _matrix(a[k, 3:]), _matrix(b[k, 3:])
+        assert np.allclose(out[k, :3], ra @ b[k, :3] + a[k, :3], atol=1e-14)
+        assert np.allclose(_matrix(out[k, 3:]), ra @ rb, atol=1e-14)
+        assert np.allclose(rotate_vectors(a[k, 3:], b[:, :3]), b[:, :3] @ ra.T, atol=1e-14)
+    assert np.array_equal(compose_poses(a[0], b[0]), out[0])

@@ -10,6 +10,8 @@ Conventions (fixed: every layer relies on them)
 
 Every function returns a new small array; ``*_into`` variants write into ``out`` for kernels that must not
 allocate.  All functions are ``@njit(cache=True)``; they are plain Python-callable too (handy in tests).
+``rotate_vectors`` and ``compose_poses`` are their NumPy counterparts for many rows at once (build-time,
+export and rendering code: they broadcast over leading axes).
 
 References
 - Shoemake, K. (1985). Animating rotation with quaternion curves. SIGGRAPH '85 (quaternion algebra).
@@ -33,7 +35,7 @@ __all__ = [
     "quat_rotate_inv_into", "quat_to_mat3", "mat3_to_quat", "quat_from_axis_angle", "quat_integrate",
     "quat_integrate_into", "transform_point", "transform_point_inv", "transform_mul", "transform_inv",
     "cross", "dot", "skew", "mat3_mul", "mat3_vec", "mat3_transpose", "mat3_inv_sym", "world_inertia_inv",
-    "spatial_cross_motion", "spatial_cross_force",
+    "spatial_cross_motion", "spatial_cross_force", "rotate_vectors", "compose_poses",
 ]
 
 _jit = njit(cache=True)
@@ -404,4 +406,29 @@ def spatial_cross_force(v, f):
     out = np.empty(6)
     out[0:3] = cross(v[0:3], f[0:3]) + cross(v[3:6], f[3:6])
     out[3:6] = cross(v[0:3], f[3:6])
+    return out
+
+
+# ------------------------------------------------------------------------------- NumPy, many rows at once
+def rotate_vectors(q, v):
+    """Rotate vectors ``v (..., 3)`` by unit quaternions ``q (..., 4)`` (w, x, y, z), broadcasting:
+    ``v + 2 w (u x v) + u x (2 u x v)`` with ``u = (x, y, z)`` (NumPy; build-time and render code)."""
+    q, v = np.asarray(q, np.float64), np.asarray(v, np.float64)
+    w, u = q[..., :1], q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def compose_poses(a, b):
+    """Poses ``a * b`` (..., 7) (position + quaternion w, x, y, z), broadcasting: the world pose of a frame
+    at ``b`` inside a frame at ``a``: ``p = R_a p_b + p_a``, ``q = q_a q_b`` (NumPy)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., :3] = rotate_vectors(a[..., 3:], b[..., :3]) + a[..., :3]
+    aw, ax, ay, az = np.moveaxis(a[..., 3:], -1, 0)
+    bw, bx, by, bz = np.moveaxis(b[..., 3:], -1, 0)
+    out[..., 3] = aw * bw - ax * bx - ay * by - az * bz
+    out[..., 4] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 5] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 6] = aw * bz + ax * by - ay * bx + az * bw
     return out

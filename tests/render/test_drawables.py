@@ -9,28 +9,7 @@ import pytest
 
 from inertia.io.states import States
 from inertia.render import Camera, Renderer, render_states
-from inertia.render.drawables import TRAIL_OPACITY, ModelDrawables, compose_poses, frame_options, trail_lines
-
-
-def _rotation(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def _unit(q):
-    q = np.asarray(q, float)
-    return q / np.linalg.norm(q)
-
-
-def test_compose_poses_matches_rotation_matrices():
-    body = np.concatenate([[0.3, -1.0, 2.0], _unit([0.9, 0.1, -0.3, 0.2])])
-    local = np.concatenate([[0.1, 0.2, -0.4], _unit([0.5, 0.5, 0.1, -0.6])])
-    out = compose_poses(body, local)
-    Rb, Rl = _rotation(body[3:]), _rotation(local[3:])
-    assert np.allclose(out[:3], Rb @ local[:3] + body[:3], atol=1e-14)
-    assert np.allclose(_rotation(out[3:]), Rb @ Rl, atol=1e-14)
+from inertia.render.drawables import TRAIL_OPACITY, ModelDrawables, frame_options, trail_lines
 
 
 def _states(frames=3, *, model, body_q=None, positions=None):

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import shapes as S
+from ..math import compose_poses, rotate_vectors
 from .atomic import atomic_write
 
 __all__ = ["model_arrays", "shape_meshes", "posed_vertices", "write_obj", "write_obj_sequence"]
@@ -128,28 +129,12 @@ def shape_meshes(model, *, segments: int = 24, plane_size: float = 20.0) -> list
     return out
 
 
-def _rotate(q, v):
-    """Rotate rows v (n, 3) by the unit quaternion q (w, x, y, z)."""
-    u = np.asarray(q[1:], float)
-    t = 2.0 * np.cross(u, v)
-    return v + q[0] * t + np.cross(u, t)
-
-
-def _compose(a, b):
-    """Pose a * b (each position + quaternion w, x, y, z)."""
-    aw, ax, ay, az = a[3:]
-    bw, bx, by, bz = b[3:]
-    q = np.array([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                  aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw])
-    return np.concatenate([a[:3] + _rotate(a[3:], b[:3][None])[0], q])
-
-
 def shape_world_pose(model, body_q, si: int) -> np.ndarray:
     """World pose (7,) of shape ``si`` given body poses ``body_q (B, 7)``."""
     m = model if isinstance(model, dict) and "shape_body" in model else model_arrays(model)
     local = np.asarray(m["shape_local_pose"][si], float)
     b = int(m["shape_body"][si])
-    return local.copy() if b < 0 else _compose(np.asarray(body_q[b], float), local)
+    return local.copy() if b < 0 else compose_poses(np.asarray(body_q[b], float), local)
 
 
 def posed_vertices(model, body_q, meshes=None) -> list[np.ndarray]:
@@ -159,7 +144,7 @@ def posed_vertices(model, body_q, meshes=None) -> list[np.ndarray]:
     out = []
     for si, (v, _) in enumerate(meshes):
         pose = shape_world_pose(m, body_q, si)
-        out.append(pose[:3] + _rotate(pose[3:], v))
+        out.append(pose[:3] + rotate_vectors(pose[3:], v))
     return out
 
 

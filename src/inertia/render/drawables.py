@@ -27,39 +27,16 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ..math import compose_poses, rotate_vectors
 from .colormaps import GROUP_PALETTE
 from .meshes import LineSet, TriangleMesh, tessellate_shape
 
-__all__ = ["ModelDrawables", "compose_poses", "frame_options", "trail_lines"]
+__all__ = ["ModelDrawables", "frame_options", "trail_lines"]
 
 #: Colours of cloth surfaces and spring lines when the model gives none (sRGB).
 CLOTH_COLOR = (0.86, 0.42, 0.32)
 SPRING_COLOR = (0.93, 0.86, 0.62)
 STATIC_COLOR = (0.62, 0.64, 0.68)
-
-
-def _quat_rotate(q, v):
-    """Rotate vectors v (..., 3) by unit quaternions q (..., 4) (w, x, y, z)."""
-    w, u = q[..., :1], q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def _quat_mul(a, b):
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
-
-
-def compose_poses(body_pose, local_pose):
-    """World pose (..., 7) of a shape at ``local_pose`` in a body at ``body_pose`` (both
-    position + quaternion w, x, y, z): p = R_b p_l + p_b, q = q_b q_l."""
-    body_pose, local_pose = np.asarray(body_pose, np.float64), np.asarray(local_pose, np.float64)
-    out = np.empty(np.broadcast_shapes(body_pose.shape, local_pose.shape))
-    out[..., :3] = _quat_rotate(body_pose[..., 3:], local_pose[..., :3]) + body_pose[..., :3]
-    out[..., 3:] = _quat_mul(body_pose[..., 3:], local_pose[..., 3:])
-    return out
 
 
 @njit(cache=True)
@@ -105,7 +82,7 @@ class ModelDrawables:
         for s in range(len(shape_type)):
             if shape_type[s] == S.PLANE:
                 if shape_body[s] < 0:
-                    normal = _quat_rotate(pose[s, 3:], np.array([0.0, 0.0, 1.0]))
+                    normal = rotate_vectors(pose[s, 3:], np.array([0.0, 0.0, 1.0]))
                     self.planes.append((pose[s, :3].copy(), normal))
                 continue
             mesh = tessellate_shape(model, s)

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..geometry import shapes as S
+from ..math import rotate_vectors
 from . import rigid_models as R
 from .errors import Issue, SceneError, did_you_mean, read_mesh_file
 
@@ -212,7 +213,7 @@ class _RigidBuilder:
         local_q = spec.rotation.as_quaternion() if spec.rotation is not None else (1.0, 0.0, 0.0, 0.0)
         if world_pos is not None:
             qb = np.asarray(world_q, dtype=np.float64)
-            pos = np.asarray(world_pos) + _rotate(qb, local_p)
+            pos = np.asarray(world_pos) + rotate_vectors(qb, local_p)
             q = R.quat_mul(tuple(qb), local_q)
         else:
             pos, q = local_p, local_q
@@ -237,7 +238,7 @@ class _RigidBuilder:
                 n = np.asarray(spec.normal, dtype=np.float64)
                 if np.linalg.norm(n) < 1e-12:
                     self.fail(f"{path}.normal", "must be a non-zero vector")
-                n = _rotate(np.asarray(q), n / np.linalg.norm(n))
+                n = rotate_vectors(np.asarray(q), n / np.linalg.norm(n))
                 kw.pop("density", None)
                 b.add_plane(n, spec.offset + float(np.dot(n, pos)), body=bi, material=material)
             elif t == "mesh":
@@ -265,13 +266,6 @@ class _RigidBuilder:
             return v, np.asarray(spec.triangles, dtype=np.int64)
         file = self.file(spec.file, f"{path}.file")
         return read_mesh_file(file, path, self.fail, spec.scale)
-
-
-def _rotate(q, v):
-    w, x, y, z = q
-    u = np.array([x, y, z])
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
 
 
 def build_rigid(scene_model, *, source=None, base_dir=None) -> RigidScene | None:
