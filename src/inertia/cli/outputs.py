@@ -95,11 +95,14 @@ def _group_colors(states, renderer):
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
     from inertia.render.drawables import ModelDrawables, frame_options
-    from inertia.render.fluid_particles import fluid_legend, frame_grids, paint_grids, with_fluid_particles
+    from inertia.render.fluid_particles import (fluid_legend, frame_grids, frame_volumes, paint_grids, paint_volumes,
+                                                smoke_styles, with_fluid_particles)
 
     states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
     frame_grids(renderer, states)  # 2-D grid fluids: framed when there is no particle, painted below
+    frame_volumes(renderer, states, colliders, render)  # 3-D smoke: framed on its grid box, ray-marched below
+    smoke = smoke_styles(states)
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:
@@ -117,6 +120,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             colors=colors, groups=groups, colliders=draw, t=float(states.times[f]),
             **frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0))))
         paint_grids(image, states, f, renderer)
+        paint_volumes(image, states, f, renderer, smoke)
         if legend is not None:
             from inertia.render.legend import overlay
 

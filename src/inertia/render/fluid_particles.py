@@ -36,7 +36,7 @@ import numpy as np
 from ..io.states import States
 
 __all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
-           "frame_grids", "paint_grids"]
+           "frame_grids", "paint_grids", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes"]
 
 
 def particle_fluids(states) -> list[str]:
@@ -200,4 +200,105 @@ def paint_grids(image, states, frame: int, renderer, scales: dict | None = None)
         values = data[frame][ci[None, :], cj[:, None]]
         rgb = colormap("magma" if quantity == "density" else "speed", values, vmin=0.0, vmax=vmax)
         image[y0:y1, x0:x1] = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
+    return image
+
+
+# ----------------------------------------------------------------------------- 3-D smoke volumes
+def volume_fluids(states) -> list[str]:
+    """Names of the recorded 3-D grid fluids with a ``density`` scalar (smoke): fields
+    ``fluid/<name>/density`` (F, nx, ny, nz) and ``origin`` / ``cell_size`` in ``States.model``."""
+    names = []
+    for key, value in states.fields.items():
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == "fluid" and parts[2] == "density" and np.ndim(value) == 4 \
+                and f"fluid/{parts[1]}/origin" in states.model and f"fluid/{parts[1]}/cell_size" in states.model:
+            names.append(parts[1])
+    return names
+
+
+def _box3(states, name):
+    origin = np.asarray(states.model[f"fluid/{name}/origin"], np.float64).ravel()[:3]
+    shape = np.asarray(states.fields[f"fluid/{name}/density"].shape[1:4], np.float64)
+    return origin, origin + shape * float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+
+
+def frame_volumes(renderer, states, colliders=(), render: dict | None = None) -> None:
+    """Frame the 3-D camera on where the smoke goes over the run (the cells above 2 % of the run's
+    99th-percentile density in a sample of frames, else the grid's box), the particles and the
+    colliders, unless the scene's [render] camera sets a position or target."""
+    names = volume_fluids(states)
+    camera = dict((render or {}).get("camera") or {})
+    if not names or renderer.dim != 3 or camera.get("position") is not None or camera.get("target") is not None:
+        return
+    corners = []
+    for name in names:
+        lo, hi = _smoke_extent(states, name)
+        corners += [np.where([a, b, c], hi, lo) for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+    extra = np.array(corners)
+    positions = np.asarray(states.positions, np.float64)
+    if positions.shape[1] == 0:
+        positions = extra[None]
+        extra = None
+    renderer.fit(positions, radius=states.radius(), colliders=colliders, active=None, extra_points=extra,
+                 times=states.times if positions.shape[0] == len(states.times) else None)
+
+
+def _smoke_extent(states, name):
+    """World box (lo, hi) of the cells holding smoke in a sample of frames (the grid's box if none)."""
+    lo, hi = _box3(states, name)
+    data = np.asarray(states.fields[f"fluid/{name}/density"])
+    sample = np.nan_to_num(data[:: max(1, data.shape[0] // 12)], nan=0.0)
+    level = 0.02 * _density_scale(sample)
+    occupied = np.argwhere(np.max(sample, axis=0) > level)
+    if occupied.size == 0:
+        return lo, hi
+    h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+    return lo + occupied.min(axis=0) * h, lo + (occupied.max(axis=0) + 1) * h
+
+
+def _density_scale(sample) -> float:
+    """The 99th percentile of the smoky cells' density (those above 1e-3 of the maximum)."""
+    top = float(np.max(sample)) if sample.size else 0.0
+    smoky = sample[sample > 1e-3 * top] if top > 0 else sample[:0]
+    return float(np.percentile(smoky, 99.0)) if smoky.size else 1.0
+
+
+#: Optical depth of a plume ten cells across at the run's 99th-percentile density (sets sigma_t).
+SMOKE_OPTICAL_DEPTH = 2.5
+
+
+def smoke_styles(states) -> dict:
+    """A `inertia.render.fluid_volume.SmokeStyle` per 3-D smoke of the run, on one scale for the
+    whole run: ``sigma_t = SMOKE_OPTICAL_DEPTH / (rho_99 10 h)``, so a plume ten cells across at
+    the run's 99th percentile density (over its smoky cells) has that optical depth."""
+    from .fluid_volume import SmokeStyle
+
+    styles = {}
+    for name in volume_fluids(states):
+        data = np.asarray(states.fields[f"fluid/{name}/density"])
+        rho = _density_scale(np.nan_to_num(data[:: max(1, data.shape[0] // 12)], nan=0.0))
+        h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+        styles[name] = SmokeStyle(sigma_t=SMOKE_OPTICAL_DEPTH / (max(rho, 1e-12) * 10.0 * h))
+    return styles
+
+
+def paint_volumes(image, states, frame: int, renderer, styles: dict | None = None) -> np.ndarray:
+    """Composite every recorded 3-D smoke of ``frame`` over ``image`` (H, W, 3) uint8 in place, lit
+    by the renderer's key light, occluded by what the renderer drew (its depth buffer); see
+    `inertia.render.fluid_volume`."""
+    from .fluid_volume import composite_smoke
+
+    names = volume_fluids(states)
+    if not names or renderer.dim != 3 or renderer.camera is None:
+        return image
+    styles = smoke_styles(states) if styles is None else styles
+    camera = renderer.camera_at(float(states.times[frame]))
+    light = renderer._light_direction(camera)
+    depth = renderer._depth if renderer._depth.shape == image.shape[:2] else None
+    for name in names:
+        density = states.fields[f"fluid/{name}/density"][frame]
+        lo, _ = _box3(states, name)
+        composite_smoke(image, camera, density, origin=lo,
+                        cell_size=float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
+                        light_direction=light, style=styles.get(name), depth=depth)
     return image

@@ -81,18 +81,19 @@ class SmokeStyle:
 
     sigma_t : extinction per unit density, 1/m (smoke of density 1 over 1/sigma_t m transmits
         1/e). 20 default; a run picks it from its density range (`sigma_for`).
-    albedo : scattering albedo sigma_s / sigma_t per channel, (0.88, 0.89, 0.92) default (grey-white).
+    albedo : scattering albedo sigma_s / sigma_t per channel, (0.9, 0.9, 0.92) default (grey-white).
     light_color : radiance scattered from the directional light (linear RGB, isotropic phase
-        folded in), (2.4, 2.3, 2.1) default.
-    ambient : radiance scattered from the sky (linear RGB), (0.16, 0.17, 0.2) default.
+        folded in), (1.25, 1.2, 1.1) default (warm key light; lit smoke just below white).
+    ambient : radiance scattered from the sky (linear RGB), (0.1, 0.11, 0.14) default (cool fill,
+        so the shadowed side stays grey-blue rather than black).
     step : ray-march step in cells, 0.5 default (0.25-1; smaller is smoother and slower).
     min_transmittance : the march stops when the transmittance falls below this, 0.01 default.
     emission : strength of the temperature glow (0 default: off; 2-6 for a candle-like plume).
     temperature_range : (t0, t1) of the glow ramp, in the fluid's temperature units.
     """
 
-    def __init__(self, *, sigma_t=20.0, albedo=(0.88, 0.89, 0.92), light_color=(2.4, 2.3, 2.1),
-                 ambient=(0.16, 0.17, 0.2), step=0.5, min_transmittance=0.01, emission=0.0,
+    def __init__(self, *, sigma_t=20.0, albedo=(0.9, 0.9, 0.92), light_color=(1.25, 1.2, 1.1),
+                 ambient=(0.1, 0.11, 0.14), step=0.5, min_transmittance=0.01, emission=0.0,
                  temperature_range=(0.0, 1.0)):
         if not (np.isfinite(sigma_t) and sigma_t > 0):
             raise ValueError(f"SmokeStyle: sigma_t must be a finite extinction > 0 (1/m); got {sigma_t!r}")
