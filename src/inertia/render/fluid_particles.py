@@ -36,7 +36,8 @@ import numpy as np
 from ..io.states import States
 
 __all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
-           "frame_grids", "paint_grids", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes"]
+           "frame_grids", "paint_grids", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
+           "liquid_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
 
 
 def particle_fluids(states) -> list[str]:
@@ -131,6 +132,8 @@ def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | N
 
     if not particle_fluids(states) or states.velocities is None or renderer.speed_max is None:
         return None
+    if set(particle_fluids(states)) <= set(liquid_fluids(states)) and LiquidSurfaces(states).draws_surfaces:
+        return None  # every fluid is drawn as a surface: no speed colours to explain
     if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) != "speed":
         return None
     try:
@@ -264,7 +267,7 @@ def _density_scale(sample) -> float:
 
 
 #: Optical depth of a plume ten cells across at the run's 99th-percentile density (sets sigma_t).
-SMOKE_OPTICAL_DEPTH = 2.5
+SMOKE_OPTICAL_DEPTH = 4.0
 
 
 def smoke_styles(states) -> dict:
@@ -302,3 +305,134 @@ def paint_volumes(image, states, frame: int, renderer, styles: dict | None = Non
                         cell_size=float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
                         light_direction=light, style=styles.get(name), depth=depth)
     return image
+
+
+# ----------------------------------------------------------------------------- liquid surfaces
+#: Colour of liquid surfaces (sRGB): a 3-D shaded mesh, a filled region in 2-D.
+LIQUID_COLOR = (0.22, 0.52, 0.86)
+
+
+def liquid_fluids(states) -> list[str]:
+    """Names of the recorded particle liquids with a level set: ``fluid/<name>/phi`` (F, nx, ny[, nz])
+    beside their particles ``x``, and ``origin`` / ``cell_size`` in ``States.model``."""
+    return [name for name in particle_fluids(states)
+            if f"fluid/{name}/phi" in states.fields and f"fluid/{name}/origin" in states.model
+            and f"fluid/{name}/cell_size" in states.model]
+
+
+def _surface_mesh_3d(phi, origin, h):
+    """(vertices (V, 3) m, triangles (T, 3)) of the phi = 0 surface of cell-centred ``phi``
+    (negative inside) by scikit-image's marching cubes, closed against the walls (padded with air)."""
+    from skimage import measure
+
+    padded = np.pad(np.asarray(phi, np.float32), 1, constant_values=3.0 * h)
+    if not (padded.min() < 0.0 < padded.max()):
+        return None
+    verts, faces, _, _ = measure.marching_cubes(padded, 0.0, spacing=(h, h, h))
+    return verts + (np.asarray(origin, np.float64)[:3] - 0.5 * h), faces.astype(np.int64)
+
+
+class LiquidSurfaces:
+    """Liquid surfaces of a run's particle liquids (`liquid_fluids`) in place of their particles.
+
+    3-D: the recorded level set's phi = 0 surface (marching cubes, the ``surface`` extra's
+    scikit-image) as a shaded `TriangleMesh` among the frame's meshes (lit, shadowed, z-tested
+    with everything else); without scikit-image the particles are drawn instead, with a one-line
+    warning. 2-D: the region phi < 0 (bilinear phi per pixel) filled in ``LIQUID_COLOR`` with a
+    lighter surface line, painted after the frame (2-D orthographic cameras).
+    ``merged`` is the `States` from `with_fluid_particles` (groups' particles, then each fluid's).
+    """
+
+    def __init__(self, merged, *, color=LIQUID_COLOR):
+        self.states = merged
+        self.color = np.asarray(color, np.float32)
+        self.names = liquid_fluids(merged)
+        self.mesh_ok = True
+        if self.names and merged.dim == 3:
+            try:
+                import skimage.measure  # noqa: F401
+            except ImportError:
+                import warnings
+
+                warnings.warn("liquid surfaces need scikit-image (pip install 'inertia[surface]'): drawing the "
+                              "liquid's particles instead", stacklevel=2)
+                self.mesh_ok = False
+        # rows of each liquid's particles in the merged particle list
+        self.rows = {}
+        caps = {name: merged.fields[f"fluid/{name}/x"].shape[1] for name in particle_fluids(merged)}
+        start = merged.particle_count - sum(caps.values())
+        for name, cap in caps.items():
+            if name in self.names:
+                self.rows[name] = (start, start + cap)
+            start += cap
+
+    @property
+    def draws_surfaces(self) -> bool:
+        """True when the liquids are drawn as surfaces (not as particles)."""
+        return bool(self.names) and (self.states.dim == 2 or self.mesh_ok)
+
+    def _grid(self, name):
+        m = self.states.model
+        return np.asarray(m[f"fluid/{name}/origin"], np.float64).ravel(), float(np.ravel(m[f"fluid/{name}/cell_size"])[0])
+
+    def apply(self, options: dict, f: int) -> dict:
+        """Add the surfaces of frame ``f`` to `Renderer.frame` keyword ``options`` (meshes, 3-D) and
+        switch the liquids' particles off (``active``); returns ``options``."""
+        if not self.draws_surfaces:
+            return options
+        from .meshes import TriangleMesh
+
+        n = self.states.particle_count
+        active = options.get("active")
+        active = np.ones(n, bool) if active is None else np.array(active, bool)
+        meshes = list(options.get("meshes") or [])
+        for name in self.names:
+            a, b = self.rows[name]
+            active[a:b] = False
+            if self.states.dim == 3:
+                origin, h = self._grid(name)
+                mesh = _surface_mesh_3d(self.states.fields[f"fluid/{name}/phi"][f], origin, h)
+                if mesh is not None:
+                    meshes.append(TriangleMesh(mesh[0], None, mesh[1], self.color))
+        options = dict(options, active=active, meshes=meshes)
+        return options
+
+    def paint(self, image, f: int, renderer) -> np.ndarray:
+        """2-D: fill each liquid's region phi < 0 of frame ``f`` into ``image`` (H, W, 3) uint8."""
+        if not self.names or renderer.dim != 2 or renderer.camera is None:
+            return image
+        h_px, w_px = image.shape[:2]
+        cam = renderer.camera
+        f_px = cam.focal_px(h_px)
+        # world point of every pixel centre
+        xs = cam.position[0] + (np.arange(w_px) + 0.5 - w_px / 2.0) / f_px
+        ys = cam.position[1] + (h_px / 2.0 - (np.arange(h_px) + 0.5)) / f_px
+        fill = np.round(self.color * 255.0)
+        edge = np.round(np.minimum(self.color * 1.6 + 0.15, 1.0) * 255.0)
+        for name in self.names:
+            origin, h = self._grid(name)
+            phi = np.asarray(self.states.fields[f"fluid/{name}/phi"][f], np.float64)
+            nx, ny = phi.shape
+            gx = (xs - origin[0]) / h - 0.5
+            gy = (ys - origin[1]) / h - 0.5
+            inside_x = (gx >= -0.5) & (gx <= nx - 0.5)
+            inside_y = (gy >= -0.5) & (gy <= ny - 0.5)
+            if not inside_x.any() or not inside_y.any():
+                continue
+            cols, rows = np.flatnonzero(inside_x), np.flatnonzero(inside_y)
+            gx, gy = np.clip(gx[cols], 0, nx - 1), np.clip(gy[rows], 0, ny - 1)
+            i0 = np.minimum(gx.astype(np.int64), max(nx - 2, 0))
+            j0 = np.minimum(gy.astype(np.int64), max(ny - 2, 0))
+            fx, fy = (gx - i0)[None, :], (gy - j0)[:, None]
+            i1, j1 = np.minimum(i0 + 1, nx - 1), np.minimum(j0 + 1, ny - 1)
+            value = ((1 - fy) * ((1 - fx) * phi[i0[None, :], j0[:, None]] + fx * phi[i1[None, :], j0[:, None]])
+                     + fy * ((1 - fx) * phi[i0[None, :], j1[:, None]] + fx * phi[i1[None, :], j1[:, None]]))
+            # coverage from the signed distance in pixels (anti-aliased edge), a lighter line on the surface
+            d_px = value * f_px
+            cover = np.clip(0.5 - d_px, 0.0, 1.0)[..., None]
+            line = np.clip(1.0 - np.abs(d_px + 1.0) / 1.2, 0.0, 1.0)[..., None]
+            block = image[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1].astype(np.float64)
+            block = block * (1 - cover) + fill * cover
+            block = block * (1 - line) + edge * line
+            image[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = np.clip(np.round(block), 0, 255).astype(np.uint8)
+        return image

@@ -92,8 +92,8 @@ class SmokeStyle:
     temperature_range : (t0, t1) of the glow ramp, in the fluid's temperature units.
     """
 
-    def __init__(self, *, sigma_t=20.0, albedo=(0.9, 0.9, 0.92), light_color=(1.25, 1.2, 1.1),
-                 ambient=(0.1, 0.11, 0.14), step=0.5, min_transmittance=0.01, emission=0.0,
+    def __init__(self, *, sigma_t=20.0, albedo=(0.9, 0.9, 0.92), light_color=(1.4, 1.32, 1.2),
+                 ambient=(0.05, 0.06, 0.08), step=0.5, min_transmittance=0.01, emission=0.0,
                  temperature_range=(0.0, 1.0)):
         if not (np.isfinite(sigma_t) and sigma_t > 0):
             raise ValueError(f"SmokeStyle: sigma_t must be a finite extinction > 0 (1/m); got {sigma_t!r}")
