@@ -70,10 +70,12 @@ _P_SIGMA, _P_STEP, _P_MIN_T = 0, 1, 2
 _P_ALBEDO, _P_LIGHT, _P_AMBIENT = 3, 6, 9
 _P_EMISSION, _P_T0, _P_T1, _P_HAS_TEMP = 12, 13, 14, 15
 _P_SIZE = 16
-# Parallel builds from this many pixels / occupied cells (each costs a march of tens of samples;
-# smaller frames and grids run the serial twins, which also compile faster).
-_PARALLEL_PIXELS = 65_536
-_PARALLEL_CELLS = 32_768
+# Parallel builds from this many pixels / occupied cells, the renderer's pixel threshold: the
+# default 960 x 540 frame and grids up to ~84^3 run the serial twins, the builds `inertia warmup`
+# compiles (a parallel build costs several times the compile time, and on a busy 2-core machine
+# a parallel hand-off often does not pay).
+_PARALLEL_PIXELS = 600_000
+_PARALLEL_CELLS = 600_000
 
 
 class SmokeStyle:
