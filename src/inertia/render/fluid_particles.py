@@ -244,6 +244,14 @@ def frame_volumes(renderer, states, colliders=(), render: dict | None = None) ->
         extra = None
     renderer.fit(positions, radius=states.radius(), colliders=colliders, active=None, extra_points=extra,
                  times=states.times if positions.shape[0] == len(states.times) else None)
+    if renderer.light_direction is None:
+        # A key light from above and the side, a little behind the smoke: the plume's lit and
+        # shadowed sides both face the camera (the renderer's default light is near the view).
+        from .camera import UP_AXES
+
+        right, _, forward = renderer.camera.basis()
+        light = 1.0 * UP_AXES[renderer.up][0] + 0.9 * right + 0.25 * forward
+        renderer.light_direction = light / np.linalg.norm(light)
 
 
 def _smoke_extent(states, name):
