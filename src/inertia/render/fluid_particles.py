@@ -1,5 +1,5 @@
-"""SPH fluids in rendered runs: the fluid's particles drawn beside the particle groups, coloured
-by speed, with a colour bar.
+"""Fluids in rendered runs: SPH/FLIP particles coloured by speed with a colour bar, 2-D grids as
+colour maps, 3-D smoke as a ray-marched lit volume, liquids as their surfaces.
 
 A run records each particle fluid's ``frame_arrays()`` as fields ``fluid/<name>/x`` (F, C, D),
 ``fluid/<name>/v`` (F, C, D) and ``fluid/<name>/active`` (F, C) (C: the fluid's capacity) and its
@@ -21,12 +21,28 @@ Recorded 2-D grid fluids (``fluid/<name>/speed`` (F, nx, ny) with ``origin``, ``
 recorded (smoke), else ``speed`` in the speed map, each on one scale for the whole run (the maps of
 `inertia.render.fluid_grid`); ``frame_grids`` frames the camera on them when there is no particle.
 
+Recorded 3-D smoke (``fluid/<name>/density`` (F, nx, ny, nz) with ``origin``, ``cell_size``) is
+ray-marched over each finished frame by `inertia.render.fluid_volume` (``paint_volumes``): lit by a
+key light from above and the side (``frame_volumes`` sets it, and frames the camera on where the
+smoke goes over the run), occluded by whatever the renderer drew (its depth buffer), with one
+extinction scale for the run (``smoke_styles``: ``SMOKE_OPTICAL_DEPTH`` over ten cells at the run's
+99th-percentile density).
+
+Particle liquids with a recorded level set (``fluid/<name>/phi``, `LiquidFluid`) are drawn as
+their surface instead of their particles (``LiquidSurfaces``): in 3-D the phi = 0 surface by
+marching cubes (scikit-image, the ``surface`` extra) as a shaded mesh among the frame's meshes
+(lit, shadowed and z-tested with the bodies); in 2-D the region phi < 0 filled in
+``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line.
+
 Limitations: grid colour maps are pasted over the frame's background (nearest cell per pixel,
 2-D orthographic cameras only) before nothing else is drawn: particles of the same frame are not
-drawn over them (a fluid-only scene shows the grid alone); 3-D grids are not drawn. When the groups and the fluid differ in dimension (a 3-D group with a 2-D fluid)
-the fluid is not drawn; fluids are spheres/discs (no liquid surface: that is
-`inertia.fluids.sph.surface` through marching cubes, not wired into `inertia run` yet); grid
-fluids (no ``x``) are left to `inertia.render.fluid_grid`.
+drawn over them (a fluid-only scene shows the grid alone); a 3-D grid without a ``density`` scalar
+(viscous flow only) is not drawn. When the groups and the fluid differ in dimension (a 3-D group
+with a 2-D fluid) the fluid is not drawn; SPH fluids are spheres/discs (their surface,
+`inertia.fluids.sph.surface`, is not wired into `inertia run`); without scikit-image a 3-D liquid
+falls back to its particles (one warning); the 2-D liquid fill is painted over the finished frame
+(particles of other groups inside the liquid are covered). Grid fluids (no ``x``) are left to
+`inertia.render.fluid_grid`.
 """
 
 from __future__ import annotations
