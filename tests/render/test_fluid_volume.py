@@ -35,7 +35,8 @@ def test_uniform_slab_transmits_beer_lambert(sigma_t, rho):
     expected = np.exp(-sigma_t * rho * 1.6)
     assert expected > 0.01  # not cut by the early termination
     assert touched.all()
-    assert np.max(np.abs(color / bg - expected)) < 1e-3
+    # brief: within 1e-3; the march is exact up to float32 rounding here (measured 2e-8)
+    assert np.max(np.abs(color / bg - expected)) < 1e-5
 
     # Perspective: the ray through pixel (px, py) enters the top face z = 1.6 and leaves by z = 0.
     cam = Camera(position=np.array([0.8, 0.8, 4.0]), target=np.array([0.8, 0.8, 0.0]), up=np.array([0.0, 1.0, 0.0]),
@@ -50,7 +51,7 @@ def test_uniform_slab_transmits_beer_lambert(sigma_t, rho):
         length = 1.6 / abs(d[2])
         exit_point = cam.position + (4.0 / abs(d[2])) * d
         assert np.all((exit_point[:2] > 0) & (exit_point[:2] < 1.6))  # leaves through the bottom face
-        assert abs(color[py, px, 0] / bg[0] - np.exp(-sigma_t * rho * length)) < 1e-3
+        assert abs(color[py, px, 0] / bg[0] - np.exp(-sigma_t * rho * length)) < 1e-5
 
 
 def test_opaque_surface_stops_the_march_at_its_depth():
@@ -77,7 +78,8 @@ def _sphere_density(n, h, center, radius, rho):
 def test_light_transmittance_grid_is_beer_lambert_towards_the_light():
     # A ball of constant density, light along +x: from a cell centre at p inside, the light
     # crosses d = sqrt(R^2 - (y-cy)^2 - (z-cz)^2) - (x - cx) of smoke, T = exp(-sigma rho d).
-    # Trilinear sampling smears the ball's edge over one cell, so d is matched within h.
+    # Trilinear sampling smears the ball's edge over one cell (a ramp of width h whose midpoint
+    # samples err by up to h/2): d is matched within 0.6 h (measured 0.45 h).
     n, h, radius, rho, sigma_t = 24, 0.05, 0.4, 0.8, 4.0
     c = np.array([0.6, 0.6, 0.6])
     density, (x, y, z) = _sphere_density(n, h, c, radius, rho)
@@ -90,14 +92,14 @@ def test_light_transmittance_grid_is_beer_lambert_towards_the_light():
     d = np.sqrt(q[deep]) - (x[deep] - c[0])
     measured = -np.log(transmit[deep]) / (sigma_t * rho)
     assert deep.sum() > 500
-    assert np.max(np.abs(measured - d)) < h
+    assert np.max(np.abs(measured - d)) < 0.6 * h
     # cells beyond the ball on the far side from the light are shadowed by a full chord
     assert transmit.min() < np.exp(-sigma_t * rho * (2 * radius - 2 * h))
 
 
 def test_ball_of_smoke_is_brighter_on_its_lit_side():
     # Side view (camera on -y looking +y), light from +x: the +x half of the ball scatters more
-    # (T_light near 1) than the -x half (T_light ~ exp(-sigma rho 2R) ~ 0.04).
+    # (T_light near 1) than the -x half (T_light ~ exp(-sigma rho 2R) ~ 0.04): measured 3.8x.
     n, h, radius, rho = 24, 0.05, 0.4, 1.0
     c = np.array([0.6, 0.6, 0.6])
     density, _ = _sphere_density(n, h, c, radius, rho)
@@ -132,7 +134,7 @@ def test_empty_grid_leaves_the_image_bit_for_bit():
 def test_small_dense_blob_appears_where_the_camera_projects_it():
     # One dense cell (trilinear: a symmetric tent two cells wide) seen by a perspective camera
     # from an oblique angle: the opacity-weighted centroid of the drawn pixels is the projection
-    # of the cell centre within 1 px.
+    # of the cell centre within 1 px (the brief's bound; measured 0.02 px).
     n, h = 16, 0.05
     density = np.zeros((n, n, n), np.float32)
     i, j, k = 11, 4, 7
