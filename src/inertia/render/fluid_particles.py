@@ -273,8 +273,8 @@ def frame_volumes(renderer, states, colliders=(), render: dict | None = None) ->
 def _smoke_extent(states, name):
     """World box (lo, hi) of the cells holding smoke in a sample of frames (the grid's box if none)."""
     lo, hi = _box3(states, name)
-    data = np.asarray(states.fields[f"fluid/{name}/density"])
-    sample = np.nan_to_num(data[:: max(1, data.shape[0] // 12)], nan=0.0)
+    data = states.fields[f"fluid/{name}/density"]
+    sample = np.nan_to_num(np.asarray(data[:: max(1, data.shape[0] // 12)]), nan=0.0)
     level = 0.02 * _density_scale(sample)
     occupied = np.argwhere(np.max(sample, axis=0) > level)
     if occupied.size == 0:
@@ -302,8 +302,8 @@ def smoke_styles(states) -> dict:
 
     styles = {}
     for name in volume_fluids(states):
-        data = np.asarray(states.fields[f"fluid/{name}/density"])
-        rho = _density_scale(np.nan_to_num(data[:: max(1, data.shape[0] // 12)], nan=0.0))
+        data = states.fields[f"fluid/{name}/density"]
+        rho = _density_scale(np.nan_to_num(np.asarray(data[:: max(1, data.shape[0] // 12)]), nan=0.0))
         h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
         styles[name] = SmokeStyle(sigma_t=SMOKE_OPTICAL_DEPTH / (max(rho, 1e-12) * 10.0 * h))
     return styles
