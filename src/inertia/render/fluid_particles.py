@@ -266,7 +266,7 @@ def frame_volumes(renderer, states, colliders=(), render: dict | None = None) ->
         from .camera import UP_AXES
 
         right, _, forward = renderer.camera.basis()
-        light = 1.0 * UP_AXES[renderer.up][0] + 0.9 * right + 0.25 * forward
+        light = 1.5 * UP_AXES[renderer.up][0] + 0.9 * right + 0.25 * forward
         renderer.light_direction = light / np.linalg.norm(light)
 
 
