@@ -122,6 +122,13 @@ def test_3d_smoke_frames_the_camera_on_the_smoke():
     assert np.allclose(lo, 0.1) and np.allclose(hi, 0.5)
     px, py, depth = r.camera.project(np.array([[0.3, 0.3, 0.3]]), 96, 72)
     assert depth[0] > 0 and abs(px[0] - 48) < 10 and abs(py[0] - 36) < 10
+    # an orbiting camera keeps turning over the run with smoke alone (the box is framed per frame)
+    r = renderer_for(s, {"width": 96, "height": 72, "camera": {"orbit": 40.0}})
+    frame_volumes(r, s, (), {"camera": {"orbit": 40.0}})
+    a, b = r.camera_at(0.0), r.camera_at(0.1)
+    turn = np.degrees(np.arccos(np.dot(*(np.delete(c.position - c.target, 2) / np.linalg.norm(np.delete(c.position - c.target, 2))
+                                          for c in (a, b)))))
+    assert abs(turn - 40.0) < 1e-6
 
 
 # ----------------------------------------------------------------------------- liquid surfaces

@@ -255,8 +255,8 @@ def frame_volumes(renderer, states, colliders=(), render: dict | None = None) ->
         corners += [np.where([a, b, c], hi, lo) for a in (0, 1) for b in (0, 1) for c in (0, 1)]
     extra = np.array(corners)
     positions = np.asarray(states.positions, np.float64)
-    if positions.shape[1] == 0:
-        positions = extra[None]
+    if positions.shape[1] == 0:  # smoke alone: its box in every frame (so an orbit keeps its keys)
+        positions = np.ascontiguousarray(np.broadcast_to(extra, (max(len(states.times), 1),) + extra.shape))
         extra = None
     renderer.fit(positions, radius=states.radius(), colliders=colliders, active=None, extra_points=extra,
                  times=states.times if positions.shape[0] == len(states.times) else None)
