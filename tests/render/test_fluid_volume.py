@@ -86,7 +86,7 @@ def test_light_transmittance_grid_is_beer_lambert_towards_the_light():
     box = np.zeros(6, np.int64)
     assert occupied_box(density, 0.0, box)
     transmit = np.empty_like(density)
-    light_transmittance.serial(density, box, h, np.array([1.0, 0.0, 0.0]), sigma_t, transmit)
+    light_transmittance.serial(density, np.zeros((1, 1, 1), np.uint8), box, h, np.array([1.0, 0.0, 0.0]), sigma_t, transmit)
     q = radius ** 2 - (y - c[1]) ** 2 - (z - c[2]) ** 2
     deep = (density > 0) & (q > (2 * h) ** 2)
     d = np.sqrt(q[deep]) - (x[deep] - c[0])
@@ -173,3 +173,20 @@ def test_temperature_glows_and_bad_input_is_named():
         render_smoke_linear(cold, cam, np.zeros((4, 4)), origin=(0, 0, 0), cell_size=h, light_direction=(0, 0, 1))
     with pytest.raises(ValueError, match="cell_size"):
         render_smoke_linear(cold, cam, density, origin=(0, 0, 0), cell_size=0.0, light_direction=(0, 0, 1))
+
+
+def test_an_opaque_obstacle_shadows_the_smoke_behind_it_from_the_light():
+    # Uniform smoke, light straight down (+z towards the light), a solid 2 x 2 x 2 cell block in the
+    # middle: the cells under it are in full shadow, the cells beside it keep Beer-Lambert
+    # exp(-sigma rho d) to the top of the box (d = distance from the cell centre to the top face).
+    n, h, rho, sigma_t = 12, 0.1, 0.5, 2.0
+    density = np.full((n, n, n), rho, np.float32)
+    solid = np.zeros((n, n, n), np.uint8)
+    solid[5:7, 5:7, 8:10] = 1
+    box = np.array([0, n, 0, n, 0, n], np.int64)
+    transmit = np.empty_like(density)
+    light_transmittance.serial(density, solid, box, h, np.array([0.0, 0.0, 1.0]), sigma_t, transmit)
+    assert np.all(transmit[5:7, 5:7, :7] == 0.0)
+    d = (n - (np.arange(n) + 0.5)) * h
+    assert np.allclose(transmit[2, 2, :], np.exp(-sigma_t * rho * d), rtol=1e-5)
+    assert np.allclose(transmit[5, 5, 10:], np.exp(-sigma_t * rho * d[10:]), rtol=1e-5)  # above it: lit

@@ -122,7 +122,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             colors=colors, groups=groups, colliders=draw, t=float(states.times[f]), **liquids.apply(options, f))
         paint_grids(image, states, f, renderer)
         liquids.paint(image, f, renderer)
-        paint_volumes(image, states, f, renderer, smoke)
+        paint_volumes(image, states, f, renderer, smoke, colliders)
         if legend is not None:
             from inertia.render.legend import overlay
 

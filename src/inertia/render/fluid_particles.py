@@ -24,7 +24,8 @@ recorded (smoke), else ``speed`` in the speed map, each on one scale for the who
 Recorded 3-D smoke (``fluid/<name>/density`` (F, nx, ny, nz) with ``origin``, ``cell_size``) is
 ray-marched over each finished frame by `inertia.render.fluid_volume` (``paint_volumes``): lit by a
 key light from above and the side (``frame_volumes`` sets it, and frames the camera on where the
-smoke goes over the run), occluded by whatever the renderer drew (its depth buffer), with one
+smoke goes over the run), occluded by whatever the renderer drew (its depth buffer), shadowed from
+the light by the closed colliders (obstacle spheres, boxes: a cell mask), with one
 extinction scale for the run (``smoke_styles``: ``SMOKE_OPTICAL_DEPTH`` over ten cells at the run's
 99th-percentile density).
 
@@ -309,10 +310,30 @@ def smoke_styles(states) -> dict:
     return styles
 
 
-def paint_volumes(image, states, frame: int, renderer, styles: dict | None = None) -> np.ndarray:
+def _solid_cells(states, name, colliders, t):
+    """(nx, ny, nz) bool: cells of the smoke grid whose centre is inside a closed collider (spheres,
+    boxes, capsules, ...; planes and containers are walls, not obstacles), or None."""
+    solids = [c for c in colliders if type(c).__name__ not in ("Plane", "Container") and hasattr(c, "signed_distance")]
+    if not solids:
+        return None
+    lo, _ = _box3(states, name)
+    shape = states.fields[f"fluid/{name}/density"].shape[1:4]
+    h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+    axes = [lo[a] + (np.arange(shape[a]) + 0.5) * h for a in range(3)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = np.zeros(points.shape[0], bool)
+    for collider in solids:
+        try:
+            inside |= np.asarray(collider.signed_distance(points, t)).reshape(-1) < 0.0
+        except (TypeError, ValueError):  # a collider without a 3-D signed distance: not an obstacle here
+            continue
+    return inside.reshape(shape) if inside.any() else None
+
+
+def paint_volumes(image, states, frame: int, renderer, styles: dict | None = None, colliders=()) -> np.ndarray:
     """Composite every recorded 3-D smoke of ``frame`` over ``image`` (H, W, 3) uint8 in place, lit
-    by the renderer's key light, occluded by what the renderer drew (its depth buffer); see
-    `inertia.render.fluid_volume`."""
+    by the renderer's key light, occluded by what the renderer drew (its depth buffer) and shadowed
+    from the light by the closed ``colliders`` (obstacles); see `inertia.render.fluid_volume`."""
     from .fluid_volume import composite_smoke
 
     names = volume_fluids(states)
@@ -327,7 +348,8 @@ def paint_volumes(image, states, frame: int, renderer, styles: dict | None = Non
         lo, _ = _box3(states, name)
         composite_smoke(image, camera, density, origin=lo,
                         cell_size=float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
-                        light_direction=light, style=styles.get(name), depth=depth)
+                        light_direction=light, style=styles.get(name), depth=depth,
+                        solid=_solid_cells(states, name, colliders, float(states.times[frame])))
     return image
 
 
