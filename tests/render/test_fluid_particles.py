@@ -72,3 +72,113 @@ def test_recorded_2d_grid_is_painted_the_right_way_up():
     top, bottom = (image[int(py[k]), int(px[k])].astype(float) for k in (0, 1))
     lo, hi = (np.asarray(colormap(DEFAULT_SPEED_MAP, np.array([t]), vmin=0.0, vmax=1.0))[0, :3] * 255 for t in (0.0, 1.0))
     assert np.abs(top - hi).max() <= 1 and np.abs(bottom - lo).max() <= 1
+
+
+# ----------------------------------------------------------------------------- 3-D smoke in runs
+def _smoke_states(with_smoke=True):
+    # A 12^3 grid on [0, 0.6]^3 (h = 0.05): frame 0 empty, frame 1 a ball of smoke (radius 0.2)
+    # at the centre; 3-D, no particles.
+    n, h = 12, 0.05
+    g = (np.arange(n) + 0.5) * h
+    x, y, z = np.meshgrid(g, g, g, indexing="ij")
+    ball = ((x - 0.3) ** 2 + (y - 0.3) ** 2 + (z - 0.3) ** 2 <= 0.2 ** 2).astype(np.float32)
+    density = np.stack([np.zeros_like(ball), ball if with_smoke else np.zeros_like(ball)])
+    fields = {"fluid/smoke/density": density, "fluid/smoke/speed": np.zeros_like(density)}
+    return States(np.array([0.0, 0.1]), np.zeros((2, 0, 3)), fields=fields,
+                  model={"fluid/smoke/origin": np.zeros(3), "fluid/smoke/cell_size": np.array(h)},
+                  metadata={"dim": 3})
+
+
+def test_3d_smoke_is_ray_marched_into_run_frames_behind_opaque_colliders():
+    import inertia.colliders as C
+
+    from inertia.render.fluid_particles import volume_fluids
+
+    # camera on -y looking at the ball's centre; a solid sphere collider between them covers the
+    # middle of the ball of smoke
+    render = {"width": 96, "height": 72, "camera": {"position": [0.3, -1.5, 0.3], "target": [0.3, 0.3, 0.3]}}
+    blocker = [C.Sphere(center=(0.3, -0.6, 0.3), radius=0.05)]
+    smoky, clear = _smoke_states(True), _smoke_states(False)
+    assert volume_fluids(smoky) == ["smoke"]
+    a = dict(render_frames(smoky, render, blocker))
+    b = dict(render_frames(clear, render, blocker))
+    assert np.array_equal(a[0], b[0])                          # an empty grid changes no byte
+    r = renderer_for(smoky, render, blocker)
+    px, py, _ = r.camera.project(np.array([[0.3, 0.3, 0.3], [0.3 + 0.14, 0.3, 0.3], [0.3, -0.6, 0.3]]), 96, 72)
+    centre, side, block = [(int(py[k]), int(px[k])) for k in range(3)]
+    assert np.abs(a[1][side].astype(int) - b[1][side]).max() > 20   # smoke drawn over the background
+    assert np.array_equal(a[1][block], b[1][block])                  # the sphere in front hides it
+    assert centre == block
+
+
+def test_3d_smoke_frames_the_camera_on_the_smoke():
+    from inertia.render.fluid_particles import frame_volumes
+
+    s = _smoke_states(True)
+    r = renderer_for(s, {"width": 96, "height": 72})
+    frame_volumes(r, s)
+    # the ball's 99th-percentile density is 1: cells above 2 % of it span [0.1, 0.5]^3 (whole cells)
+    lo, hi = r.bounds
+    assert np.allclose(lo, 0.1) and np.allclose(hi, 0.5)
+    px, py, depth = r.camera.project(np.array([[0.3, 0.3, 0.3]]), 96, 72)
+    assert depth[0] > 0 and abs(px[0] - 48) < 10 and abs(py[0] - 36) < 10
+    # an orbiting camera keeps turning over the run with smoke alone (the box is framed per frame)
+    r = renderer_for(s, {"width": 96, "height": 72, "camera": {"orbit": 40.0}})
+    frame_volumes(r, s, (), {"camera": {"orbit": 40.0}})
+    a, b = r.camera_at(0.0), r.camera_at(0.1)
+    turn = np.degrees(np.arccos(np.dot(*(np.delete(c.position - c.target, 2) / np.linalg.norm(np.delete(c.position - c.target, 2))
+                                          for c in (a, b)))))
+    assert abs(turn - 40.0) < 1e-6
+
+
+# ----------------------------------------------------------------------------- liquid surfaces
+def _liquid_states(dim):
+    # A particle liquid filling the lower half of a 1 m box (level set phi = y - 0.5, or z - 0.5):
+    # its particles recorded as fluid/water/x, v and its level set as fluid/water/phi.
+    n, h = 8, 0.125
+    c = (np.arange(n) + 0.5) * h
+    grids = np.meshgrid(*([c] * dim), indexing="ij")
+    phi = (grids[-1] - 0.5).astype(np.float32)
+    pts = np.stack([gg.ravel() for gg in grids], axis=1)
+    pts = pts[pts[:, -1] < 0.5].astype(np.float32)
+    x = np.stack([pts, pts])
+    fields = {"fluid/water/x": x, "fluid/water/v": np.zeros_like(x), "fluid/water/phi": np.stack([phi, phi])}
+    return States(np.array([0.0, 0.1]), np.zeros((2, 0, dim)), fields=fields,
+                  model={"fluid/water/origin": np.zeros(dim), "fluid/water/cell_size": np.array(h)},
+                  metadata={"dim": dim})
+
+
+def test_2d_liquid_is_filled_below_its_surface():
+    from inertia.render.fluid_particles import LIQUID_COLOR, liquid_fluids
+
+    s = _liquid_states(2)
+    assert liquid_fluids(s) == ["water"]
+    render = {"width": 120, "height": 120, "camera": {"target": [0.5, 0.5], "height": 1.2}}
+    (_, image), = list(render_frames(s, render, frames=[1]))
+    r = renderer_for(with_fluid_particles(s), render)
+    px, py, _ = r.camera.project(np.array([[0.5, 0.3], [0.5, 0.7], [0.5, 0.5 - 0.1]]), 120, 120)
+    water, air = image[int(py[0]), int(px[0])], image[int(py[1]), int(px[1])]
+    assert np.abs(water.astype(int) - np.round(np.array(LIQUID_COLOR) * 255)).max() <= 1
+    assert np.abs(air.astype(int) - np.round(np.array(LIQUID_COLOR) * 255)).max() > 40
+    # the filled edge is the phi = 0 line (within one pixel): rows below y = 0.5 are water
+    col = image[:, int(px[0])].astype(int)
+    is_water = np.abs(col - np.round(np.array(LIQUID_COLOR) * 255)).max(axis=1) <= 1
+    surface_row = py[0] - (0.2 / 1.2) * 120  # pixel row of y = 0.5
+    assert is_water[int(surface_row) + 3:int(py[0])].all() and not is_water[:int(surface_row) - 1].any()
+
+
+def test_3d_liquid_is_a_shaded_surface_mesh_instead_of_particles():
+    pytest.importorskip("skimage")
+    from inertia.render.fluid_particles import LiquidSurfaces
+
+    s = with_fluid_particles(_liquid_states(3))
+    liquids = LiquidSurfaces(s)
+    options = liquids.apply({"meshes": [], "lines": [], "active": None}, 1)
+    assert not options["active"].any()                        # the particles are not drawn
+    (mesh,) = options["meshes"]
+    v = np.asarray(mesh.vertices)
+    top = v[(v[:, 0] > 0.1) & (v[:, 0] < 0.9) & (v[:, 1] > 0.1) & (v[:, 1] < 0.9) & (v[:, 2] > 0.25)]
+    # marching cubes of phi = z - 0.5 (linear, so exact): the free surface is the plane z = 0.5
+    assert top.shape[0] > 20 and np.allclose(top[:, 2], 0.5, atol=1e-6)
+    (_, image), = list(render_frames(_liquid_states(3), {"width": 96, "height": 72}, frames=[1]))
+    assert image.std() > 5                                     # something is drawn

@@ -1,5 +1,5 @@
-"""SPH fluids in rendered runs: the fluid's particles drawn beside the particle groups, coloured
-by speed, with a colour bar.
+"""Fluids in rendered runs: SPH/FLIP particles coloured by speed with a colour bar, 2-D grids as
+colour maps, 3-D smoke as a ray-marched lit volume, liquids as their surfaces.
 
 A run records each particle fluid's ``frame_arrays()`` as fields ``fluid/<name>/x`` (F, C, D),
 ``fluid/<name>/v`` (F, C, D) and ``fluid/<name>/active`` (F, C) (C: the fluid's capacity) and its
@@ -21,12 +21,29 @@ Recorded 2-D grid fluids (``fluid/<name>/speed`` (F, nx, ny) with ``origin``, ``
 recorded (smoke), else ``speed`` in the speed map, each on one scale for the whole run (the maps of
 `inertia.render.fluid_grid`); ``frame_grids`` frames the camera on them when there is no particle.
 
+Recorded 3-D smoke (``fluid/<name>/density`` (F, nx, ny, nz) with ``origin``, ``cell_size``) is
+ray-marched over each finished frame by `inertia.render.fluid_volume` (``paint_volumes``): lit by a
+key light from above and the side (``frame_volumes`` sets it, and frames the camera on where the
+smoke goes over the run), occluded by whatever the renderer drew (its depth buffer), shadowed from
+the light by the closed colliders (obstacle spheres, boxes: a cell mask), with one
+extinction scale for the run (``smoke_styles``: ``SMOKE_OPTICAL_DEPTH`` over ten cells at the run's
+99th-percentile density).
+
+Particle liquids with a recorded level set (``fluid/<name>/phi``, `LiquidFluid`) are drawn as
+their surface instead of their particles (``LiquidSurfaces``): in 3-D the phi = 0 surface by
+marching cubes (scikit-image, the ``surface`` extra) as a shaded mesh among the frame's meshes
+(lit, shadowed and z-tested with the bodies); in 2-D the region phi < 0 filled in
+``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line.
+
 Limitations: grid colour maps are pasted over the frame's background (nearest cell per pixel,
 2-D orthographic cameras only) before nothing else is drawn: particles of the same frame are not
-drawn over them (a fluid-only scene shows the grid alone); 3-D grids are not drawn. When the groups and the fluid differ in dimension (a 3-D group with a 2-D fluid)
-the fluid is not drawn; fluids are spheres/discs (no liquid surface: that is
-`inertia.fluids.sph.surface` through marching cubes, not wired into `inertia run` yet); grid
-fluids (no ``x``) are left to `inertia.render.fluid_grid`.
+drawn over them (a fluid-only scene shows the grid alone); a 3-D grid without a ``density`` scalar
+(viscous flow only) is not drawn. When the groups and the fluid differ in dimension (a 3-D group
+with a 2-D fluid) the fluid is not drawn; SPH fluids are spheres/discs (their surface,
+`inertia.fluids.sph.surface`, is not wired into `inertia run`); without scikit-image a 3-D liquid
+falls back to its particles (one warning); the 2-D liquid fill is painted over the finished frame
+(particles of other groups inside the liquid are covered). Grid fluids (no ``x``) are left to
+`inertia.render.fluid_grid`.
 """
 
 from __future__ import annotations
@@ -36,7 +53,8 @@ import numpy as np
 from ..io.states import States
 
 __all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
-           "frame_grids", "paint_grids"]
+           "frame_grids", "paint_grids", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
+           "liquid_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
 
 
 def particle_fluids(states) -> list[str]:
@@ -131,6 +149,8 @@ def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | N
 
     if not particle_fluids(states) or states.velocities is None or renderer.speed_max is None:
         return None
+    if set(particle_fluids(states)) <= set(liquid_fluids(states)) and LiquidSurfaces(states).draws_surfaces:
+        return None  # every fluid is drawn as a surface: no speed colours to explain
     if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) != "speed":
         return None
     try:
@@ -201,3 +221,264 @@ def paint_grids(image, states, frame: int, renderer, scales: dict | None = None)
         rgb = colormap("magma" if quantity == "density" else "speed", values, vmin=0.0, vmax=vmax)
         image[y0:y1, x0:x1] = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
     return image
+
+
+# ----------------------------------------------------------------------------- 3-D smoke volumes
+def volume_fluids(states) -> list[str]:
+    """Names of the recorded 3-D grid fluids with a ``density`` scalar (smoke): fields
+    ``fluid/<name>/density`` (F, nx, ny, nz) and ``origin`` / ``cell_size`` in ``States.model``."""
+    names = []
+    for key, value in states.fields.items():
+        parts = key.split("/")
+        if len(parts) == 3 and parts[0] == "fluid" and parts[2] == "density" and np.ndim(value) == 4 \
+                and f"fluid/{parts[1]}/origin" in states.model and f"fluid/{parts[1]}/cell_size" in states.model:
+            names.append(parts[1])
+    return names
+
+
+def _box3(states, name):
+    origin = np.asarray(states.model[f"fluid/{name}/origin"], np.float64).ravel()[:3]
+    shape = np.asarray(states.fields[f"fluid/{name}/density"].shape[1:4], np.float64)
+    return origin, origin + shape * float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+
+
+def frame_volumes(renderer, states, colliders=(), render: dict | None = None) -> None:
+    """Frame the 3-D camera on where the smoke goes over the run (the cells above 2 % of the run's
+    99th-percentile density in a sample of frames, else the grid's box), the particles and the
+    colliders, unless the scene's [render] camera sets a position or target."""
+    names = volume_fluids(states)
+    camera = dict((render or {}).get("camera") or {})
+    if not names or renderer.dim != 3 or camera.get("position") is not None or camera.get("target") is not None:
+        return
+    corners = []
+    for name in names:
+        lo, hi = _smoke_extent(states, name)
+        corners += [np.where([a, b, c], hi, lo) for a in (0, 1) for b in (0, 1) for c in (0, 1)]
+    extra = np.array(corners)
+    positions = np.asarray(states.positions, np.float64)
+    if positions.shape[1] == 0:  # smoke alone: its box in every frame (so an orbit keeps its keys)
+        positions = np.ascontiguousarray(np.broadcast_to(extra, (max(len(states.times), 1),) + extra.shape))
+        extra = None
+    renderer.fit(positions, radius=states.radius(), colliders=colliders, active=None, extra_points=extra,
+                 times=states.times if positions.shape[0] == len(states.times) else None)
+    if renderer.light_direction is None:
+        # A key light from above and the side, a little behind the smoke: the plume's lit and
+        # shadowed sides both face the camera (the renderer's default light is near the view).
+        from .camera import UP_AXES
+
+        right, _, forward = renderer.camera.basis()
+        light = 1.5 * UP_AXES[renderer.up][0] + 0.9 * right + 0.25 * forward
+        renderer.light_direction = light / np.linalg.norm(light)
+
+
+def _smoke_extent(states, name):
+    """World box (lo, hi) of the cells holding smoke in a sample of frames (the grid's box if none)."""
+    lo, hi = _box3(states, name)
+    data = states.fields[f"fluid/{name}/density"]
+    sample = np.nan_to_num(np.asarray(data[:: max(1, data.shape[0] // 12)]), nan=0.0)
+    level = 0.02 * _density_scale(sample)
+    occupied = np.argwhere(np.max(sample, axis=0) > level)
+    if occupied.size == 0:
+        return lo, hi
+    h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+    return lo + occupied.min(axis=0) * h, lo + (occupied.max(axis=0) + 1) * h
+
+
+def _density_scale(sample) -> float:
+    """The 99th percentile of the smoky cells' density (those above 1e-3 of the maximum)."""
+    top = float(np.max(sample)) if sample.size else 0.0
+    smoky = sample[sample > 1e-3 * top] if top > 0 else sample[:0]
+    return float(np.percentile(smoky, 99.0)) if smoky.size else 1.0
+
+
+#: Optical depth of a plume ten cells across at the run's 99th-percentile density (sets sigma_t).
+SMOKE_OPTICAL_DEPTH = 4.0
+
+
+def smoke_styles(states) -> dict:
+    """A `inertia.render.fluid_volume.SmokeStyle` per 3-D smoke of the run, on one scale for the
+    whole run: ``sigma_t = SMOKE_OPTICAL_DEPTH / (rho_99 10 h)``, so a plume ten cells across at
+    the run's 99th percentile density (over its smoky cells) has that optical depth."""
+    from .fluid_volume import SmokeStyle
+
+    styles = {}
+    for name in volume_fluids(states):
+        data = states.fields[f"fluid/{name}/density"]
+        rho = _density_scale(np.nan_to_num(np.asarray(data[:: max(1, data.shape[0] // 12)]), nan=0.0))
+        h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+        styles[name] = SmokeStyle(sigma_t=SMOKE_OPTICAL_DEPTH / (max(rho, 1e-12) * 10.0 * h))
+    return styles
+
+
+def _solid_cells(states, name, colliders, t):
+    """(nx, ny, nz) bool: cells of the smoke grid whose centre is inside a closed collider (spheres,
+    boxes, capsules, ...; planes and containers are walls, not obstacles), or None."""
+    solids = [c for c in colliders if type(c).__name__ not in ("Plane", "Container") and hasattr(c, "signed_distance")]
+    if not solids:
+        return None
+    lo, _ = _box3(states, name)
+    shape = states.fields[f"fluid/{name}/density"].shape[1:4]
+    h = float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0])
+    axes = [lo[a] + (np.arange(shape[a]) + 0.5) * h for a in range(3)]
+    points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    inside = np.zeros(points.shape[0], bool)
+    for collider in solids:
+        try:
+            inside |= np.asarray(collider.signed_distance(points, t)).reshape(-1) < 0.0
+        except (TypeError, ValueError):  # a collider without a 3-D signed distance: not an obstacle here
+            continue
+    return inside.reshape(shape) if inside.any() else None
+
+
+def paint_volumes(image, states, frame: int, renderer, styles: dict | None = None, colliders=()) -> np.ndarray:
+    """Composite every recorded 3-D smoke of ``frame`` over ``image`` (H, W, 3) uint8 in place, lit
+    by the renderer's key light, occluded by what the renderer drew (its depth buffer) and shadowed
+    from the light by the closed ``colliders`` (obstacles); see `inertia.render.fluid_volume`."""
+    from .fluid_volume import composite_smoke
+
+    names = volume_fluids(states)
+    if not names or renderer.dim != 3 or renderer.camera is None:
+        return image
+    styles = smoke_styles(states) if styles is None else styles
+    camera = renderer.camera_at(float(states.times[frame]))
+    light = renderer._light_direction(camera)
+    depth = renderer._depth if renderer._depth.shape == image.shape[:2] else None
+    for name in names:
+        density = states.fields[f"fluid/{name}/density"][frame]
+        lo, _ = _box3(states, name)
+        composite_smoke(image, camera, density, origin=lo,
+                        cell_size=float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
+                        light_direction=light, style=styles.get(name), depth=depth,
+                        solid=_solid_cells(states, name, colliders, float(states.times[frame])))
+    return image
+
+
+# ----------------------------------------------------------------------------- liquid surfaces
+#: Colour of liquid surfaces (sRGB): a 3-D shaded mesh, a filled region in 2-D.
+LIQUID_COLOR = (0.22, 0.52, 0.86)
+
+
+def liquid_fluids(states) -> list[str]:
+    """Names of the recorded particle liquids with a level set: ``fluid/<name>/phi`` (F, nx, ny[, nz])
+    beside their particles ``x``, and ``origin`` / ``cell_size`` in ``States.model``."""
+    return [name for name in particle_fluids(states)
+            if f"fluid/{name}/phi" in states.fields and f"fluid/{name}/origin" in states.model
+            and f"fluid/{name}/cell_size" in states.model]
+
+
+def _surface_mesh_3d(phi, origin, h):
+    """(vertices (V, 3) m, triangles (T, 3)) of the phi = 0 surface of cell-centred ``phi``
+    (negative inside) by scikit-image's marching cubes, closed against the walls (padded with air)."""
+    from skimage import measure
+
+    padded = np.pad(np.asarray(phi, np.float32), 1, constant_values=3.0 * h)
+    if not (padded.min() < 0.0 < padded.max()):
+        return None
+    verts, faces, _, _ = measure.marching_cubes(padded, 0.0, spacing=(h, h, h))
+    return verts + (np.asarray(origin, np.float64)[:3] - 0.5 * h), faces.astype(np.int64)
+
+
+class LiquidSurfaces:
+    """Liquid surfaces of a run's particle liquids (`liquid_fluids`) in place of their particles.
+
+    3-D: the recorded level set's phi = 0 surface (marching cubes, the ``surface`` extra's
+    scikit-image) as a shaded `TriangleMesh` among the frame's meshes (lit, shadowed, z-tested
+    with everything else); without scikit-image the particles are drawn instead, with a one-line
+    warning. 2-D: the region phi < 0 (bilinear phi per pixel) filled in ``LIQUID_COLOR`` with a
+    lighter surface line, painted after the frame (2-D orthographic cameras).
+    ``merged`` is the `States` from `with_fluid_particles` (groups' particles, then each fluid's).
+    """
+
+    def __init__(self, merged, *, color=LIQUID_COLOR):
+        self.states = merged
+        self.color = np.asarray(color, np.float32)
+        self.names = liquid_fluids(merged)
+        self.mesh_ok = True
+        if self.names and merged.dim == 3:
+            try:
+                import skimage.measure  # noqa: F401
+            except ImportError:
+                import warnings
+
+                warnings.warn("liquid surfaces need scikit-image (pip install 'inertia[surface]'): drawing the "
+                              "liquid's particles instead", stacklevel=2)
+                self.mesh_ok = False
+        # rows of each liquid's particles in the merged particle list
+        self.rows = {}
+        caps = {name: merged.fields[f"fluid/{name}/x"].shape[1] for name in particle_fluids(merged)}
+        start = merged.particle_count - sum(caps.values())
+        for name, cap in caps.items():
+            if name in self.names:
+                self.rows[name] = (start, start + cap)
+            start += cap
+
+    @property
+    def draws_surfaces(self) -> bool:
+        """True when the liquids are drawn as surfaces (not as particles)."""
+        return bool(self.names) and (self.states.dim == 2 or self.mesh_ok)
+
+    def _grid(self, name):
+        m = self.states.model
+        return np.asarray(m[f"fluid/{name}/origin"], np.float64).ravel(), float(np.ravel(m[f"fluid/{name}/cell_size"])[0])
+
+    def apply(self, options: dict, f: int) -> dict:
+        """Add the surfaces of frame ``f`` to `Renderer.frame` keyword ``options`` (meshes, 3-D) and
+        switch the liquids' particles off (``active``); returns ``options``."""
+        if not self.draws_surfaces:
+            return options
+        from .meshes import TriangleMesh
+
+        n = self.states.particle_count
+        active = options.get("active")
+        active = np.ones(n, bool) if active is None else np.array(active, bool)
+        meshes = list(options.get("meshes") or [])
+        for name in self.names:
+            a, b = self.rows[name]
+            active[a:b] = False
+            if self.states.dim == 3:
+                origin, h = self._grid(name)
+                mesh = _surface_mesh_3d(self.states.fields[f"fluid/{name}/phi"][f], origin, h)
+                if mesh is not None:
+                    meshes.append(TriangleMesh(mesh[0], None, mesh[1], self.color))
+        options = dict(options, active=active, meshes=meshes)
+        return options
+
+    def paint(self, image, f: int, renderer) -> np.ndarray:
+        """2-D: fill each liquid's region phi < 0 of frame ``f`` into ``image`` (H, W, 3) uint8."""
+        if not self.names or renderer.dim != 2 or renderer.camera is None:
+            return image
+        h_px, w_px = image.shape[:2]
+        cam = renderer.camera
+        f_px = cam.focal_px(h_px)
+        # world point of every pixel centre
+        xs = cam.position[0] + (np.arange(w_px) + 0.5 - w_px / 2.0) / f_px
+        ys = cam.position[1] + (h_px / 2.0 - (np.arange(h_px) + 0.5)) / f_px
+        fill = np.round(self.color * 255.0)
+        edge = np.round(np.minimum(self.color * 1.6 + 0.15, 1.0) * 255.0)
+        for name in self.names:
+            origin, h = self._grid(name)
+            phi = np.asarray(self.states.fields[f"fluid/{name}/phi"][f], np.float64)
+            nx, ny = phi.shape
+            gx = (xs - origin[0]) / h - 0.5
+            gy = (ys - origin[1]) / h - 0.5
+            inside_x = (gx >= -0.5) & (gx <= nx - 0.5)
+            inside_y = (gy >= -0.5) & (gy <= ny - 0.5)
+            if not inside_x.any() or not inside_y.any():
+                continue
+            cols, rows = np.flatnonzero(inside_x), np.flatnonzero(inside_y)
+            gx, gy = np.clip(gx[cols], 0, nx - 1), np.clip(gy[rows], 0, ny - 1)
+            i0 = np.minimum(gx.astype(np.int64), max(nx - 2, 0))
+            j0 = np.minimum(gy.astype(np.int64), max(ny - 2, 0))
+            fx, fy = (gx - i0)[None, :], (gy - j0)[:, None]
+            i1, j1 = np.minimum(i0 + 1, nx - 1), np.minimum(j0 + 1, ny - 1)
+            value = ((1 - fy) * ((1 - fx) * phi[i0[None, :], j0[:, None]] + fx * phi[i1[None, :], j0[:, None]])
+                     + fy * ((1 - fx) * phi[i0[None, :], j1[:, None]] + fx * phi[i1[None, :], j1[:, None]]))
+            # coverage from the signed distance in pixels (anti-aliased edge), a lighter line on the surface
+            d_px = value * f_px
+            cover = np.clip(0.5 - d_px, 0.0, 1.0)[..., None]
+            line = np.clip(1.0 - np.abs(d_px + 1.0) / 1.2, 0.0, 1.0)[..., None]
+            block = image[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1].astype(np.float64)
+            block = block * (1 - cover) + fill * cover
+            block = block * (1 - line) + edge * line
+            image[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1] = np.clip(np.round(block), 0, 255).astype(np.uint8)
+        return image
