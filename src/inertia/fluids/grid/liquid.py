@@ -221,45 +221,115 @@ def add_gravity_and_walls(vel, liquid, g, dt, dim):
 
 
 @njit(cache=True)
-def build_operator(liquid, phi, dim, inv_h2, ax, ay, az, diag):
-    """Face couplings a_f = 1/h^2 between two liquid cells (0 elsewhere: walls, air) and the
-    diagonal: the couplings plus, per liquid-air face, the ghost-fluid 1 / (h^2 theta) with
-    theta = phi_liquid / (phi_liquid - phi_air) >= 0.01. Air cells: diagonal 0 (not solved)."""
+def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
+    """Pressure weights of the faces (Batty, Bertails and Bridson 2007 with the ghost-fluid free
+    surface): A_f between two liquid cells; A_f / theta between a liquid cell and an air cell,
+    theta = phi_liquid / (phi_liquid - phi_air) >= 0.01 (Gibou et al. 2002); 0 on every other face
+    (walls, closed solid faces, air-air, and a liquid cell next to an empty cell whose centre lies
+    inside a solid: no flux through the solid, so no Dirichlet condition there). Returns whether
+    any liquid-air face exists (else the system is a pure Neumann problem)."""
     nx, ny, nz = liquid.shape
-    ax[...] = 0.0
-    ay[...] = 0.0
-    az[...] = 0.0
+    surface = False
+    for a in range(3):
+        weights[a][...] = 0.0
+    for a in range(dim):
+        wa = weights[a]
+        fa = frac[a]
+        sx, sy, sz = wa.shape
+        for i in range(sx):
+            for j in range(sy):
+                for k in range(sz):
+                    A = fa[i, j, k]
+                    if A <= 0.0:
+                        continue
+                    i0, j0, k0 = i, j, k
+                    if a == 0:
+                        i0 = i - 1
+                    elif a == 1:
+                        j0 = j - 1
+                    else:
+                        k0 = k - 1
+                    if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
+                        continue  # a domain side (closed walls have A = 0 anyway)
+                    lo = liquid[i0, j0, k0]
+                    hi = liquid[i, j, k]
+                    if lo and hi:
+                        wa[i, j, k] = A
+                    elif lo and not cell_solid[i, j, k]:
+                        theta = phi[i0, j0, k0] / (phi[i0, j0, k0] - phi[i, j, k])
+                        wa[i, j, k] = A / max(theta, 0.01)
+                        surface = True
+                    elif hi and not cell_solid[i0, j0, k0]:
+                        theta = phi[i, j, k] / (phi[i, j, k] - phi[i0, j0, k0])
+                        wa[i, j, k] = A / max(theta, 0.01)
+                        surface = True
+    return surface
+
+
+@njit(cache=True)
+def build_operator(liquid, weights, dim, inv_h2, ax, ay, az, diag):
+    """The liquid's pressure operator from the face weights: couplings a_f = w_f / h^2 between
+    two liquid cells (0 elsewhere); the diagonal of a liquid cell sums w_f / h^2 over its faces
+    (liquid-air faces' ghost-fluid weights enter the diagonal only). Air cells: diagonal 0 (not
+    solved)."""
+    nx, ny, nz = liquid.shape
+    wu, wv, ww = weights
+    for i in range(nx + 1):
+        for j in range(ny):
+            for k in range(nz):
+                both = 0 < i < nx and liquid[i - 1, j, k] and liquid[i, j, k]
+                ax[i, j, k] = wu[i, j, k] * inv_h2 if both else 0.0
+    for i in range(nx):
+        for j in range(ny + 1):
+            for k in range(nz):
+                both = 0 < j < ny and liquid[i, j - 1, k] and liquid[i, j, k]
+                ay[i, j, k] = wv[i, j, k] * inv_h2 if both else 0.0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz + 1):
+                both = dim == 3 and 0 < k < nz and liquid[i, j, k - 1] and liquid[i, j, k]
+                az[i, j, k] = ww[i, j, k] * inv_h2 if both else 0.0
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
                 if not liquid[i, j, k]:
                     diag[i, j, k] = 0.0
                     continue
-                s = 0.0
+                s = wu[i, j, k] + wu[i + 1, j, k] + wv[i, j, k] + wv[i, j + 1, k]
+                if dim == 3:
+                    s += ww[i, j, k] + ww[i, j, k + 1]
+                diag[i, j, k] = s * inv_h2
+
+
+@njit(cache=True)
+def liquid_divergence(vel, frac, solid, liquid, h, dim, rhs):
+    """rhs = -div(u) on liquid cells (0 elsewhere), with the flux of each face weighted by its
+    open fraction: A_f u_f + (1 - A_f) u_solid,f (Batty et al. 2007), 1/s."""
+    nx, ny, nz = liquid.shape
+    inv_h = 1.0 / h
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if not liquid[i, j, k]:
+                    rhs[i, j, k] = 0.0
+                    continue
+                dv = 0.0
                 for a in range(dim):
-                    for sd in range(2):
-                        ii, jj, kk = i, j, k
-                        if a == 0:
-                            ii += 2 * sd - 1
-                        elif a == 1:
-                            jj += 2 * sd - 1
-                        else:
-                            kk += 2 * sd - 1
-                        if ii < 0 or ii >= nx or jj < 0 or jj >= ny or kk < 0 or kk >= nz:
-                            continue  # slip wall: no flux
-                        if liquid[ii, jj, kk]:
-                            s += inv_h2
-                            if sd == 1:
-                                if a == 0:
-                                    ax[i + 1, j, k] = inv_h2
-                                elif a == 1:
-                                    ay[i, j + 1, k] = inv_h2
-                                else:
-                                    az[i, j, k + 1] = inv_h2
-                        else:
-                            theta = phi[i, j, k] / (phi[i, j, k] - phi[ii, jj, kk])
-                            s += inv_h2 / max(theta, 0.01)
-                diag[i, j, k] = s
+                    va = vel[a]
+                    fa = frac[a]
+                    sa = solid[a]
+                    i1, j1, k1 = i, j, k
+                    if a == 0:
+                        i1 = i + 1
+                    elif a == 1:
+                        j1 = j + 1
+                    else:
+                        k1 = k + 1
+                    A1 = fa[i1, j1, k1]
+                    A0 = fa[i, j, k]
+                    dv += A1 * va[i1, j1, k1] + (1.0 - A1) * sa[i1, j1, k1]
+                    dv -= A0 * va[i, j, k] + (1.0 - A0) * sa[i, j, k]
+                rhs[i, j, k] = -dv * inv_h
 
 
 @njit(cache=True)
@@ -276,13 +346,12 @@ _operator = K.version(P.operator_kernel, False)
 
 
 @njit(cache=True)
-def solve_pressure(vel, liquid, lv, h, dim, tol, max_iter, p, r, z, d, q):
-    """Solve L p = -div(u) on liquid cells (p = pressure dt / rho, m^2/s; L from
-    `build_operator` in the Level bundle lv) by Jacobi-preconditioned CG from p = 0; returns
-    (iterations, relative residual). Serial: deterministic. Vector updates run on flat views
-    (a 2-D grid's innermost axis has length 1)."""
-    nx, ny, nz = liquid.shape
-    inv_h = 1.0 / h
+def solve_pressure(liquid, lv, tol, max_iter, p, r, z, d, q):
+    """Solve L p = r on liquid cells (r: `liquid_divergence` on entry, overwritten; p = pressure
+    dt / rho, m^2/s; L from `build_operator` in the Level bundle lv) by Jacobi-preconditioned CG
+    from p = 0; returns (iterations, relative residual). Serial: deterministic. Vector updates
+    run on flat views (a 2-D grid's innermost axis has length 1). Kept for comparison with the
+    multigrid-preconditioned default (`liquid_pressure`)."""
     n = liquid.size
     m = liquid.reshape(n)
     dg = lv.diag.reshape(n)
@@ -291,17 +360,8 @@ def solve_pressure(vel, liquid, lv, h, dim, tol, max_iter, p, r, z, d, q):
     zf = z.reshape(n)
     df = d.reshape(n)
     qf = q.reshape(n)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                p[i, j, k] = 0.0
-                if liquid[i, j, k]:
-                    dv = vel[0][i + 1, j, k] - vel[0][i, j, k] + vel[1][i, j + 1, k] - vel[1][i, j, k]
-                    if dim == 3:
-                        dv += vel[2][i, j, k + 1] - vel[2][i, j, k]
-                    r[i, j, k] = -dv * inv_h
-                else:
-                    r[i, j, k] = 0.0
+    for i in range(n):
+        pf[i] = 0.0
     bnorm = math.sqrt(_dot_mask(rf, rf, m))
     if bnorm == 0.0:
         return 0, 0.0
@@ -332,23 +392,26 @@ def solve_pressure(vel, liquid, lv, h, dim, tol, max_iter, p, r, z, d, q):
 
 
 @njit(cache=True)
-def subtract_pressure_gradient(vel, p, liquid, phi, h, dim, valid):
-    """u -= grad p on faces next to a liquid cell (ghost-fluid value across the surface);
-    valid[a] marks those faces (and walls); other faces are left for extrapolation."""
+def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim, valid):
+    """u -= grad p on faces with a pressure weight (ghost-fluid value across the surface);
+    closed faces (open fraction 0: domain walls, solids) take the solid's velocity; open faces
+    next to a liquid cell without a weight (beside an empty solid cell) keep their velocity.
+    valid[a] marks all of these; other faces are left for extrapolation."""
     nx, ny, nz = liquid.shape
     inv_h = 1.0 / h
     for a in range(dim):
         va = vel[a]
         ok = valid[a]
+        wa = weights[a]
+        fa = frac[a]
+        sa = solid[a]
         sx, sy, sz = va.shape
         for i in range(sx):
             for j in range(sy):
                 for k in range(sz):
                     ok[i, j, k] = False
-                    wall = (a == 0 and (i == 0 or i == nx)) or (a == 1 and (j == 0 or j == ny)) \
-                        or (a == 2 and (k == 0 or k == nz))
-                    if wall:
-                        va[i, j, k] = 0.0
+                    if fa[i, j, k] <= 0.0:
+                        va[i, j, k] = sa[i, j, k]
                         ok[i, j, k] = True
                         continue
                     i0, j0, k0 = i, j, k   # cell on the low side
@@ -358,9 +421,14 @@ def subtract_pressure_gradient(vel, p, liquid, phi, h, dim, valid):
                         j0 = j - 1
                     else:
                         k0 = k - 1
+                    if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
+                        continue
                     lo = liquid[i0, j0, k0]
                     hi = liquid[i, j, k]
                     if not (lo or hi):
+                        continue
+                    ok[i, j, k] = True
+                    if wa[i, j, k] == 0.0:
                         continue
                     if lo and hi:
                         dp = p[i, j, k] - p[i0, j0, k0]
@@ -371,7 +439,23 @@ def subtract_pressure_gradient(vel, p, liquid, phi, h, dim, valid):
                         theta = max(phi[i, j, k] / (phi[i, j, k] - phi[i0, j0, k0]), 0.01)
                         dp = p[i, j, k] / theta
                     va[i, j, k] -= dp * inv_h
-                    ok[i, j, k] = True
+
+
+@njit(cache=True)
+def push_out_of_solids(x, v, d, nrm, vs, idx, dim, clearance):
+    """Particles idx[m] with signed distance d[m] < clearance to a solid move out along the
+    solid's normal nrm[m] to the clearance, and lose the velocity component into the solid
+    relative to its surface velocity vs[m] (no penetration; tangential motion kept)."""
+    for m in range(idx.shape[0]):
+        p = idx[m]
+        push = clearance - d[m]
+        vn = 0.0
+        for a in range(dim):
+            x[p, a] += push * nrm[m, a]
+            vn += (v[p, a] - vs[m, a]) * nrm[m, a]
+        if vn < 0.0:
+            for a in range(dim):
+                v[p, a] -= vn * nrm[m, a]
 
 
 @njit(cache=True)
@@ -530,11 +614,15 @@ class LiquidFluid:
     cfl : CFL number for ``advance`` (default 1, at most 5).
     max_dt : largest substep, s (default 1/60).
     extrapolation_layers : velocity extrapolation depth into the air, cells (default 4).
+    obstacles : colliders of `inertia.colliders` with this dim (static or with a `Motion`):
+        cut-cell solids whose velocity enters the boundary condition; particles are pushed out.
+    depth : thickness of a 2-D liquid in z, m (default 1): the pressure force on a rigid body is
+        the force per unit length times `depth` (3-D: ignored).
     """
 
     def __init__(self, shape, cell_size, *, origin=None, gravity=None, method="apic",
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
-                 max_dt=1 / 60, extrapolation_layers=4):
+                 max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0):
         try:
             shp = tuple(int(s) for s in shape)
         except TypeError:
@@ -586,6 +674,13 @@ class LiquidFluid:
         self.pressure_phi = np.zeros(cs)                  # p dt / rho, m^2/s (project)
         self.pressure = np.zeros(cs)                      # Pa (project)
         self._cg = [np.zeros(cs) for _ in range(5)]
+        # solids (obstacles stage): open fraction and solid velocity per face, pressure weights
+        # (project), cells whose centre lies inside a solid
+        self._frac = tuple(np.ones(s) for s in fs)
+        self._solid = tuple(np.zeros(s) for s in fs)
+        self._weights = tuple(np.zeros(s) for s in fs)
+        self._cell_solid = np.zeros(cs, dtype=np.bool_)
+        self.depth = positive_scalar(depth, "depth")
         # pressure operator (project): couplings 1/h^2 between liquid cells, ghost-fluid diagonal
         self._level = P.Level(np.zeros(fs[0]), np.zeros(fs[1]), np.zeros(fs[2]), np.zeros(cs),
                               False, False, False)
@@ -607,6 +702,20 @@ class LiquidFluid:
         self.step_index = 0
         self.last_pressure_iterations = 0
         self.last_residual = 0.0
+        # obstacles and rigid bodies (bind_rigid)
+        self.obstacles = list(obstacles)
+        for i, o in enumerate(self.obstacles):
+            if getattr(o, "dim", None) != dim or not hasattr(o, "signed_distance"):
+                raise ValueError(f"obstacles[{i}] must be a collider with dim {dim} "
+                                 f"(signed_distance, normal, velocity); got {o!r}")
+        self._rigid = None
+        self._rigid_obstacles = []
+        self._owners = np.full(len(self.obstacles), -1, np.int64)
+        self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
+        self._cut = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))] * 3
+        self.body_force = np.zeros((0, 3))   # N, last substep's pressure force per body
+        self.body_torque = np.zeros((0, 3))  # N m, about each body's centre of mass
+        self._update_solids(0.0, check_domain=True)
 
     # ------------------------------------------------------------------------ particles
     @property
@@ -651,11 +760,88 @@ class LiquidFluid:
         np.clip(self.x, self._lo, self._hi, out=self.x)
         return pts.shape[0]
 
+    # ------------------------------------------------------------------------ solids
+    def _all_obstacles(self):
+        return self.obstacles + self._rigid_obstacles
+
+    def _update_solids(self, t, check_domain=False):
+        """Obstacles stage: open fractions, solid velocities and closed (body) faces from the
+        obstacles at time t (`obstacles.solid_faces`, the cut cells GridFluid uses); the domain
+        sides are closed slip walls; cells whose centre lies inside a solid."""
+        from .obstacles import solid_faces
+        from .solver import MACGrid
+        dim = self.dim
+        obst = self._all_obstacles()
+        if obst:
+            g = MACGrid(self.shape, self.cell_size, self.origin[:dim])
+            if getattr(self, "_pts", None) is None:
+                vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
+                self._pts = (g.vertex_positions(), [g.face_positions(a) for a in range(dim)],
+                             g.cell_positions(), vshape)
+            verts, faces, cells, vshape = self._pts
+            self._cut = solid_faces(obst, self._owners, verts, faces, vshape,
+                                    dim, t, self._frac, self._solid)
+            inside = np.zeros(cells.shape[0], dtype=np.bool_)
+            for o in obst:
+                inside |= np.asarray(o.signed_distance(cells, t)) < 0
+            if check_domain:
+                if np.all(inside):
+                    raise ValueError("obstacles cover the whole domain")
+                for i, o in enumerate(self.obstacles):
+                    if not np.any(np.asarray(o.signed_distance(cells, t)) < self.cell_size):
+                        raise ValueError(f"obstacles[{i}] lies outside the domain "
+                                         f"{self.origin[:dim].tolist()} + "
+                                         f"{(self.n[:dim] * self.cell_size).tolist()}")
+            self._cell_solid[...] = inside.reshape(self._cell_solid.shape)
+        else:
+            for a in range(3):
+                self._frac[a][...] = 1.0
+                self._solid[a][...] = 0.0
+            self._cell_solid[...] = False
+        if dim == 2:
+            self._frac[2][...] = 0.0
+        for a in range(dim):   # closed slip walls on every side
+            idx = [slice(None)] * 3
+            idx[a] = 0
+            self._frac[a][tuple(idx)] = 0.0
+            self._solid[a][tuple(idx)] = 0.0
+            idx[a] = -1
+            self._frac[a][tuple(idx)] = 0.0
+            self._solid[a][tuple(idx)] = 0.0
+
+    @property
+    def face_fractions(self):
+        """Open fraction of the u, v[, w] faces (views; 2-D: (nx+1, ny), (nx, ny+1))."""
+        return tuple(f[:, :, 0] if self.dim == 2 else f for f in self._frac[:self.dim])
+
+    def _push_particles_out(self, t):
+        """Particles closer than 0.1 h to a solid (or inside it) move out along its normal and
+        lose their velocity into it (relative to the solid's surface velocity)."""
+        obst = self._all_obstacles()
+        if not obst or self.x.shape[0] == 0:
+            return
+        d = self.dim
+        pts = self.x[:, :d]
+        clearance = 0.1 * self.cell_size
+        for o in obst:
+            dist = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
+            idx = np.flatnonzero(dist < clearance)
+            if idx.size == 0:
+                continue
+            near = np.ascontiguousarray(pts[idx])
+            nrm = np.ascontiguousarray(np.asarray(o.normal(near, t), dtype=np.float64)[:, :d])
+            vs = np.ascontiguousarray(np.asarray(o.velocity(near, t), dtype=np.float64)[:, :d])
+            push_out_of_solids(self.x, self.v, np.ascontiguousarray(dist[idx]), nrm, vs,
+                               idx.astype(np.int64), d, clearance)
+        np.clip(self.x, self._lo, self._hi, out=self.x)
+
     # ------------------------------------------------------------------------ stepping
     def step(self, dt):
         """Advance by dt seconds (one step)."""
         dt = positive_scalar(dt, "dt")
         h = self.cell_size
+        if self._moving:
+            self._update_solids(self.time + dt)
         m = {"apic": 0, "flip": 1, "pic": 2}[self.method]
         particles_to_grid(self.x, self.v, self.c, m == 0, self.origin, h, self.dim, self.vel,
                           self._wsum)
@@ -666,13 +852,20 @@ class LiquidFluid:
         add_gravity_and_walls(self.vel, self.liquid, self.gravity, dt, self.dim)
         p, r, z, d, q = self._cg
         lv = self._level
-        build_operator(self.liquid, self.phi, self.dim, 1.0 / (h * h), lv.ax, lv.ay, lv.az, lv.diag)
-        it, res = solve_pressure(self.vel, self.liquid, lv, h, self.dim, self.tolerance,
-                                 self.max_iterations, self.pressure_phi, r, z, d, q)
+        build_face_weights(self.liquid, self.phi, self._frac, self._cell_solid, self.dim,
+                           self._weights)
+        build_operator(self.liquid, self._weights, self.dim, 1.0 / (h * h), lv.ax, lv.ay, lv.az,
+                       lv.diag)
+        liquid_divergence(self.vel, self._frac, self._solid, self.liquid, h, self.dim, r)
+        it, res = solve_pressure(self.liquid, lv, self.tolerance, self.max_iterations,
+                                 self.pressure_phi, r, z, d, q)
         self.last_pressure_iterations, self.last_residual = it, res
         np.multiply(self.pressure_phi, self.density / dt, out=self.pressure)
-        subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi, h,
-                                   self.dim, self._valid)
+        subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi,
+                                   self._weights, self._frac, self._solid, h, self.dim,
+                                   self._valid)
+        if self._rigid is not None:
+            self._push_bodies(dt)
         if m == 1:
             # FLIP: the grid's velocity change, extrapolated like the velocity
             for a in range(self.dim):
@@ -684,6 +877,7 @@ class LiquidFluid:
         grid_to_particles(self.x, self.v, self.c, self.vel, self.vel_old, self.origin, h,
                           self.dim, m, self.flip_ratio)
         advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._lo, self._hi)
+        self._push_particles_out(self.time + dt)
         if not np.all(np.isfinite(self.v)):
             bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))[:10]
             raise SimulationDiverged(
@@ -707,9 +901,12 @@ class LiquidFluid:
         return dt
 
     def advance(self, frame_dt, rigid=None):
-        """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid`
-        (World protocol) is accepted and ignored: rigid bodies are not coupled yet."""
+        """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid` (World
+        protocol: the world's RigidWorld) couples the liquid to its bodies (`bind_rigid`) when it
+        has shape rows."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
+        if rigid is not None and rigid is not self._rigid and int(rigid.model.shape_count):
+            self.bind_rigid(rigid)
         done = 0.0
         n = 0
         while done < frame_dt * (1 - 1e-12):
@@ -718,6 +915,54 @@ class LiquidFluid:
             done += dt
             n += 1
         return n
+
+    # ------------------------------------------------------------------------ rigid coupling
+    def bind_rigid(self, rigid):
+        """Couple to a rigid world (anything with ``.model`` and ``.state``; `advance` calls this).
+
+        Every shape row of ``rigid.model`` becomes a cut-cell solid (`obstacles.rigid_obstacles`:
+        a `BodyShape` at its body's live pose, v + w x r on covered faces; in 2-D its z = 0
+        cross-section, bodies moving in the x-y plane), rebuilt every step while a kinematic or
+        dynamic body exists. After each projection the pressure on the closed faces of each body
+        becomes an impulse dt F (and dt tau about its centre of mass), applied through
+        `inertia.dynamics.particle_coupling.apply_body_impulses` (2-D: per unit length times
+        `depth`). Heightfield and SDF rows are skipped."""
+        from .obstacles import rigid_obstacles
+        obst, owner = rigid_obstacles(rigid, self.dim)
+        self._rigid = rigid
+        self._rigid_obstacles = obst
+        self._owners = np.concatenate([np.full(len(self.obstacles), -1, np.int64), owner])
+        nb = int(rigid.model.body_count)
+        self.body_force = np.zeros((nb, 3))
+        self.body_torque = np.zeros((nb, 3))
+        self._impulse = (np.zeros((nb, 3)), np.zeros((nb, 3)))
+        self._moving = self._moving or bool(np.any(owner >= 0))
+        self._update_solids(self.time)
+
+    def _push_bodies(self, dt):
+        """Pressure impulse on each body from its closed faces (GridFluid's `_pressure_impulses`:
+        -rho (1 - A_f) (phi_R - phi_L) per unit face area, summed; in 2-D the face area is h x
+        depth). Cells without liquid hold phi = 0 (air: the free-surface pressure)."""
+        from ...dynamics.particle_coupling import apply_body_impulses
+        from .solver import _pressure_impulses
+        lin, ang = self._impulse
+        lin[...] = 0.0
+        ang[...] = 0.0
+        h = self.cell_size
+        origin = self.origin.copy()
+        rho = self.density
+        if self.dim == 2:
+            origin[2] = -0.5 * h   # face centres at z = 0
+            rho = self.density * self.depth / h
+        body_q = self._rigid.state.body_q
+        for a in range(self.dim):
+            faces, open_frac, body = self._cut[a]
+            if faces.size:
+                _pressure_impulses(self.pressure_phi, faces, open_frac, body, a, h, origin, rho,
+                                   body_q, lin, ang)
+        np.multiply(lin, 1.0 / dt, out=self.body_force)
+        np.multiply(ang, 1.0 / dt, out=self.body_torque)
+        apply_body_impulses(self._rigid.model.bodies(), self._rigid.state, lin, ang)
 
     # ------------------------------------------------------------------------ outputs
     def angular_momentum(self, center=None):
@@ -781,3 +1026,5 @@ class LiquidFluid:
         self.c = np.ascontiguousarray(state["c"], dtype=np.float64).copy()
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
+        if self._moving:
+            self._update_solids(self.time)

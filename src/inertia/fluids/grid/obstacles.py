@@ -80,3 +80,109 @@ def face_fractions(vertex_sdf, dim):
         f[f < MIN_FRACTION] = 0.0
         out.append(np.ascontiguousarray(f))
     return out
+
+
+# ----------------------------------------------------------------------------- shared by fluids
+def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, frac, solid):
+    """Open fractions and solid velocities of every face from a list of obstacles (the
+    obstacle part of `GridFluid`'s obstacles stage as a function, so `LiquidFluid` uses the
+    same cut cells).
+
+    obstacles : objects with ``signed_distance(points, t)`` and ``velocity(points, t)`` taking
+        (M, dim) points; owners : (len(obstacles),) int, the rigid body of each (-1: none).
+    vertex_pts : (V, dim) grid vertices, C order of `vertex_shape` ((nx+1, ny+1, nz+1), or
+        (nx+1, ny+1, 1) in 2-D); face_pts : per axis (F_a, dim) face centres in C order.
+    frac, solid : three face arrays each, written: open fraction (from `face_fractions`) and,
+        on faces with fraction < 1, the velocity component of the nearest obstacle (the one
+        with the smallest signed distance at the face centre). In 2-D frac[2] is set to 0.
+    Returns, per axis, (closed flat face indices, their open fractions, owner body per face),
+    the faces whose pressure pushes a body. Domain sides are left to the caller."""
+    sdf = None
+    for o in obstacles:
+        d = np.asarray(o.signed_distance(vertex_pts, t), dtype=np.float64)
+        sdf = d if sdf is None else np.minimum(sdf, d)
+    vs = sdf.reshape(vertex_shape)
+    if dim == 2:
+        vs = np.concatenate([vs, vs], axis=2)
+    fr = face_fractions(vs, dim)
+    owners = np.asarray(owners, np.int64)
+    cut = []
+    for a in range(3):
+        frac[a][...] = fr[a]
+        solid[a][...] = 0.0
+    if dim == 2:
+        frac[2][...] = 0.0
+    for a in range(dim):
+        closed = np.flatnonzero(frac[a].reshape(-1) < 1.0)
+        owner = np.full(closed.size, -1, np.int64)
+        if closed.size:
+            p = face_pts[a][closed]
+            best = None
+            vel = None
+            for i, o in enumerate(obstacles):
+                d = np.asarray(o.signed_distance(p, t))
+                vo = np.asarray(o.velocity(p, t))[:, a]
+                if best is None:
+                    best, vel = d, vo
+                    owner[:] = owners[i]
+                else:
+                    take = d < best
+                    best = np.where(take, d, best)
+                    vel = np.where(take, vo, vel)
+                    owner = np.where(take, owners[i], owner)
+            solid[a].reshape(-1)[closed] = vel
+        cut.append((closed.astype(np.int64), frac[a].reshape(-1)[closed].copy(), owner))
+    if dim == 2:
+        cut.append((np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)))
+    return cut
+
+
+class PlaneSlice:
+    """The z = 0 slice of a 3-D collider (e.g. a `BodyShape` of the rigid shape table) as a 2-D
+    obstacle: points (M, 2) are padded with z = 0; velocities and normals lose their z part.
+    A 2-D fluid coupled to 3-D rigid bodies moving in the x-y plane sees their cross-sections."""
+
+    dim = 2
+
+    def __init__(self, collider):
+        self.collider = collider
+        self.motion = getattr(collider, "motion", None)
+
+    @staticmethod
+    def _pad(points):
+        p = np.asarray(points, dtype=np.float64)
+        out = np.zeros((p.shape[0], 3))
+        out[:, :2] = p[:, :2]
+        return out
+
+    def signed_distance(self, points, t=0.0):
+        return self.collider.signed_distance(self._pad(points), t)
+
+    def velocity(self, points, t=0.0):
+        return np.asarray(self.collider.velocity(self._pad(points), t))[:, :2]
+
+    def normal(self, points, t=0.0):
+        return np.asarray(self.collider.normal(self._pad(points), t))[:, :2]
+
+    def __repr__(self):
+        return f"PlaneSlice({self.collider!r})"
+
+
+def rigid_obstacles(rigid, dim):
+    """Obstacles for the shape rows of a rigid world (anything with ``.model`` and ``.state``):
+    one `BodyShape` per row the signed distance covers (heightfield and SDF rows are skipped),
+    bound to the live pose and velocity of its body when it moves; in 2-D wrapped in a
+    `PlaneSlice`. Returns (obstacles, owner body per obstacle (-1: static row))."""
+    from ...collision.shapes import BodyShape
+    model = rigid.model
+    obst, owner = [], []
+    for s in range(int(model.shape_count)):
+        bs = BodyShape(model, s)
+        if getattr(bs, "unsupported", False):
+            continue
+        if bs.moving:
+            b = bs.body
+            bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
+        obst.append(bs if dim == 3 else PlaneSlice(bs))
+        owner.append(bs.body if bs.moving else -1)
+    return obst, np.asarray(owner, np.int64)
