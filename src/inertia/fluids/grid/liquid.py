@@ -703,11 +703,13 @@ class LiquidFluid:
         self.last_pressure_iterations = 0
         self.last_residual = 0.0
         # obstacles and rigid bodies (bind_rigid)
+        from .obstacles import PlaneSlice
         self.obstacles = list(obstacles)
         for i, o in enumerate(self.obstacles):
-            if getattr(o, "dim", None) != dim or not hasattr(o, "signed_distance"):
-                raise ValueError(f"obstacles[{i}] must be a collider with dim {dim} "
-                                 f"(signed_distance, normal, velocity); got {o!r}")
+            if getattr(o, "dim", None) != dim or not hasattr(o, "query"):
+                raise ValueError(f"obstacles[{i}] must be a collider of inertia.colliders with "
+                                 f"dim {dim}; got {o!r}")
+        self._obstacle_views = [PlaneSlice(o, dim) for o in self.obstacles]
         self._rigid = None
         self._rigid_obstacles = []
         self._owners = np.full(len(self.obstacles), -1, np.int64)
@@ -762,7 +764,7 @@ class LiquidFluid:
 
     # ------------------------------------------------------------------------ solids
     def _all_obstacles(self):
-        return self.obstacles + self._rigid_obstacles
+        return self._obstacle_views + self._rigid_obstacles
 
     def _update_solids(self, t, check_domain=False):
         """Obstacles stage: open fractions, solid velocities and closed (body) faces from the
@@ -828,11 +830,8 @@ class LiquidFluid:
             idx = np.flatnonzero(dist < clearance)
             if idx.size == 0:
                 continue
-            near = np.ascontiguousarray(pts[idx])
-            nrm = np.ascontiguousarray(np.asarray(o.normal(near, t), dtype=np.float64)[:, :d])
-            vs = np.ascontiguousarray(np.asarray(o.velocity(near, t), dtype=np.float64)[:, :d])
-            push_out_of_solids(self.x, self.v, np.ascontiguousarray(dist[idx]), nrm, vs,
-                               idx.astype(np.int64), d, clearance)
+            dn, nrm, vs = o.query(pts[idx], t)
+            push_out_of_solids(self.x, self.v, dn, nrm, vs, idx.astype(np.int64), d, clearance)
         np.clip(self.x, self._lo, self._hi, out=self.x)
 
     # ------------------------------------------------------------------------ stepping

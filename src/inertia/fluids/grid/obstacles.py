@@ -138,41 +138,91 @@ def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, f
 
 
 class PlaneSlice:
-    """The z = 0 slice of a 3-D collider (e.g. a `BodyShape` of the rigid shape table) as a 2-D
-    obstacle: points (M, 2) are padded with z = 0; velocities and normals lose their z part.
-    A 2-D fluid coupled to 3-D rigid bodies moving in the x-y plane sees their cross-sections."""
+    """A collider as a fluid obstacle of dimension `dim`, queried by a serial kernel.
 
-    dim = 2
+    For dim 2 and a 3-D collider (e.g. a `BodyShape` of the rigid shape table) this is its
+    z = 0 slice: a 2-D fluid coupled to 3-D rigid bodies moving in the x-y plane sees their
+    cross-sections (points (M, 2) are taken at z = 0; normals and velocities keep x and y).
+    Boxes, cylinders and capsules whose (body-frame) axis is along z are then extended along z
+    by `EXTEND` m on a copy of the collider: inside a thin slab the nearest surface would
+    otherwise be a z face, and the in-plane signed distance and normal (used to push particles
+    out) would be wrong. Other shapes (spheres, shapes lying in the plane) are sliced as they are.
 
-    def __init__(self, collider):
+    Queries of the colliders of `inertia.collision.shapes` run the serial version of their
+    kernel (the parallel one pays a thread launch per call, which dominates on the few thousand
+    points a fluid asks about per step); colliders with their own ``query`` use it."""
+
+    EXTEND = 1e3
+
+    def __init__(self, collider, dim=2):
+        import copy
+        from ...collision import distance as _d
+        from ...collision.shapes import Collider
+        self.dim = int(dim)
+        kind = getattr(collider, "kind", None)
+        cf = getattr(collider, "_cf", None)
+        if self.dim == 2 and collider.dim == 3 and cf is not None \
+                and kind in (_d.BOX, _d.CYLINDER, _d.CAPSULE):
+            cf = cf.copy()
+            if kind == _d.BOX:   # [centre (3), rotation (3x3, row-major), half extents (3)]
+                k = int(np.argmax(np.abs(cf[9:12])))     # local axis closest to z
+                if abs(cf[9 + k]) > 0.99:
+                    cf[12 + k] = self.EXTEND
+            elif kind == _d.CYLINDER:   # [centre (3), axis (3), radius, half height]
+                if abs(cf[5]) > 0.99:
+                    cf[7] = self.EXTEND
+            else:   # capsule [a (3), b (3), radius]
+                ax = cf[3:6] - cf[0:3]
+                if np.linalg.norm(ax) > 0 and abs(ax[2]) > 0.99 * np.linalg.norm(ax):
+                    cf[2], cf[5] = -self.EXTEND, self.EXTEND
+            collider = copy.copy(collider)
+            collider._cf = cf
         self.collider = collider
         self.motion = getattr(collider, "motion", None)
+        self._fast = isinstance(collider, Collider) and type(collider).query is Collider.query
+        if self._fast:
+            from . import kernels as K
+            self._kernel = K.version(_d.query_points, False)
 
-    @staticmethod
-    def _pad(points):
-        p = np.asarray(points, dtype=np.float64)
-        out = np.zeros((p.shape[0], 3))
-        out[:, :2] = p[:, :2]
-        return out
+    def query(self, points, t=0.0):
+        """(distance (M,), normal (M, dim), velocity (M, dim)) at points (M, dim)."""
+        c = self.collider
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        m = pts.shape[0]
+        d, n, v = np.empty(m), np.empty((m, self.dim)), np.empty((m, self.dim))
+        if self._fast:
+            vel, omega = c._rigid_velocity(t)
+            self._kernel(pts, c.kind, c._cf, c._ci, c._packed_pose(t), c._ref, c.moving,
+                         np.ascontiguousarray(vel, dtype=np.float64),
+                         np.ascontiguousarray(omega, dtype=np.float64), d, n, v)
+            return d, n, v
+        if c.dim == self.dim:
+            c.query(pts, t, d, n, v)
+            return d, n, v
+        p3 = np.zeros((m, 3))
+        p3[:, :2] = pts[:, :2]
+        n3, v3 = np.empty((m, 3)), np.empty((m, 3))
+        c.query(p3, t, d, n3, v3)
+        return d, n3[:, :self.dim].copy(), v3[:, :self.dim].copy()
 
     def signed_distance(self, points, t=0.0):
-        return self.collider.signed_distance(self._pad(points), t)
-
-    def velocity(self, points, t=0.0):
-        return np.asarray(self.collider.velocity(self._pad(points), t))[:, :2]
+        return self.query(points, t)[0]
 
     def normal(self, points, t=0.0):
-        return np.asarray(self.collider.normal(self._pad(points), t))[:, :2]
+        return self.query(points, t)[1]
+
+    def velocity(self, points, t=0.0):
+        return self.query(points, t)[2]
 
     def __repr__(self):
-        return f"PlaneSlice({self.collider!r})"
+        return f"PlaneSlice({self.collider!r}, dim={self.dim})"
 
 
 def rigid_obstacles(rigid, dim):
     """Obstacles for the shape rows of a rigid world (anything with ``.model`` and ``.state``):
     one `BodyShape` per row the signed distance covers (heightfield and SDF rows are skipped),
-    bound to the live pose and velocity of its body when it moves; in 2-D wrapped in a
-    `PlaneSlice`. Returns (obstacles, owner body per obstacle (-1: static row))."""
+    bound to the live pose and velocity of its body when it moves, wrapped in a `PlaneSlice`
+    (serial queries; in 2-D its z = 0 cross-section). Returns (obstacles, owner body per obstacle (-1: static row))."""
     from ...collision.shapes import BodyShape
     model = rigid.model
     obst, owner = [], []
@@ -183,6 +233,6 @@ def rigid_obstacles(rigid, dim):
         if bs.moving:
             b = bs.body
             bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
-        obst.append(bs if dim == 3 else PlaneSlice(bs))
+        obst.append(PlaneSlice(bs, dim))
         owner.append(bs.body if bs.moving else -1)
     return obst, np.asarray(owner, np.int64)
