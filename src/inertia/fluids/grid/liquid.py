@@ -59,8 +59,7 @@ from numba import njit, prange
 from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
-from . import kernels as K
-from . import pressure as P
+from .liquid_pressure import BodyCoupling, LiquidPressure
 
 METHODS = ("apic", "flip", "pic")
 
@@ -267,41 +266,6 @@ def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
 
 
 @njit(cache=True)
-def build_operator(liquid, weights, dim, inv_h2, ax, ay, az, diag):
-    """The liquid's pressure operator from the face weights: couplings a_f = w_f / h^2 between
-    two liquid cells (0 elsewhere); the diagonal of a liquid cell sums w_f / h^2 over its faces
-    (liquid-air faces' ghost-fluid weights enter the diagonal only). Air cells: diagonal 0 (not
-    solved)."""
-    nx, ny, nz = liquid.shape
-    wu, wv, ww = weights
-    for i in range(nx + 1):
-        for j in range(ny):
-            for k in range(nz):
-                both = 0 < i < nx and liquid[i - 1, j, k] and liquid[i, j, k]
-                ax[i, j, k] = wu[i, j, k] * inv_h2 if both else 0.0
-    for i in range(nx):
-        for j in range(ny + 1):
-            for k in range(nz):
-                both = 0 < j < ny and liquid[i, j - 1, k] and liquid[i, j, k]
-                ay[i, j, k] = wv[i, j, k] * inv_h2 if both else 0.0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz + 1):
-                both = dim == 3 and 0 < k < nz and liquid[i, j, k - 1] and liquid[i, j, k]
-                az[i, j, k] = ww[i, j, k] * inv_h2 if both else 0.0
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if not liquid[i, j, k]:
-                    diag[i, j, k] = 0.0
-                    continue
-                s = wu[i, j, k] + wu[i + 1, j, k] + wv[i, j, k] + wv[i, j + 1, k]
-                if dim == 3:
-                    s += ww[i, j, k] + ww[i, j, k + 1]
-                diag[i, j, k] = s * inv_h2
-
-
-@njit(cache=True)
 def liquid_divergence(vel, frac, solid, liquid, h, dim, rhs):
     """rhs = -div(u) on liquid cells (0 elsewhere), with the flux of each face weighted by its
     open fraction: A_f u_f + (1 - A_f) u_solid,f (Batty et al. 2007), 1/s."""
@@ -330,65 +294,6 @@ def liquid_divergence(vel, frac, solid, liquid, h, dim, rhs):
                     dv += A1 * va[i1, j1, k1] + (1.0 - A1) * sa[i1, j1, k1]
                     dv -= A0 * va[i, j, k] + (1.0 - A0) * sa[i, j, k]
                 rhs[i, j, k] = -dv * inv_h
-
-
-@njit(cache=True)
-def _dot_mask(a, b, mask):
-    """sum of a * b over the mask (flat arrays, fixed order)."""
-    s = 0.0
-    for i in range(a.size):
-        if mask[i]:
-            s += a[i] * b[i]
-    return s
-
-
-_operator = K.version(P.operator_kernel, False)
-
-
-@njit(cache=True)
-def solve_pressure(liquid, lv, tol, max_iter, p, r, z, d, q):
-    """Solve L p = r on liquid cells (r: `liquid_divergence` on entry, overwritten; p = pressure
-    dt / rho, m^2/s; L from `build_operator` in the Level bundle lv) by Jacobi-preconditioned CG
-    from p = 0; returns (iterations, relative residual). Serial: deterministic. Vector updates
-    run on flat views (a 2-D grid's innermost axis has length 1). Kept for comparison with the
-    multigrid-preconditioned default (`liquid_pressure`)."""
-    n = liquid.size
-    m = liquid.reshape(n)
-    dg = lv.diag.reshape(n)
-    pf = p.reshape(n)
-    rf = r.reshape(n)
-    zf = z.reshape(n)
-    df = d.reshape(n)
-    qf = q.reshape(n)
-    for i in range(n):
-        pf[i] = 0.0
-    bnorm = math.sqrt(_dot_mask(rf, rf, m))
-    if bnorm == 0.0:
-        return 0, 0.0
-    for i in range(n):
-        zf[i] = rf[i] / dg[i] if dg[i] > 0.0 else 0.0
-        df[i] = zf[i]
-    rz = _dot_mask(rf, zf, m)
-    it = 0
-    rnorm = bnorm
-    while it < max_iter:
-        it += 1
-        _operator(d, d, lv, q, 0)
-        alpha = rz / _dot_mask(df, qf, m)
-        for i in range(n):
-            pf[i] += alpha * df[i]
-            rf[i] -= alpha * qf[i]
-        rnorm = math.sqrt(_dot_mask(rf, rf, m))
-        if rnorm <= tol * bnorm:
-            break
-        for i in range(n):
-            zf[i] = rf[i] / dg[i] if dg[i] > 0.0 else 0.0
-        rz_new = _dot_mask(rf, zf, m)
-        beta = rz_new / rz
-        rz = rz_new
-        for i in range(n):
-            df[i] = zf[i] + beta * df[i]
-    return it, rnorm / bnorm
 
 
 @njit(cache=True)
@@ -611,6 +516,9 @@ class LiquidFluid:
     flip_ratio : FLIP share of the PIC/FLIP blend in [0, 1] (default 0.95; "flip" only).
     density : rho, kg/m^3 (default 1000): pressure = rho phi / dt.
     tolerance : relative residual of the pressure solve (default 1e-8).
+    max_iterations : of the pressure solve (default 2000).
+    pressure_solver : "mgpcg" (multigrid-preconditioned CG, default) or "jacobi" (Jacobi-PCG),
+        see `liquid_pressure`.
     cfl : CFL number for ``advance`` (default 1, at most 5).
     max_dt : largest substep, s (default 1/60).
     extrapolation_layers : velocity extrapolation depth into the air, cells (default 4).
@@ -622,7 +530,8 @@ class LiquidFluid:
 
     def __init__(self, shape, cell_size, *, origin=None, gravity=None, method="apic",
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
-                 max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0):
+                 max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0,
+                 pressure_solver="mgpcg"):
         try:
             shp = tuple(int(s) for s in shape)
         except TypeError:
@@ -673,7 +582,7 @@ class LiquidFluid:
         self.phi = np.zeros(cs)                           # level set, m (surface stage)
         self.pressure_phi = np.zeros(cs)                  # p dt / rho, m^2/s (project)
         self.pressure = np.zeros(cs)                      # Pa (project)
-        self._cg = [np.zeros(cs) for _ in range(5)]
+        self._rhs = np.zeros(cs)                          # -div u* (project)
         # solids (obstacles stage): open fraction and solid velocity per face, pressure weights
         # (project), cells whose centre lies inside a solid
         self._frac = tuple(np.ones(s) for s in fs)
@@ -681,9 +590,9 @@ class LiquidFluid:
         self._weights = tuple(np.zeros(s) for s in fs)
         self._cell_solid = np.zeros(cs, dtype=np.bool_)
         self.depth = positive_scalar(depth, "depth")
-        # pressure operator (project): couplings 1/h^2 between liquid cells, ghost-fluid diagonal
-        self._level = P.Level(np.zeros(fs[0]), np.zeros(fs[1]), np.zeros(fs[2]), np.zeros(cs),
-                              False, False, False)
+        # pressure operator and solver (project)
+        self._pressure = LiquidPressure(cs, method=pressure_solver, tolerance=self.tolerance,
+                                        max_iterations=self.max_iterations)
         # particles: x (N, 3) m, v (N, 3) m/s, c (N, 3, 3) 1/s (APIC); z = 0 in 2-D
         self.x = np.zeros((0, 3))
         self.v = np.zeros((0, 3))
@@ -735,7 +644,8 @@ class LiquidFluid:
     def add_block(self, lower, upper, velocity=None, jitter=0.0, seed=0):
         """Fill the box [lower, upper] (m) with particles, 2 per cell per axis on the lattice
         of spacing h/2 (cells whose centre lies in the box), optionally jittered by
-        `jitter` x h/4 (seeded). Returns the number of particles added."""
+        `jitter` x h/4 (seeded); particles inside an obstacle are left out. Returns the number
+        of particles added."""
         d = self.dim
         lo = as_vector(lower, "lower", d)
         hi = as_vector(upper, "upper", d)
@@ -760,7 +670,25 @@ class LiquidFluid:
         self.v = np.ascontiguousarray(np.concatenate([self.v, v]))
         self.c = np.ascontiguousarray(np.concatenate([self.c, np.zeros((x.shape[0], 3, 3))]))
         np.clip(self.x, self._lo, self._hi, out=self.x)
-        return pts.shape[0]
+        n0 = self.x.shape[0]
+        self._drop_particles_in_solids(self.x.shape[0] - pts.shape[0])
+        return pts.shape[0] - (n0 - self.x.shape[0])
+
+    def _drop_particles_in_solids(self, first=0):
+        """Remove particles (from index `first` on) whose position lies inside a solid: a block
+        poured over an obstacle, or liquid where a body is placed (`bind_rigid`)."""
+        obst = self._all_obstacles()
+        if not obst or self.x.shape[0] <= first:
+            return
+        pts = self.x[first:, :self.dim]
+        inside = np.zeros(pts.shape[0], dtype=np.bool_)
+        for o in obst:
+            inside |= np.asarray(o.signed_distance(pts, self.time)) < 0
+        if inside.any():
+            keep = np.concatenate([np.ones(first, dtype=np.bool_), ~inside])
+            self.x = np.ascontiguousarray(self.x[keep])
+            self.v = np.ascontiguousarray(self.v[keep])
+            self.c = np.ascontiguousarray(self.c[keep])
 
     # ------------------------------------------------------------------------ solids
     def _all_obstacles(self):
@@ -849,15 +777,12 @@ class LiquidFluid:
             for a in range(self.dim):
                 np.copyto(self.vel_old[a], self.vel[a])
         add_gravity_and_walls(self.vel, self.liquid, self.gravity, dt, self.dim)
-        p, r, z, d, q = self._cg
-        lv = self._level
-        build_face_weights(self.liquid, self.phi, self._frac, self._cell_solid, self.dim,
-                           self._weights)
-        build_operator(self.liquid, self._weights, self.dim, 1.0 / (h * h), lv.ax, lv.ay, lv.az,
-                       lv.diag)
-        liquid_divergence(self.vel, self._frac, self._solid, self.liquid, h, self.dim, r)
-        it, res = solve_pressure(self.liquid, lv, self.tolerance, self.max_iterations,
-                                 self.pressure_phi, r, z, d, q)
+        surface = build_face_weights(self.liquid, self.phi, self._frac, self._cell_solid,
+                                     self.dim, self._weights)
+        self._pressure.set_operator(self.liquid, self._cell_solid, self._weights, h, self.dim,
+                                    surface)
+        liquid_divergence(self.vel, self._frac, self._solid, self.liquid, h, self.dim, self._rhs)
+        it, res = self._pressure.solve(self._rhs, self.pressure_phi, self._body_coupling())
         self.last_pressure_iterations, self.last_residual = it, res
         np.multiply(self.pressure_phi, self.density / dt, out=self.pressure)
         subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi,
@@ -936,7 +861,32 @@ class LiquidFluid:
         self.body_torque = np.zeros((nb, 3))
         self._impulse = (np.zeros((nb, 3)), np.zeros((nb, 3)))
         self._moving = self._moving or bool(np.any(owner >= 0))
+        from ...geometry import shapes as S
+        bodies = rigid.model.bodies()
+        self._dynamic = (np.asarray(bodies.body_type) == S.DYNAMIC) & (bodies.body_inv_mass > 0)
         self._update_solids(self.time)
+        self._drop_particles_in_solids()
+
+    def _impulse_frame(self):
+        """(origin with 2-D faces at z = 0, rho (face area) / h^2) for the body impulses."""
+        h = self.cell_size
+        origin = self.origin.copy()
+        rho = self.density
+        if self.dim == 2:
+            origin[2] = -0.5 * h
+            rho = self.density * self.depth / h
+        return origin, rho
+
+    def _body_coupling(self):
+        """The implicit body term of the pressure solve (`liquid_pressure.BodyCoupling`), or None
+        without dynamic bodies."""
+        if self._rigid is None or not np.any(self._dynamic):
+            return None
+        bodies = self._rigid.model.bodies()
+        origin, rho = self._impulse_frame()
+        h = self.cell_size
+        return BodyCoupling(self._cut, self._dynamic, bodies.body_inv_mass, bodies.body_inv_inertia,
+                            self._rigid.state.body_q, origin, h, rho * h ** 3, self.dim)
 
     def _push_bodies(self, dt):
         """Pressure impulse on each body from its closed faces (GridFluid's `_pressure_impulses`:
@@ -948,11 +898,7 @@ class LiquidFluid:
         lin[...] = 0.0
         ang[...] = 0.0
         h = self.cell_size
-        origin = self.origin.copy()
-        rho = self.density
-        if self.dim == 2:
-            origin[2] = -0.5 * h   # face centres at z = 0
-            rho = self.density * self.depth / h
+        origin, rho = self._impulse_frame()
         body_q = self._rigid.state.body_q
         for a in range(self.dim):
             faces, open_frac, body = self._cut[a]
