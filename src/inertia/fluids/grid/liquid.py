@@ -59,7 +59,7 @@ from numba import njit, prange
 from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
-from .liquid_pressure import BodyCoupling, LiquidPressure
+from .liquid_pressure import BodyCoupling, LiquidPressure, set_body_face_velocities
 
 METHODS = ("apic", "flip", "pic")
 
@@ -190,6 +190,39 @@ def build_surface(x, origin, h, radius, dim, liquid, phi):
                         phi[i, j, k] = -eps
                 elif phi[i, j, k] < eps:
                     phi[i, j, k] = eps
+
+
+@njit(cache=True)
+def wet_solid_cells(liquid, phi, cell_solid, frac, dim, h, scratch):
+    """An empty cell whose centre lies inside a solid but which an open face (A_f > 0) joins to a
+    liquid cell becomes liquid: the sliver of fluid between the solid and the liquid, which the
+    particles (kept 0.1 h outside solids) need not reach. Without it the pressure under a body
+    whose surface lies just above a face would not reach the body's closed faces."""
+    nx, ny, nz = liquid.shape
+    scratch[...] = liquid
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if liquid[i, j, k] or not cell_solid[i, j, k]:
+                    continue
+                wet = False
+                if i > 0 and frac[0][i, j, k] > 0.0 and liquid[i - 1, j, k]:
+                    wet = True
+                if i < nx - 1 and frac[0][i + 1, j, k] > 0.0 and liquid[i + 1, j, k]:
+                    wet = True
+                if j > 0 and frac[1][i, j, k] > 0.0 and liquid[i, j - 1, k]:
+                    wet = True
+                if j < ny - 1 and frac[1][i, j + 1, k] > 0.0 and liquid[i, j + 1, k]:
+                    wet = True
+                if dim == 3:
+                    if k > 0 and frac[2][i, j, k] > 0.0 and liquid[i, j, k - 1]:
+                        wet = True
+                    if k < nz - 1 and frac[2][i, j, k + 1] > 0.0 and liquid[i, j, k + 1]:
+                        wet = True
+                if wet:
+                    scratch[i, j, k] = True
+                    phi[i, j, k] = -1e-3 * h
+    liquid[...] = scratch
 
 
 @njit(cache=True)
@@ -589,6 +622,7 @@ class LiquidFluid:
         self._solid = tuple(np.zeros(s) for s in fs)
         self._weights = tuple(np.zeros(s) for s in fs)
         self._cell_solid = np.zeros(cs, dtype=np.bool_)
+        self._liquid_scratch = np.zeros(cs, dtype=np.bool_)
         self.depth = positive_scalar(depth, "depth")
         # pressure operator and solver (project)
         self._pressure = LiquidPressure(cs, method=pressure_solver, tolerance=self.tolerance,
@@ -620,6 +654,8 @@ class LiquidFluid:
                                  f"dim {dim}; got {o!r}")
         self._obstacle_views = [PlaneSlice(o, dim) for o in self.obstacles]
         self._rigid = None
+        self._pose_end = None   # dynamic bodies' poses after the last coupled advance
+        self._dynamic = np.zeros(0, dtype=np.bool_)
         self._rigid_obstacles = []
         self._owners = np.full(len(self.obstacles), -1, np.int64)
         self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
@@ -773,6 +809,9 @@ class LiquidFluid:
         particles_to_grid(self.x, self.v, self.c, m == 0, self.origin, h, self.dim, self.vel,
                           self._wsum)
         build_surface(self.x, self.origin, h, self.surface_radius, self.dim, self.liquid, self.phi)
+        if self._all_obstacles():
+            wet_solid_cells(self.liquid, self.phi, self._cell_solid, self._frac, self.dim, h,
+                            self._liquid_scratch)
         if m == 1:
             for a in range(self.dim):
                 np.copyto(self.vel_old[a], self.vel[a])
@@ -790,6 +829,15 @@ class LiquidFluid:
                                    self._valid)
         if self._rigid is not None:
             self._push_bodies(dt)
+            if np.any(self._dynamic):
+                # the bodies' new velocity on their faces (the solve made it divergence-free)
+                origin, _ = self._impulse_frame()
+                st = self._rigid.state
+                for a in range(self.dim):
+                    faces, frac, owner = self._cut[a]
+                    if faces.size:
+                        set_body_face_velocities(self.vel[a], self._solid[a], faces, frac, owner,
+                                                 self._dynamic, a, h, origin, st.body_q, st.body_qd)
         if m == 1:
             # FLIP: the grid's velocity change, extrapolated like the velocity
             for a in range(self.dim):
@@ -831,6 +879,7 @@ class LiquidFluid:
         frame_dt = positive_scalar(frame_dt, "frame_dt")
         if rigid is not None and rigid is not self._rigid and int(rigid.model.shape_count):
             self.bind_rigid(rigid)
+        coupled = rigid is not None and rigid is self._rigid and bool(np.any(self._dynamic))
         done = 0.0
         n = 0
         while done < frame_dt * (1 - 1e-12):
@@ -838,7 +887,25 @@ class LiquidFluid:
             self.step(dt)
             done += dt
             n += 1
+        if coupled:
+            self._place_bodies(frame_dt)
         return n
+
+    def _place_bodies(self, frame_dt):
+        """Impulse-then-drift for the dynamic bodies: the world's rigid stage has already moved
+        them with their velocity before the liquid's impulse (a body floating at rest would sink
+        by about g dt^2 / 2 per step); put each at q_prev + frame_dt (v, w) with its velocity after
+        the liquid step (symplectic Euler), q_prev its pose after the previous `advance`. The
+        first coupled frame keeps the rigid stage's pose."""
+        from ...math import quat_integrate
+        st = self._rigid.state
+        prev = self._pose_end
+        if prev is not None and prev.shape == st.body_q.shape:
+            for b in np.flatnonzero(self._dynamic):
+                st.body_q[b, :3] = prev[b, :3] + frame_dt * st.body_qd[b, 3:]
+                st.body_q[b, 3:] = quat_integrate(np.ascontiguousarray(prev[b, 3:]),
+                                                  np.ascontiguousarray(st.body_qd[b, :3]), frame_dt)
+        self._pose_end = st.body_q.copy()
 
     # ------------------------------------------------------------------------ rigid coupling
     def bind_rigid(self, rigid):
@@ -962,8 +1029,11 @@ class LiquidFluid:
                 "shape": np.array(self.shape, dtype=np.int64)}
 
     def save_state(self):
-        return {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
-                "time": np.array(self.time), "step_index": np.array(self.step_index)}
+        st = {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
+              "time": np.array(self.time), "step_index": np.array(self.step_index)}
+        if self._pose_end is not None:
+            st["pose_end"] = self._pose_end.copy()
+        return st
 
     def restore_state(self, state):
         self.x = np.ascontiguousarray(state["x"], dtype=np.float64).copy()
@@ -971,5 +1041,6 @@ class LiquidFluid:
         self.c = np.ascontiguousarray(state["c"], dtype=np.float64).copy()
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
+        self._pose_end = np.array(state["pose_end"], dtype=np.float64) if "pose_end" in state else None
         if self._moving:
             self._update_solids(self.time)

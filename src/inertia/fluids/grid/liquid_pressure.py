@@ -379,3 +379,33 @@ class LiquidPressure:
             mg._vk.xpby(zf, beta, pf)
         self.last_iterations, self.last_residual = it, rnorm / bnorm
         return it, rnorm / bnorm
+
+
+@njit(cache=True)
+def set_body_face_velocities(vel_a, solid_a, faces, open_frac, owner, dyn, axis, h, origin, body_q,
+                             body_qd):
+    """After the coupled solve moved the bodies' velocity: the solid velocity e_axis . (v + w x r)
+    of every closed face of a dynamic body, and the face velocity of its fully closed faces
+    (body_qd rows: angular (3), linear (3))."""
+    sx, sy, sz = vel_a.shape
+    for m in range(faces.shape[0]):
+        b = owner[m]
+        if b < 0 or not dyn[b]:
+            continue
+        f = faces[m]
+        k = f % sz
+        j = (f // sz) % sy
+        i = f // (sz * sy)
+        x = origin[0] + (i + (0.0 if axis == 0 else 0.5)) * h - body_q[b, 0]
+        y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
+        z = origin[2] + (k + (0.0 if axis == 2 else 0.5)) * h - body_q[b, 2]
+        wx, wy, wz = body_qd[b, 0], body_qd[b, 1], body_qd[b, 2]
+        if axis == 0:
+            u = body_qd[b, 3] + wy * z - wz * y
+        elif axis == 1:
+            u = body_qd[b, 4] + wz * x - wx * z
+        else:
+            u = body_qd[b, 5] + wx * y - wy * x
+        solid_a[i, j, k] = u
+        if open_frac[m] <= 0.0:
+            vel_a[i, j, k] = u
