@@ -3,24 +3,34 @@
 The liquid is carried by particles; the grid only solves for pressure. One step
 (``LiquidFluid.step(dt)``) runs these stages (arrays named are written by the stage):
 
+0. ``obstacles``  (when an obstacle or body moves) open face fractions and solid face velocities
+   v + w x r from the colliders and the rigid shape rows (`obstacles.solid_faces`, the cut cells
+   of `GridFluid`; Batty, Bertails and Bridson 2007), cells whose centre lies in a solid.
 1. ``p2g``        particles -> face velocities u, v, w and weights (multilinear "tent" kernel;
    APIC adds the particle's affine velocity C_p (x_face - x_p)). Serial scatter: deterministic.
 2. ``surface``    liquid cells (cells holding a particle) and the level set ``phi`` at cell centres,
    phi = min_p |x_c - x_p| - r over particles within one cell (Zhu and Bridson 2005, without their
-   smoothing), forced negative in liquid cells and positive in air cells.
+   smoothing), forced negative in liquid cells and positive in air cells; an empty cell centred
+   in a solid with an open face to a liquid cell is liquid (`wet_solid_cells`).
 3. ``forces``     u_old saved for FLIP; u += g dt on faces next to liquid.
 4. ``project``    pressure on liquid cells, p = 0 at the free surface placed by the ghost-fluid
    method (Gibou, Fedkiw, Cheng and Kang 2002; Enright et al. 2003): a liquid-air face adds
-   1 / (h^2 theta) to the diagonal, theta = phi_liquid / (phi_liquid - phi_air), clamped to
-   >= 0.01. Conjugate gradients with a Jacobi preconditioner to a relative residual
-   ``tolerance``. Domain sides are slip walls (zero normal velocity).
+   A_f / (h^2 theta) to the diagonal, theta = phi_liquid / (phi_liquid - phi_air), clamped to
+   >= 0.01; faces between liquid cells couple with their open fraction A_f / h^2 and the
+   divergence uses A_f u + (1 - A_f) u_solid (`build_face_weights`, `liquid_divergence`).
+   Multigrid-preconditioned CG (McAdams, Sifakis and Teran 2010) to a relative residual
+   ``tolerance`` (`liquid_pressure`; ``pressure_solver="jacobi"`` for comparison), with the
+   dynamic bodies' velocities as unknowns of the same solve (Batty et al. 2007): their pressure
+   impulses go through `inertia.dynamics.particle_coupling.apply_body_impulses`. Domain sides
+   are slip walls; closed faces take the solid's velocity.
 5. ``extrapolate`` face velocities into the air, ``extrapolation_layers`` cells deep (average of
    valid neighbours, layer by layer).
 6. ``g2p``        grid -> particles: PIC v_p = I(u); FLIP v_p += I(u - u_old); blend
    v = (1 - flip_ratio) PIC + flip_ratio FLIP; APIC v_p = I(u) and C_p = sum_i grad(w_ip) u_i
    (Jiang et al. 2015, multilinear weights).
 7. ``advect``     particles move by RK2 (midpoint) in the grid velocity, clamped inside the
-   domain ``margin`` from the walls.
+   domain ``margin`` from the walls, then pushed out of solids along the solid's normal to
+   0.1 h, losing their velocity into the solid (relative to its surface velocity).
 
 ``advance(frame_dt)`` takes CFL substeps dt = cfl h / max|v_p| (capped by ``max_dt``).
 
@@ -37,15 +47,27 @@ References
 - F. Gibou, R. Fedkiw, L.-T. Cheng and M. Kang, "A second-order-accurate symmetric
   discretization of the Poisson equation on irregular domains", J. Comput. Phys. 176, 2002
   (ghost-fluid free-surface pressure).
+- C. Batty, F. Bertails and R. Bridson, "A fast variational framework for accurate solid-fluid
+  coupling", SIGGRAPH 2007 (face-fraction weights, rigid bodies in the pressure solve).
+- A. McAdams, E. Sifakis and J. Teran, "A parallel multigrid Poisson solver for fluids
+  simulation on large grids", SCA 2010 (MGPCG).
 
 Limitations
 -----------
-- Closed box with slip walls only (no obstacles, inflow or outflow yet); constant density,
-  no surface tension, no viscosity.
+- Closed box with slip walls (no inflow or outflow); constant density, no surface tension,
+  no viscosity (obstacles are free-slip, bodies feel pressure only).
+- Bodies: the pressure reaches a body through its closed faces, i.e. at the centre of the fluid
+  cell next to them: along an axis the body's surface is placed to within h/2 (exact for
+  surfaces through cell centres; a floating body's equilibrium draft is within +-h/2). 2-D: the
+  bodies' z = 0 cross-sections in a slab ``depth`` thick; they should move in the x-y plane.
+  The world's rigid stage moves bodies before the liquid acts, so `advance` re-places each
+  coupled dynamic body at q_prev + dt (v, w) after its impulse (symplectic Euler). The bodies'
+  cut cells are rebuilt once per step at their current pose.
+- Momentum between liquid and bodies is exchanged on the grid (face masses rho h^d); at a
+  struck free surface the particles carry less than that (measured: 5.7 % of the momentum lost
+  in a body's impact step, tests/fluids/grid/test_liquid_coupling.py).
 - The level set is a union of particle spheres (radius ``surface_radius``): the surface is as
   bumpy as the particles; fine for rendering through marching cubes, first-order in h.
-- The pressure solve is Jacobi-preconditioned CG (iterations grow with the liquid depth in
-  cells), not the multigrid of the smoke solver.
 - Particles that the flow leaves in thin sheets can drift apart; there is no reseeding.
 """
 
@@ -875,7 +897,7 @@ class LiquidFluid:
     def advance(self, frame_dt, rigid=None):
         """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid` (World
         protocol: the world's RigidWorld) couples the liquid to its bodies (`bind_rigid`) when it
-        has shape rows."""
+        has shape rows; its dynamic bodies are then placed by `_place_bodies`."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
         if rigid is not None and rigid is not self._rigid and int(rigid.model.shape_count):
             self.bind_rigid(rigid)
@@ -914,10 +936,11 @@ class LiquidFluid:
         Every shape row of ``rigid.model`` becomes a cut-cell solid (`obstacles.rigid_obstacles`:
         a `BodyShape` at its body's live pose, v + w x r on covered faces; in 2-D its z = 0
         cross-section, bodies moving in the x-y plane), rebuilt every step while a kinematic or
-        dynamic body exists. After each projection the pressure on the closed faces of each body
-        becomes an impulse dt F (and dt tau about its centre of mass), applied through
+        dynamic body exists. Dynamic bodies' velocities are unknowns of the pressure solve
+        (`liquid_pressure.BodyCoupling`); the pressure on the closed faces of each body becomes an
+        impulse dt F (and dt tau about its centre of mass), applied through
         `inertia.dynamics.particle_coupling.apply_body_impulses` (2-D: per unit length times
-        `depth`). Heightfield and SDF rows are skipped."""
+        `depth`). Particles inside a body are dropped. Heightfield and SDF rows are skipped."""
         from .obstacles import rigid_obstacles
         obst, owner = rigid_obstacles(rigid, self.dim)
         self._rigid = rigid
