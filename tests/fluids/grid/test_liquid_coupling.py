@@ -244,3 +244,10 @@ def test_held_box_in_3d_liquid_feels_rho_g_v():
     expect = RHO * G * 8 * np.prod(he)
     assert abs(F[2] - expect) < 1e-6 * expect, (F, expect)
     assert np.all(np.abs(F[:2]) < 1e-6 * expect)
+
+
+def test_unconverged_pressure_solve_warns_with_residual_and_iterations():
+    f = LiquidFluid((16, 16), 1 / 16, max_iterations=1, tolerance=1e-12)
+    f.add_block((0, 0), (1.0, 0.5), jitter=0.5)
+    with pytest.warns(RuntimeWarning, match="residual .* after 1 iterations"):
+        f.step(0.01)

@@ -647,6 +647,7 @@ class LiquidFluid:
         self._liquid_scratch = np.zeros(cs, dtype=np.bool_)
         self.depth = positive_scalar(depth, "depth")
         # pressure operator and solver (project)
+        self.pressure_solver = pressure_solver
         self._pressure = LiquidPressure(cs, method=pressure_solver, tolerance=self.tolerance,
                                         max_iterations=self.max_iterations)
         # particles: x (N, 3) m, v (N, 3) m/s, c (N, 3, 3) 1/s (APIC); z = 0 in 2-D

@@ -34,6 +34,7 @@ step); the coarse Dirichlet rule drops liquid layers thinner than a coarse cell 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from numba import njit
@@ -378,6 +379,11 @@ class LiquidPressure:
             rz = rz_new
             mg._vk.xpby(zf, beta, pf)
         self.last_iterations, self.last_residual = it, rnorm / bnorm
+        if rnorm > tol:
+            warnings.warn(f"liquid pressure solve ({self.method}) did not converge: relative "
+                          f"residual {rnorm / bnorm:.3e} after {it} iterations (tolerance "
+                          f"{self.tolerance:.1e}); raise max_iterations", RuntimeWarning,
+                          stacklevel=3)
         return it, rnorm / bnorm
 
 
