@@ -574,6 +574,8 @@ class LiquidFluid:
     max_iterations : of the pressure solve (default 2000).
     pressure_solver : "mgpcg" (multigrid-preconditioned CG, default) or "jacobi" (Jacobi-PCG),
         see `liquid_pressure`.
+    parallel : parallel pressure kernels on large levels (None: when the grid has at least
+        `kernels.PARALLEL_CELLS` cells; False: serial, faster on a loaded machine).
     cfl : CFL number for ``advance`` (default 1, at most 5).
     max_dt : largest substep, s (default 1/60).
     extrapolation_layers : velocity extrapolation depth into the air, cells (default 4).
@@ -586,7 +588,7 @@ class LiquidFluid:
     def __init__(self, shape, cell_size, *, origin=None, gravity=None, method="apic",
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
                  max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0,
-                 pressure_solver="mgpcg"):
+                 pressure_solver="mgpcg", parallel=None):
         try:
             shp = tuple(int(s) for s in shape)
         except TypeError:
@@ -648,8 +650,10 @@ class LiquidFluid:
         self.depth = positive_scalar(depth, "depth")
         # pressure operator and solver (project)
         self.pressure_solver = pressure_solver
+        if parallel not in (None, True, False):
+            raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
         self._pressure = LiquidPressure(cs, method=pressure_solver, tolerance=self.tolerance,
-                                        max_iterations=self.max_iterations)
+                                        max_iterations=self.max_iterations, parallel=parallel)
         # particles: x (N, 3) m, v (N, 3) m/s, c (N, 3, 3) 1/s (APIC); z = 0 in 2-D
         self.x = np.zeros((0, 3))
         self.v = np.zeros((0, 3))
