@@ -253,3 +253,22 @@ def test_unconverged_pressure_solve_warns_with_residual_and_iterations():
     f.add_block((0, 0), (1.0, 0.5), jitter=0.5)
     with pytest.warns(RuntimeWarning, match="residual .* after 1 iterations"):
         f.step(0.01)
+
+
+def test_plane_slice_of_a_thin_box_has_the_in_plane_distance_and_normal():
+    # a 2-D liquid sees the z = 0 cross-section of a slab-thin box (half depth 0.05 m): inside it
+    # the signed distance is the in-plane one (-0.3 m at the centre of a 0.6 m square, not the
+    # -0.05 m to the z faces) with an in-plane unit normal; outside, the plain 2-D distance.
+    from inertia.collision.shapes import BodyShape
+    from inertia.fluids.grid.obstacles import PlaneSlice
+    b = ModelBuilder()
+    body = b.add_body(position=(1.0, 1.0, 0.0))
+    b.add_box(body, half_extents=(0.3, 0.3, 0.05))
+    model = b.finalize()
+    q = model.state().body_q[body].copy()
+    s = PlaneSlice(BodyShape(model, 0).bind(lambda t: q, lambda t: np.zeros(6)), 2)
+    d, n, v = s.query(np.array([[1.0, 1.0], [1.2, 1.05], [1.5, 1.0]]))
+    np.testing.assert_allclose(d, [-0.3, -0.1, 0.2], atol=1e-12)
+    np.testing.assert_allclose(n[1:], [[1.0, 0.0], [1.0, 0.0]], atol=1e-12)
+    raw = BodyShape(model, 0).bind(lambda t: q, lambda t: np.zeros(6))
+    assert raw.signed_distance(np.array([[1.0, 1.0, 0.0]]))[0] == pytest.approx(-0.05)
