@@ -39,7 +39,6 @@ import warnings
 import numpy as np
 from numba import njit
 
-from . import kernels as K
 from . import pressure as P
 from ...math import world_inertia_inv
 
