@@ -3,24 +3,34 @@
 The liquid is carried by particles; the grid only solves for pressure. One step
 (``LiquidFluid.step(dt)``) runs these stages (arrays named are written by the stage):
 
+0. ``obstacles``  (when an obstacle or body moves) open face fractions and solid face velocities
+   v + w x r from the colliders and the rigid shape rows (`obstacles.solid_faces`, the cut cells
+   of `GridFluid`; Batty, Bertails and Bridson 2007), cells whose centre lies in a solid.
 1. ``p2g``        particles -> face velocities u, v, w and weights (multilinear "tent" kernel;
    APIC adds the particle's affine velocity C_p (x_face - x_p)). Serial scatter: deterministic.
 2. ``surface``    liquid cells (cells holding a particle) and the level set ``phi`` at cell centres,
    phi = min_p |x_c - x_p| - r over particles within one cell (Zhu and Bridson 2005, without their
-   smoothing), forced negative in liquid cells and positive in air cells.
+   smoothing), forced negative in liquid cells and positive in air cells; an empty cell centred
+   in a solid with an open face to a liquid cell is liquid (`wet_solid_cells`).
 3. ``forces``     u_old saved for FLIP; u += g dt on faces next to liquid.
 4. ``project``    pressure on liquid cells, p = 0 at the free surface placed by the ghost-fluid
    method (Gibou, Fedkiw, Cheng and Kang 2002; Enright et al. 2003): a liquid-air face adds
-   1 / (h^2 theta) to the diagonal, theta = phi_liquid / (phi_liquid - phi_air), clamped to
-   >= 0.01. Conjugate gradients with a Jacobi preconditioner to a relative residual
-   ``tolerance``. Domain sides are slip walls (zero normal velocity).
+   A_f / (h^2 theta) to the diagonal, theta = phi_liquid / (phi_liquid - phi_air), clamped to
+   >= 0.01; faces between liquid cells couple with their open fraction A_f / h^2 and the
+   divergence uses A_f u + (1 - A_f) u_solid (`build_face_weights`, `liquid_divergence`).
+   Multigrid-preconditioned CG (McAdams, Sifakis and Teran 2010) to a relative residual
+   ``tolerance`` (`liquid_pressure`; ``pressure_solver="jacobi"`` for comparison), with the
+   dynamic bodies' velocities as unknowns of the same solve (Batty et al. 2007): their pressure
+   impulses go through `inertia.dynamics.particle_coupling.apply_body_impulses`. Domain sides
+   are slip walls; closed faces take the solid's velocity.
 5. ``extrapolate`` face velocities into the air, ``extrapolation_layers`` cells deep (average of
    valid neighbours, layer by layer).
 6. ``g2p``        grid -> particles: PIC v_p = I(u); FLIP v_p += I(u - u_old); blend
    v = (1 - flip_ratio) PIC + flip_ratio FLIP; APIC v_p = I(u) and C_p = sum_i grad(w_ip) u_i
    (Jiang et al. 2015, multilinear weights).
 7. ``advect``     particles move by RK2 (midpoint) in the grid velocity, clamped inside the
-   domain ``margin`` from the walls.
+   domain ``margin`` from the walls, then pushed out of solids along the solid's normal to
+   0.1 h, losing their velocity into the solid (relative to its surface velocity).
 
 ``advance(frame_dt)`` takes CFL substeps dt = cfl h / max|v_p| (capped by ``max_dt``).
 
@@ -37,15 +47,27 @@ References
 - F. Gibou, R. Fedkiw, L.-T. Cheng and M. Kang, "A second-order-accurate symmetric
   discretization of the Poisson equation on irregular domains", J. Comput. Phys. 176, 2002
   (ghost-fluid free-surface pressure).
+- C. Batty, F. Bertails and R. Bridson, "A fast variational framework for accurate solid-fluid
+  coupling", SIGGRAPH 2007 (face-fraction weights, rigid bodies in the pressure solve).
+- A. McAdams, E. Sifakis and J. Teran, "A parallel multigrid Poisson solver for fluids
+  simulation on large grids", SCA 2010 (MGPCG).
 
 Limitations
 -----------
-- Closed box with slip walls only (no obstacles, inflow or outflow yet); constant density,
-  no surface tension, no viscosity.
+- Closed box with slip walls (no inflow or outflow); constant density, no surface tension,
+  no viscosity (obstacles are free-slip, bodies feel pressure only).
+- Bodies: the pressure reaches a body through its closed faces, i.e. at the centre of the fluid
+  cell next to them: along an axis the body's surface is placed to within h/2 (exact for
+  surfaces through cell centres; a floating body's equilibrium draft is within +-h/2). 2-D: the
+  bodies' z = 0 cross-sections in a slab ``depth`` thick; they should move in the x-y plane.
+  The world's rigid stage moves bodies before the liquid acts, so `advance` re-places each
+  coupled dynamic body at q_prev + dt (v, w) after its impulse (symplectic Euler). The bodies'
+  cut cells are rebuilt once per step at their current pose.
+- Momentum between liquid and bodies is exchanged on the grid (face masses rho h^d); at a
+  struck free surface the particles carry less than that (measured: 5.7 % of the momentum lost
+  in a body's impact step, tests/fluids/grid/test_liquid_coupling.py).
 - The level set is a union of particle spheres (radius ``surface_radius``): the surface is as
   bumpy as the particles; fine for rendering through marching cubes, first-order in h.
-- The pressure solve is Jacobi-preconditioned CG (iterations grow with the liquid depth in
-  cells), not the multigrid of the smoke solver.
 - Particles that the flow leaves in thin sheets can drift apart; there is no reseeding.
 """
 
@@ -59,8 +81,7 @@ from numba import njit, prange
 from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
-from . import kernels as K
-from . import pressure as P
+from .liquid_pressure import BodyCoupling, LiquidPressure, set_body_face_velocities
 
 METHODS = ("apic", "flip", "pic")
 
@@ -194,6 +215,39 @@ def build_surface(x, origin, h, radius, dim, liquid, phi):
 
 
 @njit(cache=True)
+def wet_solid_cells(liquid, phi, cell_solid, frac, dim, h, scratch):
+    """An empty cell whose centre lies inside a solid but which an open face (A_f > 0) joins to a
+    liquid cell becomes liquid: the sliver of fluid between the solid and the liquid, which the
+    particles (kept 0.1 h outside solids) need not reach. Without it the pressure under a body
+    whose surface lies just above a face would not reach the body's closed faces."""
+    nx, ny, nz = liquid.shape
+    scratch[...] = liquid
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if liquid[i, j, k] or not cell_solid[i, j, k]:
+                    continue
+                wet = False
+                if i > 0 and frac[0][i, j, k] > 0.0 and liquid[i - 1, j, k]:
+                    wet = True
+                if i < nx - 1 and frac[0][i + 1, j, k] > 0.0 and liquid[i + 1, j, k]:
+                    wet = True
+                if j > 0 and frac[1][i, j, k] > 0.0 and liquid[i, j - 1, k]:
+                    wet = True
+                if j < ny - 1 and frac[1][i, j + 1, k] > 0.0 and liquid[i, j + 1, k]:
+                    wet = True
+                if dim == 3:
+                    if k > 0 and frac[2][i, j, k] > 0.0 and liquid[i, j, k - 1]:
+                        wet = True
+                    if k < nz - 1 and frac[2][i, j, k + 1] > 0.0 and liquid[i, j, k + 1]:
+                        wet = True
+                if wet:
+                    scratch[i, j, k] = True
+                    phi[i, j, k] = -1e-3 * h
+    liquid[...] = scratch
+
+
+@njit(cache=True)
 def add_gravity_and_walls(vel, liquid, g, dt, dim):
     """u += g dt on faces next to a liquid cell; wall faces (domain sides) get zero normal
     velocity."""
@@ -221,134 +275,103 @@ def add_gravity_and_walls(vel, liquid, g, dt, dim):
 
 
 @njit(cache=True)
-def build_operator(liquid, phi, dim, inv_h2, ax, ay, az, diag):
-    """Face couplings a_f = 1/h^2 between two liquid cells (0 elsewhere: walls, air) and the
-    diagonal: the couplings plus, per liquid-air face, the ghost-fluid 1 / (h^2 theta) with
-    theta = phi_liquid / (phi_liquid - phi_air) >= 0.01. Air cells: diagonal 0 (not solved)."""
+def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
+    """Pressure weights of the faces (Batty, Bertails and Bridson 2007 with the ghost-fluid free
+    surface): A_f between two liquid cells; A_f / theta between a liquid cell and an air cell,
+    theta = phi_liquid / (phi_liquid - phi_air) >= 0.01 (Gibou et al. 2002); 0 on every other face
+    (walls, closed solid faces, air-air, and a liquid cell next to an empty cell whose centre lies
+    inside a solid: no flux through the solid, so no Dirichlet condition there). Returns whether
+    any liquid-air face exists (else the system is a pure Neumann problem)."""
     nx, ny, nz = liquid.shape
-    ax[...] = 0.0
-    ay[...] = 0.0
-    az[...] = 0.0
+    surface = False
+    for a in range(3):
+        weights[a][...] = 0.0
+    for a in range(dim):
+        wa = weights[a]
+        fa = frac[a]
+        sx, sy, sz = wa.shape
+        for i in range(sx):
+            for j in range(sy):
+                for k in range(sz):
+                    A = fa[i, j, k]
+                    if A <= 0.0:
+                        continue
+                    i0, j0, k0 = i, j, k
+                    if a == 0:
+                        i0 = i - 1
+                    elif a == 1:
+                        j0 = j - 1
+                    else:
+                        k0 = k - 1
+                    if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
+                        continue  # a domain side (closed walls have A = 0 anyway)
+                    lo = liquid[i0, j0, k0]
+                    hi = liquid[i, j, k]
+                    if lo and hi:
+                        wa[i, j, k] = A
+                    elif lo and not cell_solid[i, j, k]:
+                        theta = phi[i0, j0, k0] / (phi[i0, j0, k0] - phi[i, j, k])
+                        wa[i, j, k] = A / max(theta, 0.01)
+                        surface = True
+                    elif hi and not cell_solid[i0, j0, k0]:
+                        theta = phi[i, j, k] / (phi[i, j, k] - phi[i0, j0, k0])
+                        wa[i, j, k] = A / max(theta, 0.01)
+                        surface = True
+    return surface
+
+
+@njit(cache=True)
+def liquid_divergence(vel, frac, solid, liquid, h, dim, rhs):
+    """rhs = -div(u) on liquid cells (0 elsewhere), with the flux of each face weighted by its
+    open fraction: A_f u_f + (1 - A_f) u_solid,f (Batty et al. 2007), 1/s."""
+    nx, ny, nz = liquid.shape
+    inv_h = 1.0 / h
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
                 if not liquid[i, j, k]:
-                    diag[i, j, k] = 0.0
+                    rhs[i, j, k] = 0.0
                     continue
-                s = 0.0
+                dv = 0.0
                 for a in range(dim):
-                    for sd in range(2):
-                        ii, jj, kk = i, j, k
-                        if a == 0:
-                            ii += 2 * sd - 1
-                        elif a == 1:
-                            jj += 2 * sd - 1
-                        else:
-                            kk += 2 * sd - 1
-                        if ii < 0 or ii >= nx or jj < 0 or jj >= ny or kk < 0 or kk >= nz:
-                            continue  # slip wall: no flux
-                        if liquid[ii, jj, kk]:
-                            s += inv_h2
-                            if sd == 1:
-                                if a == 0:
-                                    ax[i + 1, j, k] = inv_h2
-                                elif a == 1:
-                                    ay[i, j + 1, k] = inv_h2
-                                else:
-                                    az[i, j, k + 1] = inv_h2
-                        else:
-                            theta = phi[i, j, k] / (phi[i, j, k] - phi[ii, jj, kk])
-                            s += inv_h2 / max(theta, 0.01)
-                diag[i, j, k] = s
+                    va = vel[a]
+                    fa = frac[a]
+                    sa = solid[a]
+                    i1, j1, k1 = i, j, k
+                    if a == 0:
+                        i1 = i + 1
+                    elif a == 1:
+                        j1 = j + 1
+                    else:
+                        k1 = k + 1
+                    A1 = fa[i1, j1, k1]
+                    A0 = fa[i, j, k]
+                    dv += A1 * va[i1, j1, k1] + (1.0 - A1) * sa[i1, j1, k1]
+                    dv -= A0 * va[i, j, k] + (1.0 - A0) * sa[i, j, k]
+                rhs[i, j, k] = -dv * inv_h
 
 
 @njit(cache=True)
-def _dot_mask(a, b, mask):
-    """sum of a * b over the mask (flat arrays, fixed order)."""
-    s = 0.0
-    for i in range(a.size):
-        if mask[i]:
-            s += a[i] * b[i]
-    return s
-
-
-_operator = K.version(P.operator_kernel, False)
-
-
-@njit(cache=True)
-def solve_pressure(vel, liquid, lv, h, dim, tol, max_iter, p, r, z, d, q):
-    """Solve L p = -div(u) on liquid cells (p = pressure dt / rho, m^2/s; L from
-    `build_operator` in the Level bundle lv) by Jacobi-preconditioned CG from p = 0; returns
-    (iterations, relative residual). Serial: deterministic. Vector updates run on flat views
-    (a 2-D grid's innermost axis has length 1)."""
-    nx, ny, nz = liquid.shape
-    inv_h = 1.0 / h
-    n = liquid.size
-    m = liquid.reshape(n)
-    dg = lv.diag.reshape(n)
-    pf = p.reshape(n)
-    rf = r.reshape(n)
-    zf = z.reshape(n)
-    df = d.reshape(n)
-    qf = q.reshape(n)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                p[i, j, k] = 0.0
-                if liquid[i, j, k]:
-                    dv = vel[0][i + 1, j, k] - vel[0][i, j, k] + vel[1][i, j + 1, k] - vel[1][i, j, k]
-                    if dim == 3:
-                        dv += vel[2][i, j, k + 1] - vel[2][i, j, k]
-                    r[i, j, k] = -dv * inv_h
-                else:
-                    r[i, j, k] = 0.0
-    bnorm = math.sqrt(_dot_mask(rf, rf, m))
-    if bnorm == 0.0:
-        return 0, 0.0
-    for i in range(n):
-        zf[i] = rf[i] / dg[i] if dg[i] > 0.0 else 0.0
-        df[i] = zf[i]
-    rz = _dot_mask(rf, zf, m)
-    it = 0
-    rnorm = bnorm
-    while it < max_iter:
-        it += 1
-        _operator(d, d, lv, q, 0)
-        alpha = rz / _dot_mask(df, qf, m)
-        for i in range(n):
-            pf[i] += alpha * df[i]
-            rf[i] -= alpha * qf[i]
-        rnorm = math.sqrt(_dot_mask(rf, rf, m))
-        if rnorm <= tol * bnorm:
-            break
-        for i in range(n):
-            zf[i] = rf[i] / dg[i] if dg[i] > 0.0 else 0.0
-        rz_new = _dot_mask(rf, zf, m)
-        beta = rz_new / rz
-        rz = rz_new
-        for i in range(n):
-            df[i] = zf[i] + beta * df[i]
-    return it, rnorm / bnorm
-
-
-@njit(cache=True)
-def subtract_pressure_gradient(vel, p, liquid, phi, h, dim, valid):
-    """u -= grad p on faces next to a liquid cell (ghost-fluid value across the surface);
-    valid[a] marks those faces (and walls); other faces are left for extrapolation."""
+def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim, valid):
+    """u -= grad p on faces with a pressure weight (ghost-fluid value across the surface);
+    closed faces (open fraction 0: domain walls, solids) take the solid's velocity; open faces
+    next to a liquid cell without a weight (beside an empty solid cell) keep their velocity.
+    valid[a] marks all of these; other faces are left for extrapolation."""
     nx, ny, nz = liquid.shape
     inv_h = 1.0 / h
     for a in range(dim):
         va = vel[a]
         ok = valid[a]
+        wa = weights[a]
+        fa = frac[a]
+        sa = solid[a]
         sx, sy, sz = va.shape
         for i in range(sx):
             for j in range(sy):
                 for k in range(sz):
                     ok[i, j, k] = False
-                    wall = (a == 0 and (i == 0 or i == nx)) or (a == 1 and (j == 0 or j == ny)) \
-                        or (a == 2 and (k == 0 or k == nz))
-                    if wall:
-                        va[i, j, k] = 0.0
+                    if fa[i, j, k] <= 0.0:
+                        va[i, j, k] = sa[i, j, k]
                         ok[i, j, k] = True
                         continue
                     i0, j0, k0 = i, j, k   # cell on the low side
@@ -358,9 +381,14 @@ def subtract_pressure_gradient(vel, p, liquid, phi, h, dim, valid):
                         j0 = j - 1
                     else:
                         k0 = k - 1
+                    if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
+                        continue
                     lo = liquid[i0, j0, k0]
                     hi = liquid[i, j, k]
                     if not (lo or hi):
+                        continue
+                    ok[i, j, k] = True
+                    if wa[i, j, k] == 0.0:
                         continue
                     if lo and hi:
                         dp = p[i, j, k] - p[i0, j0, k0]
@@ -371,7 +399,23 @@ def subtract_pressure_gradient(vel, p, liquid, phi, h, dim, valid):
                         theta = max(phi[i, j, k] / (phi[i, j, k] - phi[i0, j0, k0]), 0.01)
                         dp = p[i, j, k] / theta
                     va[i, j, k] -= dp * inv_h
-                    ok[i, j, k] = True
+
+
+@njit(cache=True)
+def push_out_of_solids(x, v, d, nrm, vs, idx, dim, clearance):
+    """Particles idx[m] with signed distance d[m] < clearance to a solid move out along the
+    solid's normal nrm[m] to the clearance, and lose the velocity component into the solid
+    relative to its surface velocity vs[m] (no penetration; tangential motion kept)."""
+    for m in range(idx.shape[0]):
+        p = idx[m]
+        push = clearance - d[m]
+        vn = 0.0
+        for a in range(dim):
+            x[p, a] += push * nrm[m, a]
+            vn += (v[p, a] - vs[m, a]) * nrm[m, a]
+        if vn < 0.0:
+            for a in range(dim):
+                v[p, a] -= vn * nrm[m, a]
 
 
 @njit(cache=True)
@@ -527,14 +571,24 @@ class LiquidFluid:
     flip_ratio : FLIP share of the PIC/FLIP blend in [0, 1] (default 0.95; "flip" only).
     density : rho, kg/m^3 (default 1000): pressure = rho phi / dt.
     tolerance : relative residual of the pressure solve (default 1e-8).
+    max_iterations : of the pressure solve (default 2000).
+    pressure_solver : "mgpcg" (multigrid-preconditioned CG, default) or "jacobi" (Jacobi-PCG),
+        see `liquid_pressure`.
+    parallel : parallel pressure kernels on large levels (None: when the grid has at least
+        `kernels.PARALLEL_CELLS` cells; False: serial, faster on a loaded machine).
     cfl : CFL number for ``advance`` (default 1, at most 5).
     max_dt : largest substep, s (default 1/60).
     extrapolation_layers : velocity extrapolation depth into the air, cells (default 4).
+    obstacles : colliders of `inertia.colliders` with this dim (static or with a `Motion`):
+        cut-cell solids whose velocity enters the boundary condition; particles are pushed out.
+    depth : thickness of a 2-D liquid in z, m (default 1): the pressure force on a rigid body is
+        the force per unit length times `depth` (3-D: ignored).
     """
 
     def __init__(self, shape, cell_size, *, origin=None, gravity=None, method="apic",
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
-                 max_dt=1 / 60, extrapolation_layers=4):
+                 max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0,
+                 pressure_solver="mgpcg", parallel=None):
         try:
             shp = tuple(int(s) for s in shape)
         except TypeError:
@@ -585,10 +639,21 @@ class LiquidFluid:
         self.phi = np.zeros(cs)                           # level set, m (surface stage)
         self.pressure_phi = np.zeros(cs)                  # p dt / rho, m^2/s (project)
         self.pressure = np.zeros(cs)                      # Pa (project)
-        self._cg = [np.zeros(cs) for _ in range(5)]
-        # pressure operator (project): couplings 1/h^2 between liquid cells, ghost-fluid diagonal
-        self._level = P.Level(np.zeros(fs[0]), np.zeros(fs[1]), np.zeros(fs[2]), np.zeros(cs),
-                              False, False, False)
+        self._rhs = np.zeros(cs)                          # -div u* (project)
+        # solids (obstacles stage): open fraction and solid velocity per face, pressure weights
+        # (project), cells whose centre lies inside a solid
+        self._frac = tuple(np.ones(s) for s in fs)
+        self._solid = tuple(np.zeros(s) for s in fs)
+        self._weights = tuple(np.zeros(s) for s in fs)
+        self._cell_solid = np.zeros(cs, dtype=np.bool_)
+        self._liquid_scratch = np.zeros(cs, dtype=np.bool_)
+        self.depth = positive_scalar(depth, "depth")
+        # pressure operator and solver (project)
+        self.pressure_solver = pressure_solver
+        if parallel not in (None, True, False):
+            raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
+        self._pressure = LiquidPressure(cs, method=pressure_solver, tolerance=self.tolerance,
+                                        max_iterations=self.max_iterations, parallel=parallel)
         # particles: x (N, 3) m, v (N, 3) m/s, c (N, 3, 3) 1/s (APIC); z = 0 in 2-D
         self.x = np.zeros((0, 3))
         self.v = np.zeros((0, 3))
@@ -607,6 +672,24 @@ class LiquidFluid:
         self.step_index = 0
         self.last_pressure_iterations = 0
         self.last_residual = 0.0
+        # obstacles and rigid bodies (bind_rigid)
+        from .obstacles import PlaneSlice
+        self.obstacles = list(obstacles)
+        for i, o in enumerate(self.obstacles):
+            if getattr(o, "dim", None) != dim or not hasattr(o, "query"):
+                raise ValueError(f"obstacles[{i}] must be a collider of inertia.colliders with "
+                                 f"dim {dim}; got {o!r}")
+        self._obstacle_views = [PlaneSlice(o, dim) for o in self.obstacles]
+        self._rigid = None
+        self._pose_end = None   # dynamic bodies' poses after the last coupled advance
+        self._dynamic = np.zeros(0, dtype=np.bool_)
+        self._rigid_obstacles = []
+        self._owners = np.full(len(self.obstacles), -1, np.int64)
+        self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
+        self._cut = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))] * 3
+        self.body_force = np.zeros((0, 3))   # N, last substep's pressure force per body
+        self.body_torque = np.zeros((0, 3))  # N m, about each body's centre of mass
+        self._update_solids(0.0, check_domain=True)
 
     # ------------------------------------------------------------------------ particles
     @property
@@ -624,7 +707,8 @@ class LiquidFluid:
     def add_block(self, lower, upper, velocity=None, jitter=0.0, seed=0):
         """Fill the box [lower, upper] (m) with particles, 2 per cell per axis on the lattice
         of spacing h/2 (cells whose centre lies in the box), optionally jittered by
-        `jitter` x h/4 (seeded). Returns the number of particles added."""
+        `jitter` x h/4 (seeded); particles inside an obstacle are left out. Returns the number
+        of particles added."""
         d = self.dim
         lo = as_vector(lower, "lower", d)
         hi = as_vector(upper, "upper", d)
@@ -649,30 +733,138 @@ class LiquidFluid:
         self.v = np.ascontiguousarray(np.concatenate([self.v, v]))
         self.c = np.ascontiguousarray(np.concatenate([self.c, np.zeros((x.shape[0], 3, 3))]))
         np.clip(self.x, self._lo, self._hi, out=self.x)
-        return pts.shape[0]
+        n0 = self.x.shape[0]
+        self._drop_particles_in_solids(self.x.shape[0] - pts.shape[0])
+        return pts.shape[0] - (n0 - self.x.shape[0])
+
+    def _drop_particles_in_solids(self, first=0):
+        """Remove particles (from index `first` on) whose position lies inside a solid: a block
+        poured over an obstacle, or liquid where a body is placed (`bind_rigid`)."""
+        obst = self._all_obstacles()
+        if not obst or self.x.shape[0] <= first:
+            return
+        pts = self.x[first:, :self.dim]
+        inside = np.zeros(pts.shape[0], dtype=np.bool_)
+        for o in obst:
+            inside |= np.asarray(o.signed_distance(pts, self.time)) < 0
+        if inside.any():
+            keep = np.concatenate([np.ones(first, dtype=np.bool_), ~inside])
+            self.x = np.ascontiguousarray(self.x[keep])
+            self.v = np.ascontiguousarray(self.v[keep])
+            self.c = np.ascontiguousarray(self.c[keep])
+
+    # ------------------------------------------------------------------------ solids
+    def _all_obstacles(self):
+        return self._obstacle_views + self._rigid_obstacles
+
+    def _update_solids(self, t, check_domain=False):
+        """Obstacles stage: open fractions, solid velocities and closed (body) faces from the
+        obstacles at time t (`obstacles.solid_faces`, the cut cells GridFluid uses); the domain
+        sides are closed slip walls; cells whose centre lies inside a solid."""
+        from .obstacles import solid_faces
+        from .solver import MACGrid
+        dim = self.dim
+        obst = self._all_obstacles()
+        if obst:
+            g = MACGrid(self.shape, self.cell_size, self.origin[:dim])
+            if getattr(self, "_pts", None) is None:
+                vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
+                self._pts = (g.vertex_positions(), [g.face_positions(a) for a in range(dim)],
+                             g.cell_positions(), vshape)
+            verts, faces, cells, vshape = self._pts
+            self._cut = solid_faces(obst, self._owners, verts, faces, vshape,
+                                    dim, t, self._frac, self._solid)
+            inside = np.zeros(cells.shape[0], dtype=np.bool_)
+            for o in obst:
+                inside |= np.asarray(o.signed_distance(cells, t)) < 0
+            if check_domain:
+                if np.all(inside):
+                    raise ValueError("obstacles cover the whole domain")
+                for i, o in enumerate(self.obstacles):
+                    if not np.any(np.asarray(o.signed_distance(cells, t)) < self.cell_size):
+                        raise ValueError(f"obstacles[{i}] lies outside the domain "
+                                         f"{self.origin[:dim].tolist()} + "
+                                         f"{(self.n[:dim] * self.cell_size).tolist()}")
+            self._cell_solid[...] = inside.reshape(self._cell_solid.shape)
+        else:
+            for a in range(3):
+                self._frac[a][...] = 1.0
+                self._solid[a][...] = 0.0
+            self._cell_solid[...] = False
+        if dim == 2:
+            self._frac[2][...] = 0.0
+        for a in range(dim):   # closed slip walls on every side
+            idx = [slice(None)] * 3
+            idx[a] = 0
+            self._frac[a][tuple(idx)] = 0.0
+            self._solid[a][tuple(idx)] = 0.0
+            idx[a] = -1
+            self._frac[a][tuple(idx)] = 0.0
+            self._solid[a][tuple(idx)] = 0.0
+
+    @property
+    def face_fractions(self):
+        """Open fraction of the u, v[, w] faces (views; 2-D: (nx+1, ny), (nx, ny+1))."""
+        return tuple(f[:, :, 0] if self.dim == 2 else f for f in self._frac[:self.dim])
+
+    def _push_particles_out(self, t):
+        """Particles closer than 0.1 h to a solid (or inside it) move out along its normal and
+        lose their velocity into it (relative to the solid's surface velocity)."""
+        obst = self._all_obstacles()
+        if not obst or self.x.shape[0] == 0:
+            return
+        d = self.dim
+        pts = self.x[:, :d]
+        clearance = 0.1 * self.cell_size
+        for o in obst:
+            dist = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
+            idx = np.flatnonzero(dist < clearance)
+            if idx.size == 0:
+                continue
+            dn, nrm, vs = o.query(pts[idx], t)
+            push_out_of_solids(self.x, self.v, dn, nrm, vs, idx.astype(np.int64), d, clearance)
+        np.clip(self.x, self._lo, self._hi, out=self.x)
 
     # ------------------------------------------------------------------------ stepping
     def step(self, dt):
         """Advance by dt seconds (one step)."""
         dt = positive_scalar(dt, "dt")
         h = self.cell_size
+        if self._moving:
+            self._update_solids(self.time + dt)
         m = {"apic": 0, "flip": 1, "pic": 2}[self.method]
         particles_to_grid(self.x, self.v, self.c, m == 0, self.origin, h, self.dim, self.vel,
                           self._wsum)
         build_surface(self.x, self.origin, h, self.surface_radius, self.dim, self.liquid, self.phi)
+        if self._all_obstacles():
+            wet_solid_cells(self.liquid, self.phi, self._cell_solid, self._frac, self.dim, h,
+                            self._liquid_scratch)
         if m == 1:
             for a in range(self.dim):
                 np.copyto(self.vel_old[a], self.vel[a])
         add_gravity_and_walls(self.vel, self.liquid, self.gravity, dt, self.dim)
-        p, r, z, d, q = self._cg
-        lv = self._level
-        build_operator(self.liquid, self.phi, self.dim, 1.0 / (h * h), lv.ax, lv.ay, lv.az, lv.diag)
-        it, res = solve_pressure(self.vel, self.liquid, lv, h, self.dim, self.tolerance,
-                                 self.max_iterations, self.pressure_phi, r, z, d, q)
+        surface = build_face_weights(self.liquid, self.phi, self._frac, self._cell_solid,
+                                     self.dim, self._weights)
+        self._pressure.set_operator(self.liquid, self._cell_solid, self._weights, h, self.dim,
+                                    surface)
+        liquid_divergence(self.vel, self._frac, self._solid, self.liquid, h, self.dim, self._rhs)
+        it, res = self._pressure.solve(self._rhs, self.pressure_phi, self._body_coupling())
         self.last_pressure_iterations, self.last_residual = it, res
         np.multiply(self.pressure_phi, self.density / dt, out=self.pressure)
-        subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi, h,
-                                   self.dim, self._valid)
+        subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi,
+                                   self._weights, self._frac, self._solid, h, self.dim,
+                                   self._valid)
+        if self._rigid is not None:
+            self._push_bodies(dt)
+            if np.any(self._dynamic):
+                # the bodies' new velocity on their faces (the solve made it divergence-free)
+                origin, _ = self._impulse_frame()
+                st = self._rigid.state
+                for a in range(self.dim):
+                    faces, frac, owner = self._cut[a]
+                    if faces.size:
+                        set_body_face_velocities(self.vel[a], self._solid[a], faces, frac, owner,
+                                                 self._dynamic, a, h, origin, st.body_q, st.body_qd)
         if m == 1:
             # FLIP: the grid's velocity change, extrapolated like the velocity
             for a in range(self.dim):
@@ -684,6 +876,7 @@ class LiquidFluid:
         grid_to_particles(self.x, self.v, self.c, self.vel, self.vel_old, self.origin, h,
                           self.dim, m, self.flip_ratio)
         advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._lo, self._hi)
+        self._push_particles_out(self.time + dt)
         if not np.all(np.isfinite(self.v)):
             bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))[:10]
             raise SimulationDiverged(
@@ -707,9 +900,13 @@ class LiquidFluid:
         return dt
 
     def advance(self, frame_dt, rigid=None):
-        """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid`
-        (World protocol) is accepted and ignored: rigid bodies are not coupled yet."""
+        """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid` (World
+        protocol: the world's RigidWorld) couples the liquid to its bodies (`bind_rigid`) when it
+        has shape rows; its dynamic bodies are then placed by `_place_bodies`."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
+        if rigid is not None and rigid is not self._rigid and int(rigid.model.shape_count):
+            self.bind_rigid(rigid)
+        coupled = rigid is not None and rigid is self._rigid and bool(np.any(self._dynamic))
         done = 0.0
         n = 0
         while done < frame_dt * (1 - 1e-12):
@@ -717,7 +914,95 @@ class LiquidFluid:
             self.step(dt)
             done += dt
             n += 1
+        if coupled:
+            self._place_bodies(frame_dt)
         return n
+
+    def _place_bodies(self, frame_dt):
+        """Impulse-then-drift for the dynamic bodies: the world's rigid stage has already moved
+        them with their velocity before the liquid's impulse (a body floating at rest would sink
+        by about g dt^2 / 2 per step); put each at q_prev + frame_dt (v, w) with its velocity after
+        the liquid step (symplectic Euler), q_prev its pose after the previous `advance`. The
+        first coupled frame keeps the rigid stage's pose."""
+        from ...math import quat_integrate
+        st = self._rigid.state
+        prev = self._pose_end
+        if prev is not None and prev.shape == st.body_q.shape:
+            for b in np.flatnonzero(self._dynamic):
+                st.body_q[b, :3] = prev[b, :3] + frame_dt * st.body_qd[b, 3:]
+                st.body_q[b, 3:] = quat_integrate(np.ascontiguousarray(prev[b, 3:]),
+                                                  np.ascontiguousarray(st.body_qd[b, :3]), frame_dt)
+        self._pose_end = st.body_q.copy()
+
+    # ------------------------------------------------------------------------ rigid coupling
+    def bind_rigid(self, rigid):
+        """Couple to a rigid world (anything with ``.model`` and ``.state``; `advance` calls this).
+
+        Every shape row of ``rigid.model`` becomes a cut-cell solid (`obstacles.rigid_obstacles`:
+        a `BodyShape` at its body's live pose, v + w x r on covered faces; in 2-D its z = 0
+        cross-section, bodies moving in the x-y plane), rebuilt every step while a kinematic or
+        dynamic body exists. Dynamic bodies' velocities are unknowns of the pressure solve
+        (`liquid_pressure.BodyCoupling`); the pressure on the closed faces of each body becomes an
+        impulse dt F (and dt tau about its centre of mass), applied through
+        `inertia.dynamics.particle_coupling.apply_body_impulses` (2-D: per unit length times
+        `depth`). Particles inside a body are dropped. Heightfield and SDF rows are skipped."""
+        from .obstacles import rigid_obstacles
+        obst, owner = rigid_obstacles(rigid, self.dim)
+        self._rigid = rigid
+        self._rigid_obstacles = obst
+        self._owners = np.concatenate([np.full(len(self.obstacles), -1, np.int64), owner])
+        nb = int(rigid.model.body_count)
+        self.body_force = np.zeros((nb, 3))
+        self.body_torque = np.zeros((nb, 3))
+        self._impulse = (np.zeros((nb, 3)), np.zeros((nb, 3)))
+        self._moving = self._moving or bool(np.any(owner >= 0))
+        from ...geometry import shapes as S
+        bodies = rigid.model.bodies()
+        self._dynamic = (np.asarray(bodies.body_type) == S.DYNAMIC) & (bodies.body_inv_mass > 0)
+        self._update_solids(self.time)
+        self._drop_particles_in_solids()
+
+    def _impulse_frame(self):
+        """(origin with 2-D faces at z = 0, rho (face area) / h^2) for the body impulses."""
+        h = self.cell_size
+        origin = self.origin.copy()
+        rho = self.density
+        if self.dim == 2:
+            origin[2] = -0.5 * h
+            rho = self.density * self.depth / h
+        return origin, rho
+
+    def _body_coupling(self):
+        """The implicit body term of the pressure solve (`liquid_pressure.BodyCoupling`), or None
+        without dynamic bodies."""
+        if self._rigid is None or not np.any(self._dynamic):
+            return None
+        bodies = self._rigid.model.bodies()
+        origin, rho = self._impulse_frame()
+        h = self.cell_size
+        return BodyCoupling(self._cut, self._dynamic, bodies.body_inv_mass, bodies.body_inv_inertia,
+                            self._rigid.state.body_q, origin, h, rho * h ** 3, self.dim)
+
+    def _push_bodies(self, dt):
+        """Pressure impulse on each body from its closed faces (GridFluid's `_pressure_impulses`:
+        -rho (1 - A_f) (phi_R - phi_L) per unit face area, summed; in 2-D the face area is h x
+        depth). Cells without liquid hold phi = 0 (air: the free-surface pressure)."""
+        from ...dynamics.particle_coupling import apply_body_impulses
+        from .solver import _pressure_impulses
+        lin, ang = self._impulse
+        lin[...] = 0.0
+        ang[...] = 0.0
+        h = self.cell_size
+        origin, rho = self._impulse_frame()
+        body_q = self._rigid.state.body_q
+        for a in range(self.dim):
+            faces, open_frac, body = self._cut[a]
+            if faces.size:
+                _pressure_impulses(self.pressure_phi, faces, open_frac, body, a, h, origin, rho,
+                                   body_q, lin, ang)
+        np.multiply(lin, 1.0 / dt, out=self.body_force)
+        np.multiply(ang, 1.0 / dt, out=self.body_torque)
+        apply_body_impulses(self._rigid.model.bodies(), self._rigid.state, lin, ang)
 
     # ------------------------------------------------------------------------ outputs
     def angular_momentum(self, center=None):
@@ -772,8 +1057,11 @@ class LiquidFluid:
                 "shape": np.array(self.shape, dtype=np.int64)}
 
     def save_state(self):
-        return {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
-                "time": np.array(self.time), "step_index": np.array(self.step_index)}
+        st = {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
+              "time": np.array(self.time), "step_index": np.array(self.step_index)}
+        if self._pose_end is not None:
+            st["pose_end"] = self._pose_end.copy()
+        return st
 
     def restore_state(self, state):
         self.x = np.ascontiguousarray(state["x"], dtype=np.float64).copy()
@@ -781,3 +1069,6 @@ class LiquidFluid:
         self.c = np.ascontiguousarray(state["c"], dtype=np.float64).copy()
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
+        self._pose_end = np.array(state["pose_end"], dtype=np.float64) if "pose_end" in state else None
+        if self._moving:
+            self._update_solids(self.time)

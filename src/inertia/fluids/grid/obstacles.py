@@ -80,3 +80,159 @@ def face_fractions(vertex_sdf, dim):
         f[f < MIN_FRACTION] = 0.0
         out.append(np.ascontiguousarray(f))
     return out
+
+
+# ----------------------------------------------------------------------------- shared by fluids
+def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, frac, solid):
+    """Open fractions and solid velocities of every face from a list of obstacles (the
+    obstacle part of `GridFluid`'s obstacles stage as a function, so `LiquidFluid` uses the
+    same cut cells).
+
+    obstacles : objects with ``signed_distance(points, t)`` and ``velocity(points, t)`` taking
+        (M, dim) points; owners : (len(obstacles),) int, the rigid body of each (-1: none).
+    vertex_pts : (V, dim) grid vertices, C order of `vertex_shape` ((nx+1, ny+1, nz+1), or
+        (nx+1, ny+1, 1) in 2-D); face_pts : per axis (F_a, dim) face centres in C order.
+    frac, solid : three face arrays each, written: open fraction (from `face_fractions`) and,
+        on faces with fraction < 1, the velocity component of the nearest obstacle (the one
+        with the smallest signed distance at the face centre). In 2-D frac[2] is set to 0.
+    Returns, per axis, (closed flat face indices, their open fractions, owner body per face),
+    the faces whose pressure pushes a body. Domain sides are left to the caller."""
+    sdf = None
+    for o in obstacles:
+        d = np.asarray(o.signed_distance(vertex_pts, t), dtype=np.float64)
+        sdf = d if sdf is None else np.minimum(sdf, d)
+    vs = sdf.reshape(vertex_shape)
+    if dim == 2:
+        vs = np.concatenate([vs, vs], axis=2)
+    fr = face_fractions(vs, dim)
+    owners = np.asarray(owners, np.int64)
+    cut = []
+    for a in range(3):
+        frac[a][...] = fr[a]
+        solid[a][...] = 0.0
+    if dim == 2:
+        frac[2][...] = 0.0
+    for a in range(dim):
+        closed = np.flatnonzero(frac[a].reshape(-1) < 1.0)
+        owner = np.full(closed.size, -1, np.int64)
+        if closed.size:
+            p = face_pts[a][closed]
+            best = None
+            vel = None
+            for i, o in enumerate(obstacles):
+                d = np.asarray(o.signed_distance(p, t))
+                vo = np.asarray(o.velocity(p, t))[:, a]
+                if best is None:
+                    best, vel = d, vo
+                    owner[:] = owners[i]
+                else:
+                    take = d < best
+                    best = np.where(take, d, best)
+                    vel = np.where(take, vo, vel)
+                    owner = np.where(take, owners[i], owner)
+            solid[a].reshape(-1)[closed] = vel
+        cut.append((closed.astype(np.int64), frac[a].reshape(-1)[closed].copy(), owner))
+    if dim == 2:
+        cut.append((np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)))
+    return cut
+
+
+class PlaneSlice:
+    """A collider as a fluid obstacle of dimension `dim`, queried by a serial kernel.
+
+    For dim 2 and a 3-D collider (e.g. a `BodyShape` of the rigid shape table) this is its
+    z = 0 slice: a 2-D fluid coupled to 3-D rigid bodies moving in the x-y plane sees their
+    cross-sections (points (M, 2) are taken at z = 0; normals and velocities keep x and y).
+    Boxes, cylinders and capsules whose (body-frame) axis is along z are then extended along z
+    by `EXTEND` m on a copy of the collider: inside a thin slab the nearest surface would
+    otherwise be a z face, and the in-plane signed distance and normal (used to push particles
+    out) would be wrong. Other shapes (spheres, shapes lying in the plane) are sliced as they are.
+
+    Queries of the colliders of `inertia.collision.shapes` run the serial version of their
+    kernel (the parallel one pays a thread launch per call, which dominates on the few thousand
+    points a fluid asks about per step); colliders with their own ``query`` use it."""
+
+    EXTEND = 1e3
+
+    def __init__(self, collider, dim=2):
+        import copy
+        from ...collision import distance as _d
+        from ...collision.shapes import Collider
+        self.dim = int(dim)
+        kind = getattr(collider, "kind", None)
+        cf = getattr(collider, "_cf", None)
+        if self.dim == 2 and collider.dim == 3 and cf is not None \
+                and kind in (_d.BOX, _d.CYLINDER, _d.CAPSULE):
+            cf = cf.copy()
+            if kind == _d.BOX:   # [centre (3), rotation (3x3, row-major), half extents (3)]
+                k = int(np.argmax(np.abs(cf[9:12])))     # local axis closest to z
+                if abs(cf[9 + k]) > 0.99:
+                    cf[12 + k] = self.EXTEND
+            elif kind == _d.CYLINDER:   # [centre (3), axis (3), radius, half height]
+                if abs(cf[5]) > 0.99:
+                    cf[7] = self.EXTEND
+            else:   # capsule [a (3), b (3), radius]
+                ax = cf[3:6] - cf[0:3]
+                if np.linalg.norm(ax) > 0 and abs(ax[2]) > 0.99 * np.linalg.norm(ax):
+                    cf[2], cf[5] = -self.EXTEND, self.EXTEND
+            collider = copy.copy(collider)
+            collider._cf = cf
+        self.collider = collider
+        self.motion = getattr(collider, "motion", None)
+        self._fast = isinstance(collider, Collider) and type(collider).query is Collider.query
+        if self._fast:
+            from . import kernels as K
+            self._kernel = K.version(_d.query_points, False)
+
+    def query(self, points, t=0.0):
+        """(distance (M,), normal (M, dim), velocity (M, dim)) at points (M, dim)."""
+        c = self.collider
+        pts = np.ascontiguousarray(points, dtype=np.float64)
+        m = pts.shape[0]
+        d, n, v = np.empty(m), np.empty((m, self.dim)), np.empty((m, self.dim))
+        if self._fast:
+            vel, omega = c._rigid_velocity(t)
+            self._kernel(pts, c.kind, c._cf, c._ci, c._packed_pose(t), c._ref, c.moving,
+                         np.ascontiguousarray(vel, dtype=np.float64),
+                         np.ascontiguousarray(omega, dtype=np.float64), d, n, v)
+            return d, n, v
+        if c.dim == self.dim:
+            c.query(pts, t, d, n, v)
+            return d, n, v
+        p3 = np.zeros((m, 3))
+        p3[:, :2] = pts[:, :2]
+        n3, v3 = np.empty((m, 3)), np.empty((m, 3))
+        c.query(p3, t, d, n3, v3)
+        return d, n3[:, :self.dim].copy(), v3[:, :self.dim].copy()
+
+    def signed_distance(self, points, t=0.0):
+        return self.query(points, t)[0]
+
+    def normal(self, points, t=0.0):
+        return self.query(points, t)[1]
+
+    def velocity(self, points, t=0.0):
+        return self.query(points, t)[2]
+
+    def __repr__(self):
+        return f"PlaneSlice({self.collider!r}, dim={self.dim})"
+
+
+def rigid_obstacles(rigid, dim):
+    """Obstacles for the shape rows of a rigid world (anything with ``.model`` and ``.state``):
+    one `BodyShape` per row the signed distance covers (heightfield and SDF rows are skipped),
+    bound to the live pose and velocity of its body when it moves, wrapped in a `PlaneSlice`
+    (serial queries; in 2-D its z = 0 cross-section). Returns (obstacles, owner body per obstacle (-1: static row))."""
+    from ...collision.shapes import BodyShape
+    model = rigid.model
+    obst, owner = [], []
+    for s in range(int(model.shape_count)):
+        bs = BodyShape(model, s)
+        if getattr(bs, "unsupported", False):
+            continue
+        if bs.moving:
+            b = bs.body
+            bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
+        obst.append(PlaneSlice(bs, dim))
+        owner.append(bs.body if bs.moving else -1)
+    return obst, np.asarray(owner, np.int64)
