@@ -10,8 +10,12 @@ the ones after the arrow:
 3. ``forces``     body acceleration, buoyancy from density and temperature, vorticity
    confinement, sources -> u, v, w, scalars.
 4. ``diffuse``    implicit (backward Euler) viscosity: (I - nu dt Lap) u = u* per component,
-   conjugate gradients; unconditionally stable.
-5. ``project``    weighted divergence -> pressure Poisson solve (MGPCG) -> u -= grad(p dt / rho).
+   conjugate gradients; unconditionally stable. No-slip obstacles are Dirichlet data at the
+   surface's cut position between nodes (ghost fluid, Gibou et al. 2002); the momentum each wall
+   link takes from the fluid is the viscous force on its obstacle / body. Viscous flow uses an
+   incremental pressure correction: the last pressure gradient is subtracted before this solve.
+5. ``project``    weighted divergence -> pressure Poisson solve (MGPCG) -> u -= grad(p dt / rho)
+   (viscous flow: the increment of phi).
 6. ``dissipate``  scalar decay s *= exp(-rate dt).
 
 ``advance(frame_dt)`` takes substeps of dt = cfl h / max|u| (capped by ``max_dt``) until the
@@ -28,6 +32,13 @@ References
   coupling", SIGGRAPH 2007 (face-fraction weights).
 - A. McAdams, E. Sifakis and J. Teran, "A parallel multigrid Poisson solver for fluids
   simulation on large grids", SCA 2010 (MGPCG).
+- F. Gibou, R. Fedkiw, L.-T. Cheng and M. Kang, "A second-order-accurate symmetric
+  discretization of the Poisson equation on irregular domains", J. Comput. Phys. 176, 2002
+  (the no-slip obstacle boundary of the viscosity solve).
+- J. van Kan, "A second-order accurate pressure-correction scheme for viscous incompressible
+  flow", SIAM J. Sci. Stat. Comput. 7, 1986; D. L. Brown, R. Cortez and M. L. Minion, "Accurate
+  projection methods for the incompressible Navier-Stokes equations", J. Comput. Phys. 168,
+  2001 (incremental pressure correction).
 - F. H. Harlow and J. E. Welch, "Numerical calculation of time-dependent viscous
   incompressible flow of fluid with free surface", Phys. Fluids 8, 1965 (the MAC grid).
 
@@ -36,14 +47,20 @@ Limitations
 - Constant density (Boussinesq smoke); no free surface (liquids are not implemented yet).
 - First-order splitting in time; semi-Lagrangian advection adds numerical viscosity
   (measured in tests/fluids/grid/test_solver.py), MacCormack much less.
-- Viscosity does not impose no-slip on obstacle surfaces inside the grid (only on domain
-  walls); obstacles are no-penetration (the solid's normal velocity) with free slip.
+- No-slip obstacles (``obstacle_slip=False``, the default; `bind_rigid(slip=False)`): the
+  viscous solve imposes the solid's velocity at the surface point between a fluid node and a
+  node inside the solid along each axis (distance fraction theta from the node signed distances,
+  clamped at ``kernels.THETA_MIN`` = 0.02); exact for linear profiles (plane Couette), first order
+  on curved walls. The projection after it may change the tangential velocity next to the wall
+  by the pressure increment's gradient (zero at a steady state). The viscous force uses the
+  Laplacian form mu Lap u (equal to the stress divergence for a divergence-free field; the total
+  force on a rigidly moving surface is the same). Slip obstacles impose only the normal velocity.
 - Obstacles see the field at the step start: a moving obstacle's fractions are rebuilt once
   per step from its signed distance at the step's end time.
 - Rigid bodies (``advance(dt, rigid)`` / `bind_rigid`, 3-D only): shape rows are obstacles at the
   bodies' current poses (the rigid stage has already moved them; the pose is held over the
-  fluid's substeps, the velocity is updated by each substep's impulse). Only pressure pushes
-  bodies (no viscous stress); the coupling is explicit (weak): a body much lighter than the fluid
+  fluid's substeps, the velocity is updated by each substep's impulse). Pressure and, for
+  viscous fluids, the viscous stress on no-slip shapes push bodies; the coupling is explicit (weak): a body much lighter than the fluid
   it displaces (added mass) can oscillate or blow up. The force is the pressure on the cut-cell
   faces, exactly rho g V_grid in a fluid at rest, V_grid the cut-cell volume (O(h^2) below V for
   convex bodies). Heightfield and SDF rows are skipped.
