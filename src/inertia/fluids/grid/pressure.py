@@ -56,6 +56,10 @@ class Level(NamedTuple):
     px: bool
     py: bool
     pz: bool
+    # c > 0 when every face between two cells (wrap faces included) has a_f = c: the 3-D kernels
+    # then read c instead of ax, ay, az (half the memory traffic; same products, same sums, so
+    # bit-identical results). 0: general coefficients.
+    uniform: float = 0.0
 
 
 # ----------------------------------------------------------------------------- kernels
@@ -83,6 +87,7 @@ def operator_kernel(phi, rhs, lv, out, mode):
     nx, ny, nz = phi.shape
     ax, ay, az, diag = lv.ax, lv.ay, lv.az, lv.diag
     px, py, pz = lv.px, lv.py, lv.pz
+    c = lv.uniform
     for i_ in prange(nx):
         i = np.int64(i_)
         im = _nb(i, nx, px, -1)
@@ -102,6 +107,26 @@ def operator_kernel(phi, rhs, lv, out, mode):
                     s += ay[i, j + 1, 0] * phi[i, jp, 0]
                 lp = diag[i, j, 0] * phi[i, j, 0] - s
                 out[i, j, 0] = lp if mode == 0 else rhs[i, j, 0] - lp
+                continue
+            if c > 0.0:
+                for k in range(nz):
+                    km = _nb(k, nz, pz, -1)
+                    kp = _nb(k, nz, pz, 1)
+                    s = 0.0
+                    if im >= 0:
+                        s += c * phi[im, j, k]
+                    if ip >= 0:
+                        s += c * phi[ip, j, k]
+                    if jm >= 0:
+                        s += c * phi[i, jm, k]
+                    if jp >= 0:
+                        s += c * phi[i, jp, k]
+                    if km >= 0:
+                        s += c * phi[i, j, km]
+                    if kp >= 0:
+                        s += c * phi[i, j, kp]
+                    lp = diag[i, j, k] * phi[i, j, k] - s
+                    out[i, j, k] = lp if mode == 0 else rhs[i, j, k] - lp
                 continue
             for k in range(nz):
                 km = _nb(k, nz, pz, -1)
@@ -129,6 +154,7 @@ def gauss_seidel_colour(phi, rhs, lv, colour):
     nx, ny, nz = phi.shape
     ax, ay, az, diag = lv.ax, lv.ay, lv.az, lv.diag
     px, py, pz = lv.px, lv.py, lv.pz
+    c = lv.uniform
     for i_ in prange(nx):
         i = np.int64(i_)
         im = _nb(i, nx, px, -1)
@@ -153,6 +179,27 @@ def gauss_seidel_colour(phi, rhs, lv, colour):
         for j in range(ny):
             jm = _nb(j, ny, py, -1)
             jp = _nb(j, ny, py, 1)
+            if c > 0.0:
+                for k in range((colour + i + j) % 2, nz, 2):
+                    km = _nb(k, nz, pz, -1)
+                    kp = _nb(k, nz, pz, 1)
+                    d = diag[i, j, k]
+                    if d > 0.0:
+                        s = 0.0
+                        if im >= 0:
+                            s += c * phi[im, j, k]
+                        if ip >= 0:
+                            s += c * phi[ip, j, k]
+                        if jm >= 0:
+                            s += c * phi[i, jm, k]
+                        if jp >= 0:
+                            s += c * phi[i, jp, k]
+                        if km >= 0:
+                            s += c * phi[i, j, km]
+                        if kp >= 0:
+                            s += c * phi[i, j, kp]
+                        phi[i, j, k] = (rhs[i, j, k] + s) / d
+                continue
             for k in range((colour + i + j) % 2, nz, 2):
                 km = _nb(k, nz, pz, -1)
                 kp = _nb(k, nz, pz, 1)
@@ -381,6 +428,22 @@ def coarsen_faces(fine_a, axis, cx, cy, cz, coarse_a):
                 coarse_a[I, J, Kc] = s / cnt * 0.25
 
 
+def _uniform_coefficient(lv, dim):
+    """c if every face coefficient between two cells (wrap faces on periodic axes) equals one
+    c > 0 (3-D levels only), else 0."""
+    if dim != 3 or lv.ax.shape[0] < 3:
+        return 0.0
+    c = float(lv.ax[1, 0, 0])
+    if c <= 0.0:
+        return 0.0
+    inner = (lv.ax if lv.px else lv.ax[1:-1], lv.ay if lv.py else lv.ay[:, 1:-1],
+             lv.az if lv.pz else lv.az[:, :, 1:-1])
+    for a in inner:
+        if a.size and not (a.min() == c and a.max() == c):
+            return 0.0
+    return c
+
+
 @njit(cache=True)
 def level_diag(ax, ay, az, diag):
     nx, ny, nz = diag.shape
@@ -500,8 +563,9 @@ class PoissonSolver:
             coarsen_faces(f.ax, 0, cx, cy, cz, c.ax)
             coarsen_faces(f.ay, 1, cx, cy, cz, c.ay)
             coarsen_faces(f.az, 2, cx, cy, cz, c.az)
-        for lv in self.levels:
+        for i, lv in enumerate(self.levels):
             level_diag(lv.ax, lv.ay, lv.az, lv.diag)
+            self.levels[i] = lv._replace(uniform=_uniform_coefficient(lv, dim))
         np.greater(self.levels[0].diag, 0.0, out=self.active)
         self.active_count = int(self.active.sum())
         # outflow faces (open faces on the boundary of a non-periodic axis) make L definite
