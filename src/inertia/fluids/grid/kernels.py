@@ -484,6 +484,229 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
 
 
 @njit(cache=True, parallel=True)
+def advect_padded_pair(src, src2, u, v, w, s, offset, n, periodic, dim, dst, dst2, lo, hi, lo2,
+                       hi2, want_range):
+    """`advect_padded` for two fields of the same slot kind (two cell scalars) along one
+    back-trace: the trace (six velocity interpolations) is shared, each field adds one
+    interpolation. Same arithmetic per field as `advect_padded`, so identical results."""
+    nx, ny, nz = dst.shape
+    ox, oy, oz = offset[0], offset[1], offset[2]
+    gx, gy, gz = n[0], n[1], n[2]
+    qx, qy, qz = periodic[0], periodic[1], periodic[2]
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                x = i + ox
+                y = j + oy
+                if dim == 2:
+                    xx = x + 1.0
+                    yy = y + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vx = ((1 - fy) * ((1 - fx) * u[i0, j0, 0] + fx * u[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, 0] + fx * u[i0 + 1, j0 + 1, 0]))
+                    xx = x + 0.5
+                    yy = y + 1.0
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vy = ((1 - fy) * ((1 - fx) * v[i0, j0, 0] + fx * v[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, 0] + fx * v[i0 + 1, j0 + 1, 0]))
+                    mx = _place(x - 0.5 * s * vx, gx, qx)
+                    my = _place(y - 0.5 * s * vy, gy, qy)
+                    xx = mx + 1.0
+                    yy = my + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vx = ((1 - fy) * ((1 - fx) * u[i0, j0, 0] + fx * u[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, 0] + fx * u[i0 + 1, j0 + 1, 0]))
+                    xx = mx + 0.5
+                    yy = my + 1.0
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vy = ((1 - fy) * ((1 - fx) * v[i0, j0, 0] + fx * v[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, 0] + fx * v[i0 + 1, j0 + 1, 0]))
+                    bx = _place(x - s * vx, gx, qx) - ox + 1.0
+                    by = _place(y - s * vy, gy, qy) - oy + 1.0
+                    xx = bx
+                    yy = by
+                    i0 = min(int(xx), src.shape[0] - 2)
+                    j0 = min(int(yy), src.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    val = ((1 - fy) * ((1 - fx) * src[i0, j0, 0] + fx * src[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, 0] + fx * src[i0 + 1, j0 + 1, 0]))
+                    dst[i, j, k] = val
+                    if want_range:
+                        c0 = src[i0, j0, 0]
+                        c1 = src[i0 + 1, j0, 0]
+                        c2 = src[i0, j0 + 1, 0]
+                        c3 = src[i0 + 1, j0 + 1, 0]
+                        lo[i, j, k] = min(min(c0, c1), min(c2, c3))
+                        hi[i, j, k] = max(max(c0, c1), max(c2, c3))
+                    val = ((1 - fy) * ((1 - fx) * src2[i0, j0, 0] + fx * src2[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * src2[i0, j0 + 1, 0] + fx * src2[i0 + 1, j0 + 1, 0]))
+                    dst2[i, j, k] = val
+                    if want_range:
+                        c0 = src2[i0, j0, 0]
+                        c1 = src2[i0 + 1, j0, 0]
+                        c2 = src2[i0, j0 + 1, 0]
+                        c3 = src2[i0 + 1, j0 + 1, 0]
+                        lo2[i, j, k] = min(min(c0, c1), min(c2, c3))
+                        hi2[i, j, k] = max(max(c0, c1), max(c2, c3))
+                else:
+                    z = k + oz
+                    xx = x + 1.0
+                    yy = y + 0.5
+                    zz = z + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    k0 = min(int(zz), u.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                    vx = (1 - fz) * b0 + fz * b1
+                    xx = x + 0.5
+                    yy = y + 1.0
+                    zz = z + 0.5
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    k0 = min(int(zz), v.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                    vy = (1 - fz) * b0 + fz * b1
+                    xx = x + 0.5
+                    yy = y + 0.5
+                    zz = z + 1.0
+                    i0 = min(int(xx), w.shape[0] - 2)
+                    j0 = min(int(yy), w.shape[1] - 2)
+                    k0 = min(int(zz), w.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                    vz = (1 - fz) * b0 + fz * b1
+                    mx = _place(x - 0.5 * s * vx, gx, qx)
+                    my = _place(y - 0.5 * s * vy, gy, qy)
+                    mz = _place(z - 0.5 * s * vz, gz, qz)
+                    xx = mx + 1.0
+                    yy = my + 0.5
+                    zz = mz + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    k0 = min(int(zz), u.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                    vx = (1 - fz) * b0 + fz * b1
+                    xx = mx + 0.5
+                    yy = my + 1.0
+                    zz = mz + 0.5
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    k0 = min(int(zz), v.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                    vy = (1 - fz) * b0 + fz * b1
+                    xx = mx + 0.5
+                    yy = my + 0.5
+                    zz = mz + 1.0
+                    i0 = min(int(xx), w.shape[0] - 2)
+                    j0 = min(int(yy), w.shape[1] - 2)
+                    k0 = min(int(zz), w.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                    vz = (1 - fz) * b0 + fz * b1
+                    bx = _place(x - s * vx, gx, qx) - ox + 1.0
+                    by = _place(y - s * vy, gy, qy) - oy + 1.0
+                    bz = _place(z - s * vz, gz, qz) - oz + 1.0
+                    xx = bx
+                    yy = by
+                    zz = bz
+                    i0 = min(int(xx), src.shape[0] - 2)
+                    j0 = min(int(yy), src.shape[1] - 2)
+                    k0 = min(int(zz), src.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * src[i0, j0, k0] + fx * src[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, k0] + fx * src[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * src[i0, j0, k1] + fx * src[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, k1] + fx * src[i0 + 1, j0 + 1, k1]))
+                    val = (1 - fz) * b0 + fz * b1
+                    dst[i, j, k] = val
+                    if want_range:
+                        a = src[i0, j0, k0]
+                        b = a
+                        for dk in range(2):
+                            for dj in range(2):
+                                for di in range(2):
+                                    c = src[i0 + di, j0 + dj, k0 + dk]
+                                    a = min(a, c)
+                                    b = max(b, c)
+                        lo[i, j, k] = a
+                        hi[i, j, k] = b
+                    b0 = ((1 - fy) * ((1 - fx) * src2[i0, j0, k0] + fx * src2[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * src2[i0, j0 + 1, k0] + fx * src2[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * src2[i0, j0, k1] + fx * src2[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * src2[i0, j0 + 1, k1] + fx * src2[i0 + 1, j0 + 1, k1]))
+                    val = (1 - fz) * b0 + fz * b1
+                    dst2[i, j, k] = val
+                    if want_range:
+                        a = src2[i0, j0, k0]
+                        b = a
+                        for dk in range(2):
+                            for dj in range(2):
+                                for di in range(2):
+                                    c = src2[i0 + di, j0 + dj, k0 + dk]
+                                    a = min(a, c)
+                                    b = max(b, c)
+                        lo2[i, j, k] = a
+                        hi2[i, j, k] = b
+
+
+@njit(cache=True, parallel=True)
 def maccormack_combine(src, forward, backward, lo, hi, dst):
     """MacCormack step (Selle et al. 2008): dst = forward + (src - backward) / 2, clamped to
     [lo, hi], the range of the src nodes the forward step interpolated (keeps it bounded)."""

@@ -271,6 +271,14 @@ class GridFluid:
         self._scal_tmp = [np.zeros((nx, ny, nz)) for _ in names]
         self._cell_fwd = np.zeros((nx, ny, nz))
         self._cell_bwd = np.zeros((nx, ny, nz))
+        # the second scalar of a pair advected along one back-trace (`_advect_pair`)
+        if len(names) >= 2:
+            self._cell_pad2 = np.zeros(pshape[3])
+            self._fwd_pad2 = np.zeros(pshape[3])
+            self._cell_fwd2 = np.zeros((nx, ny, nz))
+            self._cell_bwd2 = np.zeros((nx, ny, nz))
+            self._range_lo2 = np.zeros((nx, ny, nz))
+            self._range_hi2 = np.zeros((nx, ny, nz))
         # open fractions and solid velocities of faces: obstacles stage
         self._frac = [np.ones(s) for s in fs]
         self._solid = [np.zeros(s) for s in fs]
@@ -585,7 +593,11 @@ class GridFluid:
         for a in range(self.dim):
             self._advect_one(self._vel[a], self._vel_pad[a], a, up, vp, wp, dt, self._vel_tmp[a],
                              self._vel_fwd[a], self._vel_bwd[a])
-        for s in range(len(self._scal)):
+        ns = len(self._scal)
+        for s in range(0, ns - 1, 2):
+            self._advect_pair(s, up, vp, wp, dt)
+        if ns % 2:
+            s = ns - 1
             k.pad(self._scal[s], 3 + s, g, self._cell_pad)
             self._advect_one(self._scal[s], self._cell_pad, 3 + s, up, vp, wp, dt, self._scal_tmp[s],
                              self._cell_fwd, self._cell_bwd)
@@ -613,6 +625,33 @@ class GridFluid:
         k.advect_padded(fwd_pad, up, vp, wp, -dt / h, off, g.n, g.periodic, self.dim, bwd,
                         bwd, bwd, False)
         k.maccormack_combine(src, fwd, bwd, lo, hi, dst)
+
+    def _advect_pair(self, s, up, vp, wp, dt):
+        """Scalars s and s + 1 along one back-trace (`K.advect_padded_pair`; the same result as
+        two `_advect_one` calls)."""
+        g = self.ctx
+        k = self._k
+        h = self.grid.cell_size
+        off = self._offsets[3]
+        a, b = self._scal[s], self._scal[s + 1]
+        da, db = self._scal_tmp[s], self._scal_tmp[s + 1]
+        pa, pb = self._cell_pad, self._cell_pad2
+        k.pad(a, 3 + s, g, pa)
+        k.pad(b, 4 + s, g, pb)
+        if self.advection == "semi-lagrangian":
+            k.advect_padded_pair(pa, pb, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, da, db,
+                                 da, da, db, db, False)
+            return
+        fa, fb, ba, bb = self._cell_fwd, self._cell_fwd2, self._cell_bwd, self._cell_bwd2
+        loa, hia, lob, hib = self._range_lo[3], self._range_hi[3], self._range_lo2, self._range_hi2
+        k.advect_padded_pair(pa, pb, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, fa, fb,
+                             loa, hia, lob, hib, True)
+        k.pad(fa, 3 + s, g, self._fwd_pad[3])
+        k.pad(fb, 4 + s, g, self._fwd_pad2)
+        k.advect_padded_pair(self._fwd_pad[3], self._fwd_pad2, up, vp, wp, -dt / h, off, g.n,
+                             g.periodic, self.dim, ba, bb, ba, ba, bb, bb, False)
+        k.maccormack_combine(a, fa, ba, loa, hia, da)
+        k.maccormack_combine(b, fb, bb, lob, hib, db)
 
     def _forces(self, dt):
         f = self._force
