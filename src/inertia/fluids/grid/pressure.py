@@ -221,6 +221,24 @@ def gauss_seidel_colour(phi, rhs, lv, colour):
                     phi[i, j, k] = (rhs[i, j, k] + s) / d
 
 
+@njit(cache=True, parallel=True)
+def gauss_seidel_from_zero(phi, rhs, lv, colour):
+    """phi = 0, then a red-black half sweep of `colour`, in one pass: colour cells take
+    (rhs + 0) / diag (their neighbours are 0; the + 0.0 keeps the rounding of the general sweep,
+    -0.0 included), the others 0."""
+    nx, ny, nz = phi.shape
+    diag = lv.diag
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                d = diag[i, j, k]
+                if (i + j + k) % 2 == colour and d > 0.0:
+                    phi[i, j, k] = (rhs[i, j, k] + 0.0) / d
+                else:
+                    phi[i, j, k] = 0.0
+
+
 def apply_operator(phi, lv, out):
     """out = L phi (Python wrapper kept for callers; see `operator_kernel`)."""
     operator_kernel(phi, phi, lv, out, 0)
@@ -347,6 +365,7 @@ def restrict(fine, ti, tw, tj, uw, tk, vw, scale, coarse):
 
 
 gauss_seidel_colour_serial_body = K.version(gauss_seidel_colour, False)
+gauss_seidel_from_zero_serial_body = K.version(gauss_seidel_from_zero, False)
 
 
 @njit(cache=True)
@@ -356,6 +375,26 @@ def smooth_serial(phi, rhs, lv, first, sweeps):
     for _ in range(sweeps):
         gauss_seidel_colour_serial_body(phi, rhs, lv, first)
         gauss_seidel_colour_serial_body(phi, rhs, lv, 1 - first)
+
+
+@njit(cache=True)
+def smooth_from_zero_serial(phi, rhs, lv, sweeps):
+    """`smooth_serial` (colour 0 first) from phi = 0 (phi's old content is ignored)."""
+    gauss_seidel_from_zero_serial_body(phi, rhs, lv, 0)
+    gauss_seidel_colour_serial_body(phi, rhs, lv, 1)
+    for _ in range(sweeps - 1):
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 0)
+        gauss_seidel_colour_serial_body(phi, rhs, lv, 1)
+
+
+@njit(cache=True)
+def smooth_from_zero_parallel(phi, rhs, lv, sweeps):
+    """`smooth_from_zero_serial` with the parallel half sweeps."""
+    gauss_seidel_from_zero(phi, rhs, lv, 0)
+    gauss_seidel_colour(phi, rhs, lv, 1)
+    for _ in range(sweeps - 1):
+        gauss_seidel_colour(phi, rhs, lv, 0)
+        gauss_seidel_colour(phi, rhs, lv, 1)
 
 
 @njit(cache=True)
@@ -592,6 +631,11 @@ class PoissonSolver:
             return smooth_parallel
         return smooth_serial
 
+    def _smooth_from_zero(self, cells):
+        if self.parallel and cells >= K.PARALLEL_CELLS // 4:
+            return smooth_from_zero_parallel
+        return smooth_from_zero_serial
+
     def _dot(self, a, b):
         return self._vk.dot(a, b, self.partial)
 
@@ -603,25 +647,26 @@ class PoissonSolver:
     def _vcycle(self, rhs0, out):
         """out = V-cycle applied to rhs0 from a zero guess (the preconditioner M^-1 rhs0)."""
         L = len(self.levels)
-        self.rhs[0][...] = rhs0
+        # the finest level works on rhs0 and out directly (no copies in and out)
+        phis = [out] + self.phi[1:]
+        rhss = [rhs0] + self.rhs[1:]
         for lvl in range(L):
-            lv, phi, rhs, res = self.levels[lvl], self.phi[lvl], self.rhs[lvl], self.res[lvl]
+            lv, phi, rhs, res = self.levels[lvl], phis[lvl], rhss[lvl], self.res[lvl]
             n = phi.size
-            phi[...] = 0.0
             if lvl == L - 1:
+                phi[...] = 0.0
                 coarse_solve(phi, rhs, lv, max(20, 2 * max(phi.shape)))
                 break
-            self._smooth(n)(phi, rhs, lv, 0, 2)
+            self._smooth_from_zero(n)(phi, rhs, lv, 2)
             self._k("operator_kernel", n)(phi, rhs, lv, res, 1)
             pro, rtab, scale = self.transfer[lvl]
             self._k("restrict", self.rhs[lvl + 1].size)(res, *rtab, scale, self.rhs[lvl + 1])
         for lvl in range(L - 2, -1, -1):
-            lv, phi, rhs = self.levels[lvl], self.phi[lvl], self.rhs[lvl]
+            lv, phi, rhs = self.levels[lvl], phis[lvl], rhss[lvl]
             n = phi.size
             pro, rtab, scale = self.transfer[lvl]
-            self._k("prolong_add", n)(self.phi[lvl + 1], *pro, phi)
+            self._k("prolong_add", n)(phis[lvl + 1], *pro, phi)
             self._smooth(n)(phi, rhs, lv, 1, 2)
-        out[...] = self.phi[0]
 
     # -- solve -------------------------------------------------------------------------------
     def solve(self, b, phi):
