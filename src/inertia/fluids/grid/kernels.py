@@ -368,11 +368,18 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
-                    vx = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vx = (1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vx = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                        vx = (1 - fz) * b0 + fz * b1
                     xx = x + 0.5
                     yy = y + 1.0
                     zz = z + 0.5
@@ -383,11 +390,18 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
-                    vy = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vy = (1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vy = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                        vy = (1 - fz) * b0 + fz * b1
                     xx = x + 0.5
                     yy = y + 0.5
                     zz = z + 1.0
@@ -398,11 +412,18 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
-                    vz = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vz = (1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vz = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                        vz = (1 - fz) * b0 + fz * b1
                     mx = _place(x - 0.5 * s * vx, gx, qx)
                     my = _place(y - 0.5 * s * vy, gy, qy)
                     mz = _place(z - 0.5 * s * vz, gz, qz)
@@ -574,11 +595,18 @@ def advect_padded_pair(src, src2, u, v, w, s, offset, n, periodic, dim, dst, dst
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
-                    vx = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vx = (1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vx = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                        vx = (1 - fz) * b0 + fz * b1
                     xx = x + 0.5
                     yy = y + 1.0
                     zz = z + 0.5
@@ -589,11 +617,18 @@ def advect_padded_pair(src, src2, u, v, w, s, offset, n, periodic, dim, dst, dst
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
-                    vy = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vy = (1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vy = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                        vy = (1 - fz) * b0 + fz * b1
                     xx = x + 0.5
                     yy = y + 0.5
                     zz = z + 1.0
@@ -604,11 +639,18 @@ def advect_padded_pair(src, src2, u, v, w, s, offset, n, periodic, dim, dst, dst
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
-                    vz = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vz = (1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vz = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                        vz = (1 - fz) * b0 + fz * b1
                     mx = _place(x - 0.5 * s * vx, gx, qx)
                     my = _place(y - 0.5 * s * vy, gy, qy)
                     mz = _place(z - 0.5 * s * vz, gz, qz)
