@@ -786,6 +786,16 @@ def enforce_faces(vel, open_frac, solid_vel, axis, periodic):
             vel[:, :, nz - 1] = vel[:, :, 0]
 
 
+@njit(cache=True)
+def enforce_closed(vel, closed, solid_vel):
+    """`enforce_faces` from the list of closed faces (flat indices into the C-order face
+    array): vel[f] = solid_vel[f]. Touches only those faces (the domain sides' and the
+    obstacles'), not the whole array."""
+    for m in range(closed.shape[0]):
+        f = closed[m]
+        vel[f] = solid_vel[f]
+
+
 # ----------------------------------------------------------------------------- projection
 @njit(cache=True, parallel=True)
 def weighted_divergence(u, v, w, fu, fv, fw, su, sv, sw, g, out):

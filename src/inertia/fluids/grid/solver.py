@@ -451,6 +451,7 @@ class GridFluid:
                 self._frac[axis][tuple(idx)] = 0.0
                 self._solid[axis][tuple(idx)] = side_velocity(b, dim)[axis]
         self.pressure.set_coefficients(*self._frac, g.cell_size, dim)
+        self._closed = [np.flatnonzero(self._frac[a].reshape(-1) == 0.0) for a in range(3)]
         # node kinds of the implicit viscosity
         self._no_slip_nodes = False
         for a in range(3):
@@ -580,8 +581,15 @@ class GridFluid:
 
     # ------------------------------------------------------------------------ stages
     def _enforce(self):
+        """Closed faces take the solid's (wall's, inflow's) velocity; a periodic axis copies face 0
+        to face n (`K.enforce_faces`, over the closed-face lists of the obstacles stage)."""
         for a in range(3):
-            self._k.enforce_faces(self._vel[a], self._frac[a], self._solid[a], a, bool(self.periodic[a]))
+            vel = self._vel[a]
+            K.enforce_closed(vel.reshape(-1), self._closed[a], self._solid[a].reshape(-1))
+            if self.periodic[a]:
+                idx = [slice(None)] * 3
+                idx[a] = -1
+                vel[tuple(idx)] = vel[tuple([slice(None)] * a + [0])]
 
     def _advect(self, dt):
         g = self.ctx
