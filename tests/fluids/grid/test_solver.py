@@ -420,7 +420,8 @@ def test_lid_driven_cavity_re1000_matches_ghia_at_steady_state():
     # t = 35 s; cap 50 s). Reached: max |u - u_Ghia| = 0.082, max |v - v_Ghia| = 0.091 (the largest
     # misses are the thin wall jets: the u minimum -0.304 against -0.383 at y = 0.17 and the v
     # extremes); 48 x 48 gives 0.115 / 0.137, so the error is the grid's. Bounds 0.09 and 0.10.
-    # Run time: ~1100 steps, about 25 s on an idle core (75 s under the shared CI load).
+    # Run time: ~1100 steps; measured 53-83 s on the shared 2-core machine under ~11 processes of
+    # foreign load (not measured idle).
     n = 64
     f = GridFluid((n, n), 1.0 / n, boundaries={"y+": Wall(velocity=(1.0, 0.0))}, viscosity=1e-3,
                   cfl=2.0, scalars=())
