@@ -15,11 +15,15 @@ measured in the same run.
 4. liquid: a 2-D FLIP (and APIC) dam break with 100,000 particles, ms per 60 Hz frame.
 3. smoke3d: a 128^3 smoke step (buoyant plume from a source box, MacCormack and
    semi-Lagrangian, MGPCG 1e-4 and 1e-6): seconds per step. Aim: < 0.5 s on 2 cores.
+   smoke128: the same scene (semi-Lagrangian, tol 1e-4) with the CPU time of each stage
+   (time.process_time, load-independent up to cache sharing), serial and with the parallel
+   kernels (wall time and CPU time), and the state hash after the timed steps.
 
 Timings are medians of repeated steps after warm-up (JIT excluded); the foreign load (other
 processes' CPU use) during each measurement is printed, since the machine may be shared.
 
-Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d liquid ghia]
+Run: PYTHONPATH=src python benchmarks/bench_fluids.py [--parts smoke256 pressure smoke3d smoke128
+     liquid ghia]
      [--sizes 64 128 256 512 1024] [--reps 5]
 """
 
@@ -192,6 +196,46 @@ def bench_smoke3d(reps, load_cls, n=128):
               f"[foreign {load:.2f}], MGPCG {f.last_pressure_iterations} it", flush=True)
 
 
+def bench_smoke128(steps=3, n=128):
+    """CPU seconds per stage of a 128^3 plume step (the smoke3d scene, semi-Lagrangian, tol 1e-4)."""
+    from collections import defaultdict
+
+    from inertia.fluids.grid import GridFluid
+    print(f"\n== 3b. smoke {n}^3, CPU time per stage (semi-Lagrangian, tol 1e-4) ==")
+    for parallel in (False, True):
+        f = GridFluid((n, n, n), 1.0 / n, advection="semi-lagrangian", tolerance=1e-4,
+                      buoyancy=(0.1, 2.0), parallel=parallel,
+                      boundaries={s: "slip" for s in ("x-", "x+", "y-", "y+", "z-", "z+")})
+        f.add_source((0.4, 0.4, 0.05), (0.6, 0.6, 0.15), density_rate=10.0, temperature_rate=10.0)
+        acc = defaultdict(float)
+
+        def timed(obj, name, key):
+            fn = getattr(obj, name)
+
+            def run(*a, **k):
+                t0 = time.process_time()
+                r = fn(*a, **k)
+                acc[key] += time.process_time() - t0
+                return r
+            setattr(obj, name, run)
+        for name in ("_advect", "_forces", "project", "_dissipate", "_enforce"):
+            timed(f, name, name.strip("_"))
+        timed(f.pressure, "_precondition", "  of which V-cycles")
+        dt = 1.0 / 60.0
+        for _ in range(3):
+            f.step(dt)
+        acc.clear()
+        c0, w0 = time.process_time(), time.perf_counter()
+        for _ in range(steps):
+            f.step(dt)
+        cpu = (time.process_time() - c0) / steps
+        wall = (time.perf_counter() - w0) / steps
+        print(f"  parallel={parallel}: CPU {cpu:.3f} s/step, wall {wall:.3f} s/step, "
+              f"MGPCG {f.last_pressure_iterations} it, hash {f.state_hash()[:16]}", flush=True)
+        for key, val in sorted(acc.items(), key=lambda kv: -kv[1]):
+            print(f"    {key:20s} {val / steps:.3f} s CPU")
+
+
 # ----------------------------------------------------------------------------- 4. liquid
 def bench_liquid(reps, load_cls, particles=100_000):
     """2-D FLIP dam break (column a x 2a against the left wall of a 4a x 4a tank, the peers'
@@ -311,6 +355,8 @@ def main():
         bench_pressure(a.sizes, a.reps, load_cls)
     if "smoke3d" in a.parts:
         bench_smoke3d(max(2, a.reps // 2), load_cls)
+    if "smoke128" in a.parts:
+        bench_smoke128()
     if "liquid" in a.parts:
         bench_liquid(a.reps, load_cls)
     if "ghia" in a.parts:

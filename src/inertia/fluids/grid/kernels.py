@@ -368,11 +368,18 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
-                    vx = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vx = (1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vx = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                        vx = (1 - fz) * b0 + fz * b1
                     xx = x + 0.5
                     yy = y + 1.0
                     zz = z + 0.5
@@ -383,11 +390,18 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
-                    vy = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vy = (1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vy = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                        vy = (1 - fz) * b0 + fz * b1
                     xx = x + 0.5
                     yy = y + 0.5
                     zz = z + 1.0
@@ -398,11 +412,18 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
                     fy = yy - j0
                     fz = zz - k0
                     k1 = k0 + 1
-                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
-                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
-                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
-                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
-                    vz = (1 - fz) * b0 + fz * b1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vz = (1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vz = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                        vz = (1 - fz) * b0 + fz * b1
                     mx = _place(x - 0.5 * s * vx, gx, qx)
                     my = _place(y - 0.5 * s * vy, gy, qy)
                     mz = _place(z - 0.5 * s * vz, gz, qz)
@@ -484,6 +505,250 @@ def advect_padded(src, u, v, w, s, offset, n, periodic, dim, dst, lo, hi, want_r
 
 
 @njit(cache=True, parallel=True)
+def advect_padded_pair(src, src2, u, v, w, s, offset, n, periodic, dim, dst, dst2, lo, hi, lo2,
+                       hi2, want_range):
+    """`advect_padded` for two fields of the same slot kind (two cell scalars) along one
+    back-trace: the trace (six velocity interpolations) is shared, each field adds one
+    interpolation. Same arithmetic per field as `advect_padded`, so identical results."""
+    nx, ny, nz = dst.shape
+    ox, oy, oz = offset[0], offset[1], offset[2]
+    gx, gy, gz = n[0], n[1], n[2]
+    qx, qy, qz = periodic[0], periodic[1], periodic[2]
+    for i_ in prange(nx):
+        i = np.int64(i_)
+        for j in range(ny):
+            for k in range(nz):
+                x = i + ox
+                y = j + oy
+                if dim == 2:
+                    xx = x + 1.0
+                    yy = y + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vx = ((1 - fy) * ((1 - fx) * u[i0, j0, 0] + fx * u[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, 0] + fx * u[i0 + 1, j0 + 1, 0]))
+                    xx = x + 0.5
+                    yy = y + 1.0
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vy = ((1 - fy) * ((1 - fx) * v[i0, j0, 0] + fx * v[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, 0] + fx * v[i0 + 1, j0 + 1, 0]))
+                    mx = _place(x - 0.5 * s * vx, gx, qx)
+                    my = _place(y - 0.5 * s * vy, gy, qy)
+                    xx = mx + 1.0
+                    yy = my + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vx = ((1 - fy) * ((1 - fx) * u[i0, j0, 0] + fx * u[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, 0] + fx * u[i0 + 1, j0 + 1, 0]))
+                    xx = mx + 0.5
+                    yy = my + 1.0
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    vy = ((1 - fy) * ((1 - fx) * v[i0, j0, 0] + fx * v[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, 0] + fx * v[i0 + 1, j0 + 1, 0]))
+                    bx = _place(x - s * vx, gx, qx) - ox + 1.0
+                    by = _place(y - s * vy, gy, qy) - oy + 1.0
+                    xx = bx
+                    yy = by
+                    i0 = min(int(xx), src.shape[0] - 2)
+                    j0 = min(int(yy), src.shape[1] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    val = ((1 - fy) * ((1 - fx) * src[i0, j0, 0] + fx * src[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, 0] + fx * src[i0 + 1, j0 + 1, 0]))
+                    dst[i, j, k] = val
+                    if want_range:
+                        c0 = src[i0, j0, 0]
+                        c1 = src[i0 + 1, j0, 0]
+                        c2 = src[i0, j0 + 1, 0]
+                        c3 = src[i0 + 1, j0 + 1, 0]
+                        lo[i, j, k] = min(min(c0, c1), min(c2, c3))
+                        hi[i, j, k] = max(max(c0, c1), max(c2, c3))
+                    val = ((1 - fy) * ((1 - fx) * src2[i0, j0, 0] + fx * src2[i0 + 1, j0, 0])
+                          + fy * ((1 - fx) * src2[i0, j0 + 1, 0] + fx * src2[i0 + 1, j0 + 1, 0]))
+                    dst2[i, j, k] = val
+                    if want_range:
+                        c0 = src2[i0, j0, 0]
+                        c1 = src2[i0 + 1, j0, 0]
+                        c2 = src2[i0, j0 + 1, 0]
+                        c3 = src2[i0 + 1, j0 + 1, 0]
+                        lo2[i, j, k] = min(min(c0, c1), min(c2, c3))
+                        hi2[i, j, k] = max(max(c0, c1), max(c2, c3))
+                else:
+                    z = k + oz
+                    xx = x + 1.0
+                    yy = y + 0.5
+                    zz = z + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    k0 = min(int(zz), u.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vx = (1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vx = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                        vx = (1 - fz) * b0 + fz * b1
+                    xx = x + 0.5
+                    yy = y + 1.0
+                    zz = z + 0.5
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    k0 = min(int(zz), v.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vy = (1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vy = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                        vy = (1 - fz) * b0 + fz * b1
+                    xx = x + 0.5
+                    yy = y + 0.5
+                    zz = z + 1.0
+                    i0 = min(int(xx), w.shape[0] - 2)
+                    j0 = min(int(yy), w.shape[1] - 2)
+                    k0 = min(int(zz), w.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    # at a node the fractions are 0 or 1/2: skip the zero-weight rows
+                    if fz == 0.0 and fy == 0.0:
+                        vz = (1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0]
+                    elif fz == 0.0:
+                        vz = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    else:
+                        b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                        b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                              + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                        vz = (1 - fz) * b0 + fz * b1
+                    mx = _place(x - 0.5 * s * vx, gx, qx)
+                    my = _place(y - 0.5 * s * vy, gy, qy)
+                    mz = _place(z - 0.5 * s * vz, gz, qz)
+                    xx = mx + 1.0
+                    yy = my + 0.5
+                    zz = mz + 0.5
+                    i0 = min(int(xx), u.shape[0] - 2)
+                    j0 = min(int(yy), u.shape[1] - 2)
+                    k0 = min(int(zz), u.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * u[i0, j0, k0] + fx * u[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k0] + fx * u[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * u[i0, j0, k1] + fx * u[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * u[i0, j0 + 1, k1] + fx * u[i0 + 1, j0 + 1, k1]))
+                    vx = (1 - fz) * b0 + fz * b1
+                    xx = mx + 0.5
+                    yy = my + 1.0
+                    zz = mz + 0.5
+                    i0 = min(int(xx), v.shape[0] - 2)
+                    j0 = min(int(yy), v.shape[1] - 2)
+                    k0 = min(int(zz), v.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * v[i0, j0, k0] + fx * v[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k0] + fx * v[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * v[i0, j0, k1] + fx * v[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * v[i0, j0 + 1, k1] + fx * v[i0 + 1, j0 + 1, k1]))
+                    vy = (1 - fz) * b0 + fz * b1
+                    xx = mx + 0.5
+                    yy = my + 0.5
+                    zz = mz + 1.0
+                    i0 = min(int(xx), w.shape[0] - 2)
+                    j0 = min(int(yy), w.shape[1] - 2)
+                    k0 = min(int(zz), w.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * w[i0, j0, k0] + fx * w[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k0] + fx * w[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * w[i0, j0, k1] + fx * w[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * w[i0, j0 + 1, k1] + fx * w[i0 + 1, j0 + 1, k1]))
+                    vz = (1 - fz) * b0 + fz * b1
+                    bx = _place(x - s * vx, gx, qx) - ox + 1.0
+                    by = _place(y - s * vy, gy, qy) - oy + 1.0
+                    bz = _place(z - s * vz, gz, qz) - oz + 1.0
+                    xx = bx
+                    yy = by
+                    zz = bz
+                    i0 = min(int(xx), src.shape[0] - 2)
+                    j0 = min(int(yy), src.shape[1] - 2)
+                    k0 = min(int(zz), src.shape[2] - 2)
+                    fx = xx - i0
+                    fy = yy - j0
+                    fz = zz - k0
+                    k1 = k0 + 1
+                    b0 = ((1 - fy) * ((1 - fx) * src[i0, j0, k0] + fx * src[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, k0] + fx * src[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * src[i0, j0, k1] + fx * src[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * src[i0, j0 + 1, k1] + fx * src[i0 + 1, j0 + 1, k1]))
+                    val = (1 - fz) * b0 + fz * b1
+                    dst[i, j, k] = val
+                    if want_range:
+                        a = src[i0, j0, k0]
+                        b = a
+                        for dk in range(2):
+                            for dj in range(2):
+                                for di in range(2):
+                                    c = src[i0 + di, j0 + dj, k0 + dk]
+                                    a = min(a, c)
+                                    b = max(b, c)
+                        lo[i, j, k] = a
+                        hi[i, j, k] = b
+                    b0 = ((1 - fy) * ((1 - fx) * src2[i0, j0, k0] + fx * src2[i0 + 1, j0, k0])
+                          + fy * ((1 - fx) * src2[i0, j0 + 1, k0] + fx * src2[i0 + 1, j0 + 1, k0]))
+                    b1 = ((1 - fy) * ((1 - fx) * src2[i0, j0, k1] + fx * src2[i0 + 1, j0, k1])
+                          + fy * ((1 - fx) * src2[i0, j0 + 1, k1] + fx * src2[i0 + 1, j0 + 1, k1]))
+                    val = (1 - fz) * b0 + fz * b1
+                    dst2[i, j, k] = val
+                    if want_range:
+                        a = src2[i0, j0, k0]
+                        b = a
+                        for dk in range(2):
+                            for dj in range(2):
+                                for di in range(2):
+                                    c = src2[i0 + di, j0 + dj, k0 + dk]
+                                    a = min(a, c)
+                                    b = max(b, c)
+                        lo2[i, j, k] = a
+                        hi2[i, j, k] = b
+
+
+@njit(cache=True, parallel=True)
 def maccormack_combine(src, forward, backward, lo, hi, dst):
     """MacCormack step (Selle et al. 2008): dst = forward + (src - backward) / 2, clamped to
     [lo, hi], the range of the src nodes the forward step interpolated (keeps it bounded)."""
@@ -519,6 +784,16 @@ def enforce_faces(vel, open_frac, solid_vel, axis, periodic):
             vel[:, ny - 1, :] = vel[:, 0, :]
         else:
             vel[:, :, nz - 1] = vel[:, :, 0]
+
+
+@njit(cache=True)
+def enforce_closed(vel, closed, solid_vel):
+    """`enforce_faces` from the list of closed faces (flat indices into the C-order face
+    array): vel[f] = solid_vel[f]. Touches only those faces (the domain sides' and the
+    obstacles'), not the whole array."""
+    for m in range(closed.shape[0]):
+        f = closed[m]
+        vel[f] = solid_vel[f]
 
 
 # ----------------------------------------------------------------------------- projection
@@ -763,101 +1038,174 @@ def buoyancy_force(density, temperature, alpha, beta, ambient, up, force):
 
 
 # ----------------------------------------------------------------------------- diffusion
+# Node kinds of the implicit viscosity solve (one int8 per face node, per velocity component):
+FREE = 0        # an unknown
+FIXED = 1       # prescribed at its own value (domain walls, inflow, faces closed by an obstacle)
+NO_SLIP = 2     # inside a no-slip obstacle: a free neighbour sees the solid's velocity on the
+#                 surface between them (ghost fluid, distance fraction theta from the node sdf)
+SLIP = 3        # closed by a slip obstacle: prescribed along the component's own axis (the normal
+#                 velocity), zero shear (Neumann) across the other axes
+THETA_MIN = 0.02  # smallest distance fraction to a no-slip surface (keeps the system well conditioned)
+
+
+@njit(cache=True, inline="always")
+def _theta(sdf_c, sdf_n):
+    """Fraction of the node spacing from a fluid node (sdf_c) to the zero crossing towards a solid
+    node (sdf_n < 0), clamped to [THETA_MIN, 1]."""
+    if sdf_c <= 0.0:
+        return THETA_MIN
+    t = sdf_c / (sdf_c - sdf_n)
+    return THETA_MIN if t < THETA_MIN else (1.0 if t > 1.0 else t)
+
+
+@njit(cache=True, inline="always")
+def _neighbor(i, j, k, ax, sd, slot, shape, g):
+    """Neighbour index of node (i, j, k) across side sd of axis ax: (ii, jj, kk, ghost) where ghost
+    is -1 inside (or wrapped periodic), else the ghost kind of the domain side."""
+    ii, jj, kk = i, j, k
+    if ax == 0:
+        ii = i + (2 * sd - 1)
+    elif ax == 1:
+        jj = j + (2 * sd - 1)
+    else:
+        kk = k + (2 * sd - 1)
+    m = ii if ax == 0 else (jj if ax == 1 else kk)
+    kind = g.ghost_kind[slot, ax, sd]
+    # a periodic axis has n distinct nodes (a face array's node n duplicates node 0)
+    size = g.n[ax] if kind == PERIODIC else shape[ax]
+    if m < 0 or m >= size:
+        if kind != PERIODIC:
+            return ii, jj, kk, kind
+        m2 = m % g.n[ax]
+        if ax == 0:
+            ii = m2
+        elif ax == 1:
+            jj = m2
+        else:
+            kk = m2
+    return ii, jj, kk, -1
+
+
 @njit(cache=True, parallel=True)
-def helmholtz_apply(x, fixed, slot, coef, g, out):
-    """out = x - coef * Lap(x) on free nodes (fixed nodes: out = x), with the slot's ghost rules
-    made homogeneous (a Dirichlet ghost contributes -x_inside: boundary values go to the rhs).
-    coef = nu dt / h^2. The operator is symmetric positive definite on the free nodes."""
+def helmholtz_apply(x, kind, sdf, slot, coef, g, out):
+    """out = x - coef * Lap(x) on free nodes (other nodes: out = x), with the boundary data made
+    homogeneous (it goes to `helmholtz_rhs`): a Dirichlet domain ghost contributes -2 x_c, a FIXED
+    neighbour -x_c, a NO_SLIP neighbour -x_c / theta (the symmetric ghost-fluid discretisation of
+    Gibou, Fedkiw, Cheng and Kang 2002), a SLIP neighbour -x_c along the slot's own axis and 0
+    across. coef = nu dt / h^2. Symmetric positive definite on the free nodes."""
     nx, ny, nz = x.shape
+    nax = 3 if g.dim == 3 else 2
     for i_ in prange(nx):
         i = np.int64(i_)
         for j in range(ny):
             for k in range(nz):
-                if fixed[i, j, k]:
+                if kind[i, j, k] != FREE:
                     out[i, j, k] = x[i, j, k]
                     continue
                 c = x[i, j, k]
                 s = 0.0
-                nax = 3 if g.dim == 3 else 2
                 for ax in range(nax):
                     for sd in range(2):
-                        ii, jj, kk = i, j, k
-                        if ax == 0:
-                            ii = i + (2 * sd - 1)
-                        elif ax == 1:
-                            jj = j + (2 * sd - 1)
-                        else:
-                            kk = k + (2 * sd - 1)
-                        s += _homog_neighbor(x, fixed, slot, ii, jj, kk, ax, sd, c, g)
+                        ii, jj, kk, gh = _neighbor(i, j, k, ax, sd, slot, x.shape, g)
+                        if gh >= 0:
+                            if gh == DIRICHLET:
+                                s -= 2.0 * c
+                            continue
+                        nk = kind[ii, jj, kk]
+                        if nk == FREE:
+                            s += x[ii, jj, kk] - c
+                        elif nk == FIXED:
+                            s -= c
+                        elif nk == NO_SLIP:
+                            s -= c / _theta(sdf[i, j, k], sdf[ii, jj, kk])
+                        elif ax == slot:
+                            s -= c
                 out[i, j, k] = c - coef * s
 
 
-@njit(cache=True)
-def _homog_neighbor(x, fixed, slot, ii, jj, kk, ax, sd, c, g):
-    """(neighbour - centre) with homogeneous boundary data; fixed neighbours count as 0 - c."""
-    m = ii if ax == 0 else (jj if ax == 1 else kk)
-    kind = g.ghost_kind[slot, ax, sd]
-    # a periodic axis has n distinct nodes (a face array's node n duplicates node 0)
-    size = g.n[ax] if kind == PERIODIC else x.shape[ax]
-    if m < 0 or m >= size:
-        if kind == PERIODIC:
-            m2 = m % g.n[ax]
-            if ax == 0:
-                ii = m2
-            elif ax == 1:
-                jj = m2
-            else:
-                kk = m2
-        elif kind == DIRICHLET:
-            return -2.0 * c
-        else:
-            return 0.0
-    if fixed[ii, jj, kk]:
-        return -c
-    return x[ii, jj, kk] - c
-
-
 @njit(cache=True, parallel=True)
-def helmholtz_rhs(x0, fixed, slot, coef, g, out):
-    """Right-hand side of (I - coef Lap) x = x0: x0 plus the boundary data of Dirichlet ghosts
-    and of fixed neighbours; fixed nodes keep their value."""
+def helmholtz_rhs(x0, kind, sdf, wall, slot, coef, g, out):
+    """Right-hand side of (I - coef Lap) x = x0 on free nodes: x0 plus the boundary data of
+    Dirichlet domain ghosts, FIXED (and SLIP along the own axis) neighbours' values and, per NO_SLIP
+    neighbour, u_wall / theta with u_wall the solid's velocity interpolated to the surface point
+    ((1 - theta) wall_c + theta wall_n: exact for a rigid motion). Other nodes keep x0, NO_SLIP
+    nodes take (in x0 too) the solid's velocity."""
     nx, ny, nz = x0.shape
+    nax = 3 if g.dim == 3 else 2
     for i_ in prange(nx):
         i = np.int64(i_)
         for j in range(ny):
             for k in range(nz):
-                if fixed[i, j, k]:
+                kd = kind[i, j, k]
+                if kd != FREE:
+                    if kd == NO_SLIP:
+                        x0[i, j, k] = wall[i, j, k]
                     out[i, j, k] = x0[i, j, k]
                     continue
                 s = 0.0
-                nax = 3 if g.dim == 3 else 2
                 for ax in range(nax):
                     for sd in range(2):
-                        ii, jj, kk = i, j, k
-                        if ax == 0:
-                            ii = i + (2 * sd - 1)
-                        elif ax == 1:
-                            jj = j + (2 * sd - 1)
-                        else:
-                            kk = k + (2 * sd - 1)
-                        m = ii if ax == 0 else (jj if ax == 1 else kk)
-                        kind = g.ghost_kind[slot, ax, sd]
-                        size = g.n[ax] if kind == PERIODIC else x0.shape[ax]
-                        if m < 0 or m >= size:
-                            if kind == DIRICHLET:
+                        ii, jj, kk, gh = _neighbor(i, j, k, ax, sd, slot, x0.shape, g)
+                        if gh >= 0:
+                            if gh == DIRICHLET:
                                 s += 2.0 * g.ghost_value[slot, ax, sd]
-                            if kind != PERIODIC:
-                                continue
-                            m2 = m % g.n[ax]
-                            if ax == 0:
-                                ii = m2
-                            elif ax == 1:
-                                jj = m2
-                            else:
-                                kk = m2
-                        if fixed[ii, jj, kk]:
+                            continue
+                        nk = kind[ii, jj, kk]
+                        if nk == FIXED or (nk == SLIP and ax == slot):
                             s += x0[ii, jj, kk]
+                        elif nk == NO_SLIP:
+                            th = _theta(sdf[i, j, k], sdf[ii, jj, kk])
+                            s += ((1.0 - th) * wall[i, j, k] + th * wall[ii, jj, kk]) / th
                 out[i, j, k] = x0[i, j, k] + coef * s
+
+
+@njit(cache=True)
+def wall_shear_impulses(x, kind, sdf, wall, owner, slot, scale, g, ref, lin, ang):
+    """Impulse of the viscous stress on no-slip obstacles after a viscous solve: for each link
+    from a free node c to a NO_SLIP node n the solve moved momentum coef (u_wall - x_c) / theta
+    per unit mass into the node's dual cell, so the obstacle `owner[n]` receives
+    J = scale (x_c - u_wall) / theta along the slot's axis (scale = rho h^3 coef = rho nu dt h:
+    the wall shear mu (x_c - u_wall) / (theta h) times the face area h^2 and dt), and the torque
+    (x_wall - ref[o]) x J, x_wall = x_c + theta h e. Serial, in node order: deterministic."""
+    nx, ny, nz = x.shape
+    nax = 3 if g.dim == 3 else 2
+    h = g.h
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if kind[i, j, k] != FREE:
+                    continue
+                for ax in range(nax):
+                    for sd in range(2):
+                        ii, jj, kk, gh = _neighbor(i, j, k, ax, sd, slot, x.shape, g)
+                        if gh >= 0 or kind[ii, jj, kk] != NO_SLIP:
+                            continue
+                        o = owner[ii, jj, kk]
+                        if o < 0:
+                            continue
+                        th = _theta(sdf[i, j, k], sdf[ii, jj, kk])
+                        uw = (1.0 - th) * wall[i, j, k] + th * wall[ii, jj, kk]
+                        J = scale * (x[i, j, k] - uw) / th
+                        p0 = g.origin[0] + (i + (0.0 if slot == 0 else 0.5)) * h - ref[o, 0]
+                        p1 = g.origin[1] + (j + (0.0 if slot == 1 else 0.5)) * h - ref[o, 1]
+                        p2 = g.origin[2] + (k + (0.0 if slot == 2 else 0.5)) * h - ref[o, 2]
+                        step = (2 * sd - 1) * th * h
+                        if ax == 0:
+                            p0 += step
+                        elif ax == 1:
+                            p1 += step
+                        else:
+                            p2 += step
+                        lin[o, slot] += J
+                        if slot == 0:      # r x (J e_x) = (0, z J, -y J)
+                            ang[o, 1] += p2 * J
+                            ang[o, 2] -= p1 * J
+                        elif slot == 1:    # r x (J e_y) = (-z J, 0, x J)
+                            ang[o, 0] -= p2 * J
+                            ang[o, 2] += p0 * J
+                        else:              # r x (J e_z) = (y J, -x J, 0)
+                            ang[o, 0] += p1 * J
+                            ang[o, 1] -= p0 * J
 
 
 # ----------------------------------------------------------------------------- vector algebra

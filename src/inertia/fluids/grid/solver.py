@@ -10,8 +10,12 @@ the ones after the arrow:
 3. ``forces``     body acceleration, buoyancy from density and temperature, vorticity
    confinement, sources -> u, v, w, scalars.
 4. ``diffuse``    implicit (backward Euler) viscosity: (I - nu dt Lap) u = u* per component,
-   conjugate gradients; unconditionally stable.
-5. ``project``    weighted divergence -> pressure Poisson solve (MGPCG) -> u -= grad(p dt / rho).
+   conjugate gradients; unconditionally stable. No-slip obstacles are Dirichlet data at the
+   surface's cut position between nodes (ghost fluid, Gibou et al. 2002); the momentum each wall
+   link takes from the fluid is the viscous force on its obstacle / body. Viscous flow uses an
+   incremental pressure correction: the last pressure gradient is subtracted before this solve.
+5. ``project``    weighted divergence -> pressure Poisson solve (MGPCG) -> u -= grad(p dt / rho)
+   (viscous flow: the increment of phi).
 6. ``dissipate``  scalar decay s *= exp(-rate dt).
 
 ``advance(frame_dt)`` takes substeps of dt = cfl h / max|u| (capped by ``max_dt``) until the
@@ -28,6 +32,13 @@ References
   coupling", SIGGRAPH 2007 (face-fraction weights).
 - A. McAdams, E. Sifakis and J. Teran, "A parallel multigrid Poisson solver for fluids
   simulation on large grids", SCA 2010 (MGPCG).
+- F. Gibou, R. Fedkiw, L.-T. Cheng and M. Kang, "A second-order-accurate symmetric
+  discretization of the Poisson equation on irregular domains", J. Comput. Phys. 176, 2002
+  (the no-slip obstacle boundary of the viscosity solve).
+- J. van Kan, "A second-order accurate pressure-correction scheme for viscous incompressible
+  flow", SIAM J. Sci. Stat. Comput. 7, 1986; D. L. Brown, R. Cortez and M. L. Minion, "Accurate
+  projection methods for the incompressible Navier-Stokes equations", J. Comput. Phys. 168,
+  2001 (incremental pressure correction).
 - F. H. Harlow and J. E. Welch, "Numerical calculation of time-dependent viscous
   incompressible flow of fluid with free surface", Phys. Fluids 8, 1965 (the MAC grid).
 
@@ -36,14 +47,20 @@ Limitations
 - Constant density (Boussinesq smoke); no free surface (liquids are not implemented yet).
 - First-order splitting in time; semi-Lagrangian advection adds numerical viscosity
   (measured in tests/fluids/grid/test_solver.py), MacCormack much less.
-- Viscosity does not impose no-slip on obstacle surfaces inside the grid (only on domain
-  walls); obstacles are no-penetration (the solid's normal velocity) with free slip.
+- No-slip obstacles (``obstacle_slip=False``, the default; `bind_rigid(slip=False)`): the
+  viscous solve imposes the solid's velocity at the surface point between a fluid node and a
+  node inside the solid along each axis (distance fraction theta from the node signed distances,
+  clamped at ``kernels.THETA_MIN`` = 0.02); exact for linear profiles (plane Couette), first order
+  on curved walls. The projection after it may change the tangential velocity next to the wall
+  by the pressure increment's gradient (zero at a steady state). The viscous force uses the
+  Laplacian form mu Lap u (equal to the stress divergence for a divergence-free field; the total
+  force on a rigidly moving surface is the same). Slip obstacles impose only the normal velocity.
 - Obstacles see the field at the step start: a moving obstacle's fractions are rebuilt once
   per step from its signed distance at the step's end time.
 - Rigid bodies (``advance(dt, rigid)`` / `bind_rigid`, 3-D only): shape rows are obstacles at the
   bodies' current poses (the rigid stage has already moved them; the pose is held over the
-  fluid's substeps, the velocity is updated by each substep's impulse). Only pressure pushes
-  bodies (no viscous stress); the coupling is explicit (weak): a body much lighter than the fluid
+  fluid's substeps, the velocity is updated by each substep's impulse). Pressure and, for
+  viscous fluids, the viscous stress on no-slip shapes push bodies; the coupling is explicit (weak): a body much lighter than the fluid
   it displaces (added mass) can oscillate or blow up. The force is the pressure on the cut-cell
   faces, exactly rho g V_grid in a fluid at rest, V_grid the cut-cell volume (O(h^2) below V for
   convex bodies). Heightfield and SDF rows are skipped.
@@ -154,6 +171,10 @@ class GridFluid:
     cfl : CFL number for ``advance`` (default 1; at most 5).
     max_dt : largest substep in ``advance``, s (default inf).
     obstacles : list of colliders (``inertia.colliders``) of the grid's dimension.
+    obstacle_slip : False (default: no-slip), True, or one bool per obstacle. A no-slip obstacle's
+        surface velocity (v + w x r) is the Dirichlet value of the implicit viscosity at its cut
+        position between grid nodes; a slip obstacle imposes only its normal velocity (zero shear).
+        Only matters when viscosity > 0 (the projection imposes the normal velocity either way).
     parallel : None (default: parallel kernels from 65536 cells up), True or False.
     fluid_density : rho, kg/m^3 (default 1.2, air): converts the projection's phi = p dt / rho into
         the pressure that pushes rigid bodies (``advance(dt, rigid)``, see `bind_rigid`).
@@ -163,8 +184,8 @@ class GridFluid:
                  advection="maccormack", pressure_solver="mgpcg", tolerance=1e-6,
                  max_iterations=None, scalars=("density", "temperature"), ambient_temperature=0.0,
                  buoyancy=(0.0, 0.0), up=None, body_acceleration=None, dissipation=None,
-                 vorticity_confinement=0.0, cfl=1.0, max_dt=np.inf, obstacles=(), parallel=None,
-                 fluid_density=1.2):
+                 vorticity_confinement=0.0, cfl=1.0, max_dt=np.inf, obstacles=(), obstacle_slip=False,
+                 parallel=None, fluid_density=1.2):
         self.grid = g = MACGrid(shape, cell_size, origin)
         if parallel not in (None, True, False):
             raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
@@ -250,12 +271,24 @@ class GridFluid:
         self._scal_tmp = [np.zeros((nx, ny, nz)) for _ in names]
         self._cell_fwd = np.zeros((nx, ny, nz))
         self._cell_bwd = np.zeros((nx, ny, nz))
+        # the second scalar of a pair advected along one back-trace (`_advect_pair`)
+        if len(names) >= 2:
+            self._cell_pad2 = np.zeros(pshape[3])
+            self._fwd_pad2 = np.zeros(pshape[3])
+            self._cell_fwd2 = np.zeros((nx, ny, nz))
+            self._cell_bwd2 = np.zeros((nx, ny, nz))
+            self._range_lo2 = np.zeros((nx, ny, nz))
+            self._range_hi2 = np.zeros((nx, ny, nz))
         # open fractions and solid velocities of faces: obstacles stage
         self._frac = [np.ones(s) for s in fs]
         self._solid = [np.zeros(s) for s in fs]
         # projection: weighted divergence (1/s), phi = p dt / rho (m^2/s)
         self.divergence = np.zeros((nx, ny, nz))
         self.phi = np.zeros((nx, ny, nz))
+        # viscous flow (incremental pressure correction): the last step's pressure increment (the
+        # next increment's initial guess) and the dt phi was computed with (0: no pressure yet)
+        self._phi_inc = np.zeros((nx, ny, nz))
+        self._phi_dt = 0.0
         self._rhs = np.zeros((nx, ny, nz))
         self._force = np.zeros((nx, ny, nz, 3))
         self._vort = np.zeros((nx, ny, nz, 3))
@@ -263,8 +296,17 @@ class GridFluid:
         self.pressure = PoissonSolver((nx, ny, nz), periodic, method=pressure_solver,
                                       tolerance=tol, max_iterations=max_iterations,
                                       parallel=self.parallel)
-        # diffusion scratch per component
-        self._fixed = [np.zeros(s, dtype=np.bool_) for s in fs]
+        # implicit viscosity: node kinds (K.FREE, FIXED, NO_SLIP, SLIP) per component (obstacles
+        # stage); node signed distance, solid velocity and owning obstacle where no-slip obstacles
+        # exist (allocated on first need)
+        self._vkind = [np.zeros(s, dtype=np.int8) for s in fs]
+        self._vsdf = [np.zeros((1, 1, 1)) for _ in fs]
+        self._vwall = [np.zeros((1, 1, 1)) for _ in fs]
+        self._vowner = [np.full((1, 1, 1), -1, np.int64) for _ in fs]
+        self._no_slip_nodes = False
+        self.obstacle_viscous_force = np.zeros((0, 3))    # N, last step, per obstacle (_diffuse)
+        self.obstacle_viscous_torque = np.zeros((0, 3))   # N m about each obstacle's reference
+        self._visc_impulse = (np.zeros((0, 3)), np.zeros((0, 3)))
         self._cg = [[np.zeros(s) for _ in range(4)] for s in fs]
         self.sources = []
         self.time = 0.0
@@ -278,6 +320,8 @@ class GridFluid:
                 raise ValueError(f"obstacles must be colliders with dim {dim} "
                                  f"(signed_distance, velocity); got {o!r}")
         self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
+        self._slip = self._slip_flags(obstacle_slip, len(self.obstacles), "obstacle_slip")
+        self._rigid_slip = False
         self._vertex_pts = g.vertex_positions() if self.obstacles else None
         self._face_pts = [g.face_positions(a) for a in range(dim)] if self.obstacles else None
         self._cell_solid = np.zeros((nx, ny, nz), dtype=np.bool_)
@@ -319,6 +363,18 @@ class GridFluid:
                         kind[3 + s, axis, sd] = K.NEUMANN
         return kind, value
 
+    @staticmethod
+    def _slip_flags(slip, count, name):
+        if isinstance(slip, (bool, np.bool_)):
+            return [bool(slip)] * count
+        try:
+            flags = list(slip)
+        except TypeError:
+            raise ValueError(f"{name} must be a bool or one bool per obstacle; got {slip!r}") from None
+        if len(flags) != count or not all(isinstance(x, (bool, np.bool_)) for x in flags):
+            raise ValueError(f"{name} must be a bool or {count} bools (one per obstacle); got {slip!r}")
+        return [bool(x) for x in flags]
+
     def _inflow_scalar(self, b, name):
         if name in b.scalars:
             return float(b.scalars[name])
@@ -354,24 +410,21 @@ class GridFluid:
             for a in range(3):
                 self._frac[a][...] = fr[a]
                 self._solid[a][...] = 0.0
+            visc = self.viscosity > 0.0
+            slip = self._slip + [self._rigid_slip] * len(self._rigid_obstacles)
             for a in range(dim):
                 pts = self._face_pts[a]
                 closed = np.flatnonzero(self._frac[a].reshape(-1) < 1.0)
                 owner = np.zeros(closed.size, np.int64)
-                if closed.size:
-                    p = pts[closed]
-                    best = None
-                    vel = np.zeros(closed.size)
-                    for i, o in enumerate(obstacles):
-                        d = np.asarray(o.signed_distance(p, t))
-                        vo = np.asarray(o.velocity(p, t))[:, a]
-                        if best is None:
-                            best, vel = d, vo
-                        else:
-                            take = d < best
-                            best = np.where(take, d, best)
-                            vel = np.where(take, vo, vel)
-                            owner = np.where(take, i, owner)
+                if visc:
+                    # every face node's nearest obstacle (the viscous solve needs them all)
+                    best, vel, own = _nearest_obstacle(obstacles, pts, t, a)
+                    self._viscous_nodes(a, best, vel, own, slip)
+                    if closed.size:
+                        owner = own[closed]
+                        self._solid[a].reshape(-1)[closed] = vel[closed]
+                elif closed.size:
+                    best, vel, owner = _nearest_obstacle(obstacles, pts[closed], t, a)
                     self._solid[a].reshape(-1)[closed] = vel
                 body = (np.concatenate([np.full(len(self.obstacles), -1, np.int64), self._owner_body])[owner]
                         if closed.size else owner)
@@ -398,14 +451,53 @@ class GridFluid:
                 self._frac[axis][tuple(idx)] = 0.0
                 self._solid[axis][tuple(idx)] = side_velocity(b, dim)[axis]
         self.pressure.set_coefficients(*self._frac, g.cell_size, dim)
-        # faces whose velocity is prescribed (for the implicit diffusion)
+        self._closed = [np.flatnonzero(self._frac[a].reshape(-1) == 0.0) for a in range(3)]
+        # node kinds of the implicit viscosity
+        self._no_slip_nodes = False
         for a in range(3):
-            np.equal(self._frac[a], 0.0, out=self._fixed[a])
+            kind = self._vkind[a]
+            kind[...] = np.where(self._frac[a] == 0.0, K.FIXED, K.FREE)
+            if self.viscosity > 0.0 and obstacles and a < dim:
+                self._viscous_kinds(a)
             if self.periodic[a]:
                 idx = [slice(None)] * 3
                 idx[a] = -1
-                self._fixed[a][tuple(idx)] = True  # the duplicate of face 0
+                kind[tuple(idx)] = K.FIXED  # the duplicate of face 0
         self._enforce()
+
+    def _viscous_nodes(self, a, best, vel, owner, slip):
+        """Store the component-a face nodes' signed distance, solid velocity and nearest obstacle,
+        and which of them lie inside a no-slip obstacle (for `_viscous_kinds`)."""
+        shape = self._face_shapes[a]
+        if self._vsdf[a].shape != shape:
+            self._vsdf[a] = np.zeros(shape)
+            self._vwall[a] = np.zeros(shape)
+            self._vowner[a] = np.full(shape, -1, np.int64)
+        self._vsdf[a][...] = best.reshape(shape)
+        self._vwall[a][...] = vel.reshape(shape)
+        self._vowner[a][...] = owner.reshape(shape)
+
+    def _viscous_kinds(self, a):
+        """NO_SLIP / SLIP kinds of the component-a face nodes inside obstacles."""
+        slip = self._slip + [self._rigid_slip] * len(self._rigid_obstacles)
+        shape = self._face_shapes[a]
+        best = self._vsdf[a].reshape(-1)
+        owner = self._vowner[a].reshape(-1)
+        inside = best < 0.0
+        no_slip = inside & ~np.asarray(slip, dtype=bool)[owner]
+        kind = self._vkind[a].reshape(-1)
+        closed = kind == K.FIXED
+        # domain-side faces stay FIXED (their value is the wall's or the inflow's)
+        edge = np.zeros(shape, dtype=bool)
+        idx = [slice(None)] * 3
+        for end in (0, -1):
+            idx[a] = end
+            if not isinstance(self.sides[2 * a + (0 if end == 0 else 1)], (Periodic, Outflow)):
+                edge[tuple(idx)] = True
+        edge = edge.reshape(-1)
+        kind[no_slip & ~edge] = K.NO_SLIP
+        kind[inside & ~no_slip & closed & ~edge] = K.SLIP
+        self._no_slip_nodes = self._no_slip_nodes or bool(np.any(no_slip & ~edge))
 
     def _inside_domain(self, o, t):
         pts = self.grid.cell_positions()
@@ -489,8 +581,15 @@ class GridFluid:
 
     # ------------------------------------------------------------------------ stages
     def _enforce(self):
+        """Closed faces take the solid's (wall's, inflow's) velocity; a periodic axis copies face 0
+        to face n (`K.enforce_faces`, over the closed-face lists of the obstacles stage)."""
         for a in range(3):
-            self._k.enforce_faces(self._vel[a], self._frac[a], self._solid[a], a, bool(self.periodic[a]))
+            vel = self._vel[a]
+            K.enforce_closed(vel.reshape(-1), self._closed[a], self._solid[a].reshape(-1))
+            if self.periodic[a]:
+                idx = [slice(None)] * 3
+                idx[a] = -1
+                vel[tuple(idx)] = vel[tuple([slice(None)] * a + [0])]
 
     def _advect(self, dt):
         g = self.ctx
@@ -502,7 +601,11 @@ class GridFluid:
         for a in range(self.dim):
             self._advect_one(self._vel[a], self._vel_pad[a], a, up, vp, wp, dt, self._vel_tmp[a],
                              self._vel_fwd[a], self._vel_bwd[a])
-        for s in range(len(self._scal)):
+        ns = len(self._scal)
+        for s in range(0, ns - 1, 2):
+            self._advect_pair(s, up, vp, wp, dt)
+        if ns % 2:
+            s = ns - 1
             k.pad(self._scal[s], 3 + s, g, self._cell_pad)
             self._advect_one(self._scal[s], self._cell_pad, 3 + s, up, vp, wp, dt, self._scal_tmp[s],
                              self._cell_fwd, self._cell_bwd)
@@ -530,6 +633,33 @@ class GridFluid:
         k.advect_padded(fwd_pad, up, vp, wp, -dt / h, off, g.n, g.periodic, self.dim, bwd,
                         bwd, bwd, False)
         k.maccormack_combine(src, fwd, bwd, lo, hi, dst)
+
+    def _advect_pair(self, s, up, vp, wp, dt):
+        """Scalars s and s + 1 along one back-trace (`K.advect_padded_pair`; the same result as
+        two `_advect_one` calls)."""
+        g = self.ctx
+        k = self._k
+        h = self.grid.cell_size
+        off = self._offsets[3]
+        a, b = self._scal[s], self._scal[s + 1]
+        da, db = self._scal_tmp[s], self._scal_tmp[s + 1]
+        pa, pb = self._cell_pad, self._cell_pad2
+        k.pad(a, 3 + s, g, pa)
+        k.pad(b, 4 + s, g, pb)
+        if self.advection == "semi-lagrangian":
+            k.advect_padded_pair(pa, pb, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, da, db,
+                                 da, da, db, db, False)
+            return
+        fa, fb, ba, bb = self._cell_fwd, self._cell_fwd2, self._cell_bwd, self._cell_bwd2
+        loa, hia, lob, hib = self._range_lo[3], self._range_hi[3], self._range_lo2, self._range_hi2
+        k.advect_padded_pair(pa, pb, up, vp, wp, dt / h, off, g.n, g.periodic, self.dim, fa, fb,
+                             loa, hia, lob, hib, True)
+        k.pad(fa, 3 + s, g, self._fwd_pad[3])
+        k.pad(fb, 4 + s, g, self._fwd_pad2)
+        k.advect_padded_pair(self._fwd_pad[3], self._fwd_pad2, up, vp, wp, -dt / h, off, g.n,
+                             g.periodic, self.dim, ba, bb, ba, ba, bb, bb, False)
+        k.maccormack_combine(a, fa, ba, loa, hia, da)
+        k.maccormack_combine(b, fb, bb, lob, hib, db)
 
     def _forces(self, dt):
         f = self._force
@@ -569,13 +699,21 @@ class GridFluid:
             return
         g = self.ctx
         coef = self.viscosity * dt / (self.grid.cell_size ** 2)
+        nobst = len(self.obstacles) + len(self._rigid_obstacles)
+        if self._no_slip_nodes:
+            lin, ang = self._visc_impulse
+            if lin.shape[0] != nobst:
+                lin, ang = self._visc_impulse = (np.zeros((nobst, 3)), np.zeros((nobst, 3)))
+            lin[...] = 0.0
+            ang[...] = 0.0
+            ref = self._obstacle_refs()
         for a in range(self.dim):
             x = self._vel[a]
             r, p, q, b = self._cg[a]
-            fixed = self._fixed[a]
-            self._k.helmholtz_rhs(x, fixed, a, coef, g, b)
+            kind, sdf, wall = self._vkind[a], self._vsdf[a], self._vwall[a]
+            self._k.helmholtz_rhs(x, kind, sdf, wall, a, coef, g, b)
             # CG on (I - coef Lap) x = b, from the current x
-            self._k.helmholtz_apply(x, fixed, a, coef, g, q)
+            self._k.helmholtz_apply(x, kind, sdf, a, coef, g, q)
             np.subtract(b, q, out=r)
             p[...] = r
             rr = self._k.dot(r, r, self._partial_for(r))
@@ -585,14 +723,35 @@ class GridFluid:
             for _ in range(1000):
                 if math.sqrt(rr) <= tol:
                     break
-                self._k.helmholtz_apply(p, fixed, a, coef, g, q)
+                self._k.helmholtz_apply(p, kind, sdf, a, coef, g, q)
                 alpha = rr / self._k.dot(p, q, self._partial_for(p))
                 self._k.axpy(alpha, pf, xf)
                 self._k.axpy(-alpha, qf, rf)
                 rr_new = self._k.dot(r, r, self._partial_for(r))
                 self._k.xpby(rf, rr_new / rr, pf)
                 rr = rr_new
+            if self._no_slip_nodes:
+                scale = self.fluid_density * self.grid.cell_size ** self.dim * coef
+                K.wall_shear_impulses(x, kind, sdf, wall, self._vowner[a], a, scale, g, ref,
+                                      lin, ang)
+        if self._no_slip_nodes:
+            self.obstacle_viscous_force = lin / dt
+            self.obstacle_viscous_torque = ang / dt
         self._enforce()
+
+    def _obstacle_refs(self):
+        """(n_obstacles, 3) reference points of the viscous torques: a collider's reference point
+        (its pose at the current time), a shape row's body centre of mass."""
+        refs = np.zeros((len(self.obstacles) + len(self._rigid_obstacles), 3))
+        for i, o in enumerate(self.obstacles):
+            if hasattr(o, "pose"):
+                refs[i, :] = np.asarray(o.pose(self.time)[0], dtype=np.float64).reshape(-1)[:3]
+        if self._rigid is not None:
+            body_q = self._rigid.state.body_q
+            for i, b in enumerate(self._owner_body):
+                if b >= 0:
+                    refs[len(self.obstacles) + i] = body_q[b, :3]
+        return refs
 
     def _partial_for(self, a):
         return self._partial
@@ -607,6 +766,32 @@ class GridFluid:
         np.negative(self.divergence, out=self._rhs)
         it = self.pressure.solve(self._rhs, self.phi)
         self._k.subtract_gradient(self.phi, fu, fv, fw, self.ctx, u, v, w)
+        self._enforce()
+        return it
+
+    def _pressure_predictor(self, dt):
+        """Incremental pressure correction (Van Kan 1986; Brown, Cortez and Minion 2001): the
+        viscous solve sees the last step's pressure gradient (phi rescaled to this dt), so at a
+        steady state the projection after it has nothing left to change and the no-slip values
+        the viscous solve imposed on obstacle surfaces stay (a plain viscosity-then-projection
+        splitting leaves a tangential wall velocity of dt times the pressure gradient)."""
+        if dt != self._phi_dt:
+            self.phi *= dt / self._phi_dt
+        u, v, w = self._vel
+        self._k.subtract_gradient(self.phi, *self._frac, self.ctx, u, v, w)
+        self._enforce()
+
+    def _project_increment(self):
+        """Projection of the predicted velocity: solve for the pressure increment (initial guess:
+        the last increment), subtract its gradient, add it to phi."""
+        u, v, w = self._vel
+        fu, fv, fw = self._frac
+        su, sv, sw = self._solid
+        self._k.weighted_divergence(u, v, w, fu, fv, fw, su, sv, sw, self.ctx, self.divergence)
+        np.negative(self.divergence, out=self._rhs)
+        it = self.pressure.solve(self._rhs, self._phi_inc)
+        self._k.subtract_gradient(self._phi_inc, fu, fv, fw, self.ctx, u, v, w)
+        self.phi += self._phi_inc
         self._enforce()
         return it
 
@@ -635,8 +820,15 @@ class GridFluid:
             self._update_solids(self.time + dt)
         self._advect(dt)
         self._forces(dt)
+        incremental = self.viscosity > 0.0 and self._phi_dt > 0.0
+        if incremental:
+            self._pressure_predictor(dt)
         self._diffuse(dt)
-        self.last_pressure_iterations = self.project(dt)
+        if incremental:
+            self.last_pressure_iterations = self._project_increment()
+        else:
+            self.last_pressure_iterations = self.project(dt)
+        self._phi_dt = dt
         if self._rigid is not None:
             self._push_bodies(dt)
         self._dissipate(dt)
@@ -676,7 +868,7 @@ class GridFluid:
         return n
 
     # ------------------------------------------------------------------------ rigid coupling
-    def bind_rigid(self, rigid):
+    def bind_rigid(self, rigid, slip=False):
         """Couple to a rigid world (anything with ``.model`` and ``.state``; `advance` calls this).
 
         Every shape row of ``rigid.model`` becomes an obstacle (a `BodyShape`: world pose
@@ -685,7 +877,11 @@ class GridFluid:
         kinematic or dynamic body exists. After each projection the pressure on the cut faces of
         each body becomes an impulse dt F (and dt tau about its centre of mass), applied with
         `inertia.dynamics.particle_coupling.apply_body_impulses`. Rows the signed distance does not
-        cover (heightfield, SDF) are skipped. 3-D grids only."""
+        cover (heightfield, SDF) are skipped. 3-D grids only.
+
+        With ``slip=False`` (default) and viscosity > 0 the shapes are no-slip walls of the implicit
+        viscosity and the viscous stress on them (`K.wall_shear_impulses`) is added to each
+        body's impulse; ``slip=True`` leaves only the pressure."""
         from ...collision.shapes import BodyShape
         if self.dim != 3:
             raise ValueError(f"rigid bodies couple to 3-D grids only; this grid has dim {self.dim}")
@@ -700,7 +896,10 @@ class GridFluid:
                 bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
             obst.append(bs)
             owner.append(bs.body if bs.moving else -1)
+        if not isinstance(slip, (bool, np.bool_)):
+            raise ValueError(f"slip must be True or False; got {slip!r}")
         self._rigid = rigid
+        self._rigid_slip = bool(slip)
         self._rigid_obstacles = obst
         self._owner_body = np.asarray(owner, np.int64)
         nb = int(model.body_count)
@@ -715,7 +914,8 @@ class GridFluid:
         self._update_solids(self.time)
 
     def _push_bodies(self, dt):
-        """Pressure impulse on each body from the cut faces (obstacles stage's ``_cut``)."""
+        """Pressure impulse on each body from the cut faces (obstacles stage's ``_cut``) plus the
+        viscous impulse of the step's diffusion on its no-slip shapes."""
         lin, ang = self._impulse
         lin[...] = 0.0
         ang[...] = 0.0
@@ -725,6 +925,13 @@ class GridFluid:
             if faces.size:
                 _pressure_impulses(self.phi, faces, open_frac, body, a, self.ctx.h, self.grid.origin3,
                                    self.fluid_density, body_q, lin, ang)
+        if self._no_slip_nodes and self.viscosity > 0.0:
+            vlin, vang = self._visc_impulse
+            n0 = len(self.obstacles)
+            for i, b in enumerate(self._owner_body):
+                if b >= 0 and n0 + i < vlin.shape[0]:
+                    lin[b] += vlin[n0 + i]
+                    ang[b] += vang[n0 + i]
         np.multiply(lin, 1.0 / dt, out=self.body_force)
         np.multiply(ang, 1.0 / dt, out=self.body_torque)
         from ...dynamics.particle_coupling import apply_body_impulses
@@ -782,11 +989,14 @@ class GridFluid:
     # ------------------------------------------------------------------------ World protocol
     def save_state(self):
         """The state a bit-for-bit resume needs: face velocities, scalars, the last pressure
-        (the next solve's initial guess), time and step index (copies)."""
+        (the next solve's initial guess; viscous flow: the predictor's pressure, its dt and the
+        last increment), time and step index (copies)."""
         st = {f"vel{a}": self._vel[a].copy() for a in range(self.dim)}
         for name, a in zip(self.scalar_names, self._scal):
             st[f"scalar/{name}"] = a.copy()
         st["phi"] = self.phi.copy()
+        st["phi_increment"] = self._phi_inc.copy()
+        st["phi_dt"] = np.array(self._phi_dt)
         st["time"] = np.array(self.time)
         st["step_index"] = np.array(self.step_index)
         return st
@@ -798,6 +1008,9 @@ class GridFluid:
         for name, a in zip(self.scalar_names, self._scal):
             a[...] = state[f"scalar/{name}"]
         self.phi[...] = state["phi"]
+        if "phi_increment" in state:
+            self._phi_inc[...] = state["phi_increment"]
+            self._phi_dt = float(state["phi_dt"])
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
         if self._moving or self._rigid is not None:
@@ -830,6 +1043,32 @@ class GridFluid:
         for a in self._vel[:self.dim] + self._scal:
             hsh.update(np.ascontiguousarray(a).tobytes())
         return hsh.hexdigest()
+
+
+def _nearest_obstacle(obstacles, pts, t, axis):
+    """At (M, dim) points: the smallest signed distance over the obstacles, the `axis` velocity
+    component of the obstacle attaining it, and its index (one query per obstacle)."""
+    m = pts.shape[0]
+    best = np.full(m, np.inf)
+    vel = np.zeros(m)
+    owner = np.zeros(m, np.int64)
+    if m == 0:
+        return best, vel, owner
+    d = np.empty(m)
+    nrm = np.empty(pts.shape)
+    v = np.empty(pts.shape)
+    for i, o in enumerate(obstacles):
+        if hasattr(o, "query"):
+            o.query(pts, t, d, nrm, v)
+            di, vi = d, v[:, axis]
+        else:
+            di = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
+            vi = np.asarray(o.velocity(pts, t), dtype=np.float64)[:, axis]
+        take = di < best
+        best = np.where(take, di, best)
+        vel = np.where(take, vi, vel)
+        owner = np.where(take, i, owner)
+    return best, vel, owner
 
 
 @K.njit(cache=True)
