@@ -68,7 +68,7 @@ def grid_positions(n, seed=0):
     return np.array(pos), q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
+def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0, damping_ratio=10.0):
     """The peers' 3 s window, timed step by step; then on until every body sleeps (at most rest_cap s),
     also timed. Returns the world, per-step times of the window, the lowest body centre at its end,
     and the rest phase's figures."""
@@ -85,7 +85,7 @@ def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")            # the peers' grid starts with overlapping boxes
-        world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel)
+        world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel, contact_damping_ratio=damping_ratio)
         world.step()                               # compile / load the cache outside the timing
     world.profile = {k: 0.0 for k in world.profile}
     steps = int(round(seconds * 60)) - 1
@@ -164,6 +164,8 @@ def main():
     ap.add_argument("--engines", nargs="+", default=["inertia", "pybullet", "mujoco"])
     ap.add_argument("--substeps", type=int, default=8)
     ap.add_argument("--stack-seconds", type=float, default=10.0)
+    ap.add_argument("--damping-ratio", type=float, default=10.0,
+                    help="the piles' contact_damping_ratio (5 with --substeps 4: the real-time pile profile)")
     ap.add_argument("--parallel", choices=["auto", "yes", "no"], default="no",
                     help="Inertia's parallel colour-batch kernels (default no: on a loaded 2-core machine "
                          "every parallel launch waits for a time slice)")
@@ -175,12 +177,14 @@ def main():
     for shape in a.shapes:
         if "inertia" in a.engines:
             par = {"auto": "auto", "yes": True, "no": False}[a.parallel]
-            world, per_step, zmin, rest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
+            world, per_step, zmin, rest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par,
+                                                       damping_ratio=a.damping_ratio)
             ms_per_s = per_step.sum() / (len(per_step) / 60.0) * 1e3
             results[("inertia", shape)] = ms_per_s
             prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in rest["profile"].items())
             depth = (EDGE / 2 if shape == "box" else RAD) - zmin
-            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: "
+            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} damping ratio {a.damping_ratio:g} "
+                  f"parallel={a.parallel}: "
                   f"{ms_per_s:9.1f} ms per simulated s over 0-3 s ({per_step.mean() * 1e3:.2f} ms per 1/60 s "
                   f"step, max {per_step.max() * 1e3:.1f}), lowest centre {zmin:.4f} m "
                   f"(>= {max(depth, 0) * 1e3:.2f} mm into the floor)")

@@ -73,6 +73,8 @@ class NarrowScratch(NamedTuple):
     feat_a: np.ndarray    # (SCRATCH_ROWS, 3) support feature of A (general path)
     feat_b: np.ndarray    # (SCRATCH_ROWS, 3) support feature of B
     side: np.ndarray      # (SCRATCH_ROWS, 4) side planes of the reference feature
+    hull_xy: np.ndarray   # (SCRATCH_ROWS, 2) a support feature projected on its plane
+    hull_idx: np.ndarray  # (3 * SCRATCH_ROWS + 1,) int64 sort order, then hull chain
 
 
 @njit(cache=True)
@@ -80,7 +82,8 @@ def new_scratch():
     """A `NarrowScratch` of ``SCRATCH_ROWS`` rows."""
     r = SCRATCH_ROWS
     return NarrowScratch(np.empty((r, 4)), np.empty((r, 4)), np.empty((r, 3)), np.empty(r), np.empty(r, np.int64),
-                         np.empty((r, 3)), np.empty((r, 3)), np.empty((r, 4)))
+                         np.empty((r, 3)), np.empty((r, 3)), np.empty((r, 4)), np.empty((r, 2)),
+                         np.empty(3 * r + 1, np.int64))
 
 
 @_inl
@@ -535,7 +538,7 @@ _MAX_FEATURE = 32         # at most this many vertices in one support feature
 
 
 @njit(cache=True)
-def _support_feature(t, params, pose_row, verts, vs, vc, d, out):
+def _support_feature(t, params, pose_row, verts, vs, vc, d, out, scr):
     """The support feature of a shape's core along the world unit direction ``d``: world points in
     ``out[:m]``, returns ``m`` (1 vertex, 2 segment, >= 3 convex polygon counter-clockwise about ``d``)."""
     p = (pose_row[0], pose_row[1], pose_row[2])
@@ -589,7 +592,7 @@ def _support_feature(t, params, pose_row, verts, vs, vc, d, out):
                     <= 1e-9 * (1.0 + ext):
                 m = 1
             return m
-    return _convex_polygon(out, m, d)
+    return _convex_polygon(out, m, d, scr)
 
 
 @_inl
@@ -602,12 +605,13 @@ def _poly_vertex(t, params, verts, vs, k):
 
 
 @njit(cache=True)
-def _convex_polygon(pts, m, d):
+def _convex_polygon(pts, m, d, scr):
     """Reorder ``pts[:m]`` in place as their convex hull projected along ``d``, counter-clockwise about
-    ``d`` (Andrew's monotone chain); returns the hull's vertex count (collinear points dropped)."""
+    ``d`` (Andrew's monotone chain); returns the hull's vertex count (collinear points dropped). Works in
+    the scratch ``scr`` (m <= _MAX_FEATURE)."""
     t1, t2 = orthonormal_basis(d)
-    xy = np.empty((m, 2))
-    order = np.empty(m, np.int64)
+    xy = scr.hull_xy
+    order = scr.hull_idx[:m]
     for k in range(m):
         w = (pts[k, 0], pts[k, 1], pts[k, 2])
         xy[k, 0] = dot(w, t1)
@@ -620,7 +624,7 @@ def _convex_polygon(pts, m, d):
                          (xy[order[b], 0] == xy[order[b - 1], 0] and xy[order[b], 1] < xy[order[b - 1], 1])):
             order[b], order[b - 1] = order[b - 1], order[b]
             b -= 1
-    hull = np.empty(2 * m + 1, np.int64)
+    hull = scr.hull_idx[m:3 * m + 1]
     k = 0
     scale2 = 0.0
     for a in range(m):
@@ -650,7 +654,7 @@ def _convex_polygon(pts, m, d):
     k -= 1                                               # last point repeats the first
     if k < 1:
         k = 1
-    tmp = np.empty((k, 3))
+    tmp = scr.tmp                                        # (rows, 4): the first 3 columns
     for a in range(k):
         for c in range(3):
             tmp[a, c] = pts[hull[a], c]
@@ -710,8 +714,8 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
         wb = wb - rb * nrm
     n = (nrm[0], nrm[1], nrm[2])
     fa, fb = scr.feat_a, scr.feat_b
-    ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa)
-    mb = _support_feature(tb, par_b, pose_b, verts, vs_b, vc_b, scale(n, -1.0), fb)
+    ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa, scr)
+    mb = _support_feature(tb, par_b, pose_b, verts, vs_b, vc_b, scale(n, -1.0), fb, scr)
     single = ma == 1 or mb == 1
     if ma == 2 and mb == 2:
         ua = normalize(sub(_row(fa, 1), _row(fa, 0)))
