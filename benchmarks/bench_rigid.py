@@ -29,6 +29,20 @@ Measured 2026-11-23 (2 vCPU shared with other jobs, load ~4; pybullet 3.2.7, muj
     10-box stack: inertia 33.6 ms per simulated s, top box 0.51 mm after settling; PyBullet 61.6 (x1.8), MuJoCo 56.7 (x1.7)
     --substeps 4: 1000 boxes in 14.4 ms per frame (real time), asleep at 7.1 s, but 5.46 mm deepest at rest and
                   the stack drifts 17 mm: 8 substeps is the default
+
+Measured 2026-11-25 (rigid-perf; load 11-20 on the 2 vCPUs, so only ratios of runs made side by side mean
+anything; the pile of inertia_pile, 0-3 s window, ms per 1/60 s frame, serial path):
+    HEAD vs now, 8 substeps:  frame 636 -> 557, solve 422 -> 332 (-21 %: the substep loop is one compiled
+                  call on the serial path), narrow 166 -> 172 (scratch instead of per-pair arrays: no
+                  measurable change), toi stage 3.6 (1 %); pile bit-identical (asleep 6.53 s, 2.74 mm)
+    HEAD vs now, 4 substeps:  frame 370 -> 338, solve 198 -> 148 (-25 %); 5.46 mm at rest (unchanged)
+    4 substeps, --damping-ratio 5: 3.47 mm deepest at rest (< 5 mm), all asleep at 11.3 s; solve ~0.5x and
+                  frame ~0.55x of the 8-substep default measured alongside: at the 27.2 ms idle frame of
+                  2026-11-23 that is ~14-15 ms per frame (real time), to be re-measured idle with
+                  PYTHONPATH=src python benchmarks/bench_rigid.py --engines inertia --shapes box --substeps 4 --damping-ratio 5
+    100-sphere pile (tests/rigid/test_world.py): the default rolling resistance C_rr = 0.002 decelerates the
+                  fastest ball by 0.070 m/s per 5 s (C_rr g / 1.4 = 0.0140 m/s^2); all asleep at 85 s, none
+                  of the rolling balls ever sleeps without it
 """
 
 from __future__ import annotations

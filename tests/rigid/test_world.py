@@ -304,8 +304,9 @@ def _pile_hash_script(threads):
 # measured at NUMBA_NUM_THREADS=1 (and reproduced at 2) on the x86-64 reference machine; re-measured when
 # the builder moved onto geometry.mass and inertia.math (mass properties and poses differ in the last bit),
 # and again when the solver gained twisting friction (twist_radius) and the sleep test its per-body
-# angular tolerance, and when box-capsule pairs became exact (GJK/EPA + clipping instead of end spheres)
-GOLDEN_PILE_HASH = "172a4668fafe972d665f1a49c4bd8b9da67d924b2911fa131b6c55f37ce37a5e"
+# angular tolerance, and when box-capsule pairs became exact (GJK/EPA + clipping instead of end spheres),
+# and when round shapes got the default rolling resistance (rolling_resistance 0.002, tangent-plane rolling)
+GOLDEN_PILE_HASH = "c0cf9545a60ed5b3b253f0f593fc68d1ea9a6dde7234f5606a44e6e7e406b6ac"
 
 
 def test_deterministic_at_1_and_2_threads():
@@ -426,6 +427,13 @@ def test_bad_world_arguments_name_the_argument():
         RigidWorld(model, dt=-1.0)
     with pytest.raises(ValueError, match="parallel"):
         RigidWorld(model, parallel="yes")
+    with pytest.raises(ValueError, match="time_of_impact"):
+        RigidWorld(model, time_of_impact="on")
+    with pytest.raises(ValueError, match="rolling_resistance"):
+        RigidWorld(model, rolling_resistance=-0.1)
+    with pytest.raises(ValueError, match="bullet"):
+        ModelBuilder().add_body(bullet="yes")
+    assert model.body_bullet.tolist() == [False]
 
 
 # ---------------------------------------------------------------- time of impact (bullets)
