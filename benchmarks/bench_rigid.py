@@ -29,6 +29,20 @@ Measured 2026-11-23 (2 vCPU shared with other jobs, load ~4; pybullet 3.2.7, muj
     10-box stack: inertia 33.6 ms per simulated s, top box 0.51 mm after settling; PyBullet 61.6 (x1.8), MuJoCo 56.7 (x1.7)
     --substeps 4: 1000 boxes in 14.4 ms per frame (real time), asleep at 7.1 s, but 5.46 mm deepest at rest and
                   the stack drifts 17 mm: 8 substeps is the default
+
+Measured 2026-11-25 (rigid-perf; load 11-20 on the 2 vCPUs, so only ratios of runs made side by side mean
+anything; the pile of inertia_pile, 0-3 s window, ms per 1/60 s frame, serial path):
+    HEAD vs now, 8 substeps:  frame 636 -> 557, solve 422 -> 332 (-21 %: the substep loop is one compiled
+                  call on the serial path), narrow 166 -> 172 (scratch instead of per-pair arrays: no
+                  measurable change), toi stage 3.6 (1 %); pile bit-identical (asleep 6.53 s, 2.74 mm)
+    HEAD vs now, 4 substeps:  frame 370 -> 338, solve 198 -> 148 (-25 %); 5.46 mm at rest (unchanged)
+    4 substeps, --damping-ratio 5: 3.47 mm deepest at rest (< 5 mm), all asleep at 11.3 s; solve ~0.5x and
+                  frame ~0.55x of the 8-substep default measured alongside: at the 27.2 ms idle frame of
+                  2026-11-23 that is ~14-15 ms per frame (real time), to be re-measured idle with
+                  PYTHONPATH=src python benchmarks/bench_rigid.py --engines inertia --shapes box --substeps 4 --damping-ratio 5
+    100-sphere pile (tests/rigid/test_world.py): the default rolling resistance C_rr = 0.002 decelerates the
+                  fastest ball by 0.070 m/s per 5 s (C_rr g / 1.4 = 0.0140 m/s^2); all asleep at 85 s, none
+                  of the rolling balls ever sleeps without it
 """
 
 from __future__ import annotations
@@ -68,7 +82,7 @@ def grid_positions(n, seed=0):
     return np.array(pos), q / np.linalg.norm(q, axis=1, keepdims=True)
 
 
-def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
+def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0, damping_ratio=10.0):
     """The peers' 3 s window, timed step by step; then on until every body sleeps (at most rest_cap s),
     also timed. Returns the world, per-step times of the window, the lowest body centre at its end,
     and the rest phase's figures."""
@@ -85,7 +99,7 @@ def inertia_pile(n, shape, *, substeps, parallel, seconds=3.0, rest_cap=15.0):
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")            # the peers' grid starts with overlapping boxes
-        world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel)
+        world = RigidWorld(b.finalize(), substeps=substeps, parallel=parallel, contact_damping_ratio=damping_ratio)
         world.step()                               # compile / load the cache outside the timing
     world.profile = {k: 0.0 for k in world.profile}
     steps = int(round(seconds * 60)) - 1
@@ -164,6 +178,8 @@ def main():
     ap.add_argument("--engines", nargs="+", default=["inertia", "pybullet", "mujoco"])
     ap.add_argument("--substeps", type=int, default=8)
     ap.add_argument("--stack-seconds", type=float, default=10.0)
+    ap.add_argument("--damping-ratio", type=float, default=10.0,
+                    help="the piles' contact_damping_ratio (5 with --substeps 4: the real-time pile profile)")
     ap.add_argument("--parallel", choices=["auto", "yes", "no"], default="no",
                     help="Inertia's parallel colour-batch kernels (default no: on a loaded 2-core machine "
                          "every parallel launch waits for a time slice)")
@@ -175,12 +191,14 @@ def main():
     for shape in a.shapes:
         if "inertia" in a.engines:
             par = {"auto": "auto", "yes": True, "no": False}[a.parallel]
-            world, per_step, zmin, rest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par)
+            world, per_step, zmin, rest = inertia_pile(a.n, shape, substeps=a.substeps, parallel=par,
+                                                       damping_ratio=a.damping_ratio)
             ms_per_s = per_step.sum() / (len(per_step) / 60.0) * 1e3
             results[("inertia", shape)] = ms_per_s
             prof = ", ".join(f"{k} {v / len(per_step) * 1e3:.2f}" for k, v in rest["profile"].items())
             depth = (EDGE / 2 if shape == "box" else RAD) - zmin
-            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} parallel={a.parallel}: "
+            print(f"inertia  pile N={a.n} {shape:6s} dt=1/60 substeps={a.substeps} damping ratio {a.damping_ratio:g} "
+                  f"parallel={a.parallel}: "
                   f"{ms_per_s:9.1f} ms per simulated s over 0-3 s ({per_step.mean() * 1e3:.2f} ms per 1/60 s "
                   f"step, max {per_step.max() * 1e3:.1f}), lowest centre {zmin:.4f} m "
                   f"(>= {max(depth, 0) * 1e3:.2f} mm into the floor)")

@@ -123,6 +123,7 @@ class Model:
     - ``body_bound_radius (B,)`` m: radius about the centre of mass enclosing every finite shape
       (for velocity fattening of the broad-phase boxes).
     - ``body_name``: list of B names.
+    - ``body_bullet (B,) bool``: swept for time of impact every step (``add_body(bullet=True)``).
 
     Shapes (S rows, insertion order) -- the contract's shape table:
     ``shape_type (S,) int32``, ``shape_body (S,) int32`` (-1 static world), ``shape_local_pose (S, 7)``
@@ -248,10 +249,14 @@ class ModelBuilder:
     def add_body(self, *, position=(0.0, 0.0, 0.0), orientation=(1.0, 0.0, 0.0, 0.0),
                  linear_velocity=(0.0, 0.0, 0.0), angular_velocity=(0.0, 0.0, 0.0),
                  body_type: str = "dynamic", mass=None, inertia=None, linear_damping=0.0,
-                 angular_damping=0.0, name: str | None = None) -> int:
+                 angular_damping=0.0, name: str | None = None, bullet: bool = False) -> int:
         """Add a body; returns its index. ``mass`` (kg) and ``inertia`` (3 principal moments or a 3x3
         tensor in the user frame, kg m^2) override the values computed from the shapes' densities.
-        ``body_type``: "dynamic" (default), "kinematic" (moves with its velocity), "static"."""
+        ``body_type``: "dynamic" (default), "kinematic" (moves with its velocity), "static".
+        ``bullet``: sweep this body's motion for time of impact every step (fast projectiles; see
+        ``inertia.rigid.world``)."""
+        if not isinstance(bullet, (bool, np.bool_)):
+            raise ValueError(f"bullet must be True or False; got {bullet!r}")
         if body_type not in S.BODY_TYPE_NAMES:
             raise ValueError(f"body_type must be one of {sorted(S.BODY_TYPE_NAMES)}; got {body_type!r}")
         if mass is not None:
@@ -270,7 +275,7 @@ class ModelBuilder:
             angular_velocity=_vec3(angular_velocity, "angular_velocity"),
             type=S.BODY_TYPE_NAMES[body_type], mass=mass, inertia=inertia,
             linear_damping=_nonneg(linear_damping, "linear_damping"),
-            angular_damping=_nonneg(angular_damping, "angular_damping"),
+            angular_damping=_nonneg(angular_damping, "angular_damping"), bullet=bool(bullet),
             name=name if name is not None else f"body{len(self._bodies)}"))
         return len(self._bodies) - 1
 
@@ -499,6 +504,7 @@ class ModelBuilder:
             body_linear_damping=np.array([b["linear_damping"] for b in self._bodies]).reshape(nb),
             body_angular_damping=np.array([b["angular_damping"] for b in self._bodies]).reshape(nb),
             body_bound_radius=bound, body_name=[b["name"] for b in self._bodies],
+            body_bullet=np.array([b["bullet"] for b in self._bodies], bool).reshape(nb),
             shape_type=shape_type, shape_body=shape_body, shape_local_pose=shape_pose,
             shape_params=shape_params,
             shape_margin=np.array([sh["margin"] for sh in self._shapes]).reshape(ns),
@@ -583,6 +589,8 @@ def with_colliders(model: Model | None, colliders, *, margin: float = 0.02, fric
         arrays[name] = grow(name, np.zeros((kb, 3)))
     arrays["body_com_pose"] = grow("body_com_pose", np.tile([0.0, 0, 0, 1, 0, 0, 0], (kb, 1)))
     arrays["body_name"] = list(base.body_name) + [b["name"] for b in bodies]
+    if hasattr(base, "body_bullet"):
+        arrays["body_bullet"] = grow("body_bullet", np.zeros(kb, bool))
     arrays["body_source"] = np.concatenate([getattr(base, "body_source", np.full(nb0, -1, np.int32)),
                                             np.array([b["source"] for b in bodies], np.int32)]).astype(np.int32)
     # shapes

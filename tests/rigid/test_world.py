@@ -27,7 +27,7 @@ def _incline(theta, *, friction):
     return b
 
 
-def _roll_acceleration(body_kind, theta=math.radians(20.0), friction=1.0, t_end=1.0):
+def _roll_acceleration(body_kind, theta=math.radians(20.0), friction=1.0, t_end=1.0, **world_kw):
     """Measured acceleration along the slope (from the velocity after t_end, semi-implicit Euler is
     exact for a constant acceleration) and the angular velocity about the rolling axis."""
     b = _incline(theta, friction=friction)
@@ -44,7 +44,7 @@ def _roll_acceleration(body_kind, theta=math.radians(20.0), friction=1.0, t_end=
         q = (math.cos(math.pi / 4), -math.sin(math.pi / 4), 0.0, 0.0)
         body = b.add_body(position=n * r, orientation=q, mass=m, inertia=(i_perp, i_perp, i_axis))
         b.add_cylinder(body, r, 0.05, friction=friction)
-    world = RigidWorld(b.finalize(), dt=1.0 / 60.0, substeps=4, enable_sleep=False)
+    world = RigidWorld(b.finalize(), dt=1.0 / 60.0, substeps=4, enable_sleep=False, **world_kw)
     steps = int(round(t_end * 60))
     world.step(steps)
     downhill = np.array([math.cos(theta), 0.0, -math.sin(theta)])
@@ -65,15 +65,18 @@ def test_rolling_down_an_incline(kind):
     assert w * 0.1 == pytest.approx(v, rel=0.01)
 
 
-def test_sphere_slips_above_the_friction_threshold():
+@pytest.mark.parametrize("c_rr", [0.0, 0.002], ids=["no_rolling_resistance", "default_rolling_resistance"])
+def test_sphere_slips_above_the_friction_threshold(c_rr):
     # rolling needs mu >= (2/7) tan(theta) for a solid sphere; below it the sphere slides with
-    # a = g (sin(theta) - mu cos(theta)) and spins up at 5 mu g cos(theta) / (2 r)
+    # a = g (sin(theta) - mu cos(theta)) and spins up under the friction torque mu N r less the rolling
+    # resistance torque C_rr r N: dw/dt = 5 (mu - C_rr) g cos(theta) / (2 r) (the default C_rr = 0.002 is
+    # 4 % of mu = 0.05 here, so this also measures the resistance torque)
     theta, mu = math.radians(30.0), 0.05
     assert mu < 2.0 / 7.0 * math.tan(theta)
-    a, world, _ = _roll_acceleration("solid_sphere", theta, friction=mu)
+    a, world, _ = _roll_acceleration("solid_sphere", theta, friction=mu, rolling_resistance=c_rr)
     assert a == pytest.approx(G * (math.sin(theta) - mu * math.cos(theta)), rel=0.01)
     w = np.linalg.norm(world.state.body_qd[0, :3])
-    assert w == pytest.approx(5 * mu * G * math.cos(theta) / (2 * 0.1) * 1.0, rel=0.01)
+    assert w == pytest.approx(5 * (mu - c_rr) * G * math.cos(theta) / (2 * 0.1) * 1.0, rel=0.01)
 
 
 def test_sliding_sphere_starts_rolling_at_the_predicted_distance():
@@ -301,8 +304,9 @@ def _pile_hash_script(threads):
 # measured at NUMBA_NUM_THREADS=1 (and reproduced at 2) on the x86-64 reference machine; re-measured when
 # the builder moved onto geometry.mass and inertia.math (mass properties and poses differ in the last bit),
 # and again when the solver gained twisting friction (twist_radius) and the sleep test its per-body
-# angular tolerance, and when box-capsule pairs became exact (GJK/EPA + clipping instead of end spheres)
-GOLDEN_PILE_HASH = "172a4668fafe972d665f1a49c4bd8b9da67d924b2911fa131b6c55f37ce37a5e"
+# angular tolerance, and when box-capsule pairs became exact (GJK/EPA + clipping instead of end spheres),
+# and when round shapes got the default rolling resistance (rolling_resistance 0.002, tangent-plane rolling)
+GOLDEN_PILE_HASH = "c0cf9545a60ed5b3b253f0f593fc68d1ea9a6dde7234f5606a44e6e7e406b6ac"
 
 
 def test_deterministic_at_1_and_2_threads():
@@ -423,3 +427,157 @@ def test_bad_world_arguments_name_the_argument():
         RigidWorld(model, dt=-1.0)
     with pytest.raises(ValueError, match="parallel"):
         RigidWorld(model, parallel="yes")
+    with pytest.raises(ValueError, match="time_of_impact"):
+        RigidWorld(model, time_of_impact="on")
+    with pytest.raises(ValueError, match="rolling_resistance"):
+        RigidWorld(model, rolling_resistance=-0.1)
+    with pytest.raises(ValueError, match="bullet"):
+        ModelBuilder().add_body(bullet="yes")
+    assert model.body_bullet.tolist() == [False]
+
+
+# ---------------------------------------------------------------- time of impact (bullets)
+WALL_X, WALL_HALF = 1.0, 0.005
+
+
+def _wall_scene(b):
+    wall = b.add_body(body_type="static", position=(WALL_X, 0, 0))
+    b.add_box(wall, (WALL_HALF, 1.0, 1.0))
+
+
+@pytest.mark.parametrize("toi", [True, False], ids=["toi", "no_toi"])
+def test_time_of_impact_stops_a_fast_sphere_without_speculative_contacts(toi):
+    # the issue's 1 cm sphere at 300 m/s against a 1 cm wall at dt = 1/60 (5 m per step), with speculative
+    # contacts off (the narrow phase keeps only the 2 cm margin): |v| dt >> radius makes the sphere a bullet
+    # automatically; the sweep (conservative advancement, Mirtich 1996) puts it back toi_slop short of the
+    # wall and the next step's margin contact stops it. Without the sweep it passes through (the control).
+    b = ModelBuilder(gravity=(0, 0, 0))
+    _wall_scene(b)
+    ball = b.add_body(position=(-3.0, 0, 0), linear_velocity=(300.0, 0, 0))
+    b.add_sphere(ball, 0.005)
+    world = RigidWorld(b.finalize(), speculative=False, time_of_impact=toi)
+    xs = []
+    for _ in range(5):
+        world.step()
+        xs.append(world.state.body_q[1, 0])
+    if not toi:
+        assert xs[-1] > WALL_X + WALL_HALF + 1.0          # tunnelled: the test can fail
+        return
+    face = WALL_X - WALL_HALF - 0.005                       # sphere centre touching the wall
+    assert max(xs) <= face + 1e-6
+    assert xs[-1] == pytest.approx(face, abs=2e-3)          # at rest against the wall (toi_slop 1 mm)
+    assert abs(world.state.body_qd[1, 3]) < 1e-6            # stopped (restitution 0)
+    assert world.profile["toi"] > 0.0
+
+
+def _box_corners(q, h):
+    from inertia.math import quat_to_mat3
+    r = quat_to_mat3(np.ascontiguousarray(q[3:]))
+    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+    return q[:3] + (signs * h) @ r.T
+
+
+@pytest.mark.parametrize("toi", [True, False], ids=["toi", "no_toi"])
+def test_time_of_impact_stops_a_thin_spinning_box(toi):
+    # a flagged bullet: a 20 cm x 2 cm x 2 cm bar at 100 m/s (1.7 m per step) spinning at 6 rad/s about z;
+    # the rotation enters the sweep through the bound |w| r (conservative advancement with rotation,
+    # Mirtich 1996, 4.3). No corner may get through the 1 cm wall (measured: 4.6 mm deep at most, the
+    # soft contact taking the end's swing after the off-centre impact), and the bar stays in front of it
+    b = ModelBuilder(gravity=(0, 0, 0))
+    _wall_scene(b)
+    h = np.array([0.1, 0.01, 0.01])
+    bar = b.add_body(position=(-2.0, 0, 0), linear_velocity=(100.0, 0, 0), angular_velocity=(0, 0, 6.0),
+                     bullet=True)
+    b.add_box(bar, tuple(h))
+    world = RigidWorld(b.finalize(), speculative=False, time_of_impact=toi)
+    deepest = -np.inf
+    for _ in range(30):
+        world.step()
+        deepest = max(deepest, _box_corners(world.state.body_q[1], h)[:, 0].max() - (WALL_X - WALL_HALF))
+    if not toi:
+        assert world.state.body_q[1, 0] > WALL_X + 1.0     # passed through
+        return
+    assert deepest < 2 * WALL_HALF
+    assert world.state.body_q[1, 0] < WALL_X - WALL_HALF
+
+
+def _two_bullets(parallel=False):
+    b = ModelBuilder(gravity=(0, 0, 0))
+    for x, v in ((-2.0, 300.0), (2.0, -300.0)):
+        body = b.add_body(position=(x, 0.0, 0), linear_velocity=(v, 0, 0), bullet=True)
+        b.add_sphere(body, 0.005)
+    return RigidWorld(b.finalize(), speculative=False, parallel=parallel)
+
+
+def test_two_bullets_hit_each_other_and_conserve_momentum():
+    # closing at 600 m/s they would pass through each other in one step (10 m per step); the sweep stops
+    # both at the first contact; equal masses, restitution 0: both come to rest, momentum stays zero
+    world = _two_bullets()
+    for _ in range(10):
+        world.step()
+        xa, xb = world.state.body_q[0, 0], world.state.body_q[1, 0]
+        assert xa < xb                                         # never passed each other
+    m = world.model.body_mass
+    p = m[0] * world.state.body_qd[0, 3:] + m[1] * world.state.body_qd[1, 3:]
+    assert np.abs(p).max() < 1e-9 * m[0] * 300.0
+    assert xb - xa == pytest.approx(0.01, abs=2e-3)            # touching (radii 5 mm each)
+    assert abs(world.state.body_qd[0, 3]) < 1e-6
+
+
+def test_time_of_impact_is_deterministic_at_1_and_2_threads():
+    import numba
+    hashes = []
+    for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
+        numba.set_num_threads(threads)
+        try:
+            world = _two_bullets(parallel=True)
+            world.step(6)
+        finally:
+            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+        hashes.append(hashlib.sha256(world.state.body_q.tobytes() + world.state.body_qd.tobytes()).hexdigest())
+    serial = _two_bullets(parallel=False)
+    serial.step(6)
+    hashes.append(hashlib.sha256(serial.state.body_q.tobytes() + serial.state.body_qd.tobytes()).hexdigest())
+    assert hashes[0] == hashes[1] == hashes[2]
+
+
+def _sphere_pile(rolling_resistance):
+    """The benchmark's sphere pile at 100 spheres (r 0.1 m, 5 x 5 x 4 jittered grid of pitch 0.3 m from
+    0.5 m up) on a plane, 4 substeps."""
+    rng = np.random.default_rng(0)
+    b = ModelBuilder()
+    b.add_plane()
+    for k in range(4):
+        for i in range(5):
+            for j in range(5):
+                body = b.add_body(position=((i - 2) * 0.3 + rng.uniform(-0.02, 0.02),
+                                            (j - 2) * 0.3 + rng.uniform(-0.02, 0.02), 0.5 + 0.3 * k))
+                b.add_sphere(body, 0.1, density=1000.0)
+    return RigidWorld(b.finalize(), substeps=4, rolling_resistance=rolling_resistance)
+
+
+def test_sphere_pile_falls_asleep_under_the_default_rolling_resistance():
+    # without rolling resistance a ball rolling on a level floor never slows down (rigid rolling loses
+    # nothing), so balls that roll out of the pile stay awake for ever (the control). With the default
+    # C_rr = 0.002 a rolling solid sphere decelerates at C_rr g / (1 + 2/5) (torque C_rr r N): once the
+    # pile has spread (5 s; the balls still awake all roll on the floor), the fastest ball (v_max) falls
+    # below the sleep speed within
+    # (v_max - linear_sleep_tolerance) / that deceleration, and its island sleeps time_to_sleep later
+    c_rr = 0.002
+    world = _sphere_pile(c_rr)
+    world.step(5 * 60)
+    st = world.state
+    awake = st.body_awake
+    assert st.body_q[awake, 2].max() < 0.1 + 1e-3              # every ball still moving rolls on the floor
+    v_max = np.linalg.norm(st.body_qd[:, 3:], axis=1).max()
+    decel = c_rr * G / 1.4
+    bound = (v_max - world.linear_sleep_tolerance) / decel + world.time_to_sleep
+    steps = 0
+    while st.body_awake.any() and steps < 1.05 * bound * 60:
+        world.step()
+        steps += 1
+    assert not st.body_awake.any(), f"{st.body_awake.sum()} awake {steps / 60:.1f} s after the pile spread"
+    assert steps / 60.0 > 0.5 * bound                                # and not much sooner: the law, not a cap
+    control = _sphere_pile(0.0)
+    control.step(20 * 60)
+    assert control.state.body_awake.sum() > 0

@@ -21,7 +21,10 @@ the continuous collision of the soft step. The current gap is the detected one p
 motion since detection (linearised: dp + dtheta x r), so contacts stay valid over the substeps.
 
 Friction is Coulomb at each point with a circular cone |lambda_t| <= mu lambda_n; rolling resistance
-limits the relative angular impulse to ``rolling_friction * sum(lambda_n)`` (a lever arm in metres).
+limits the relative angular impulse in the tangent plane (rolling; spin about the normal is twisting
+friction's) to ``rolling_friction * sum(lambda_n)`` (a lever arm in metres). Its effective mass is the
+inverse of the summed world inverse inertias, projected on the tangent plane (exact for isotropic
+bodies such as spheres).
 Restitution uses the most negative relative normal velocity seen before the step or before a
 substep's solve while the gap was closed (so the speed gained under gravity within the step counts),
 only where it exceeds the threshold and the point carried an impulse.
@@ -61,6 +64,7 @@ from ..geometry._tup import add, cross, dot, mat_vec, qrot, qrot_inv, scale, sub
 
 __all__ = ["SolverContext", "soft_coefficients", "prepare_contacts", "integrate_velocities",
            "integrate_positions", "solve_contacts", "warm_start", "restitution", "collide", "colour_constraints",
+           "substeps_serial",
            "MAX_COLOURS"]
 
 MAX_COLOURS = 63   # plus one overflow colour solved serially
@@ -496,10 +500,12 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
             va, wa = _vel(qd, ba)
             vb, wb = _vel(qd, bb)
             dw = sub(wb, wa)
+            dw = sub(dw, scale(n, dot(dw, n)))           # rolling only: spin about n is twisting friction's
             rm = (cons_rolling_mass[c, 0], cons_rolling_mass[c, 1], cons_rolling_mass[c, 2],
                   cons_rolling_mass[c, 3], cons_rolling_mass[c, 4], cons_rolling_mass[c, 5],
                   cons_rolling_mass[c, 6], cons_rolling_mass[c, 7], cons_rolling_mass[c, 8])
             d = mat_vec(rm, dw)
+            d = sub(d, scale(n, dot(d, n)))
             old3 = (rolling_impulse[i, 0], rolling_impulse[i, 1], rolling_impulse[i, 2])
             new3 = sub(old3, d)
             lim = rr * total_normal
@@ -722,6 +728,29 @@ def colour_constraints(cons_manifold, n_cons, contact_body, body_inv_mass, body_
         col = colour_of[c]
         colour_items[fill[col]] = c
         fill[col] += 1
+
+
+@njit(cache=True)
+def substeps_serial(ctx, colour_start, colour_items, substeps, h, push_max, body_type, body_awake, body_inv_mass,
+                    body_inertia, body_inv_inertia, lin_damp, ang_damp, force, torque, gravity):
+    """The substep loop of the module docstring in one call (serial): per substep integrate_velocities,
+    warm_start, solve, integrate_positions, relax. The same code and order as the stage kernels'
+    serial twins called one by one (colours in order, the overflow colour last, which is the order of
+    ``colour_items``), so the bits are identical; one call instead of five per substep saves the
+    unboxing of the context bundle (~30 arrays) at each call."""
+    nb = ctx.body_q.shape[0]
+    body_q, body_qd, body_dp, body_dtheta = ctx.body_q, ctx.body_qd, ctx.body_dp, ctx.body_dtheta
+    n_items = colour_start[colour_start.shape[0] - 1]
+    inv_h = 1.0 / h
+    for _ in range(substeps):
+        for b in range(nb):
+            _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia,
+                                    lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h)
+        _warm_range(ctx, colour_items, 0, n_items)
+        _solve_range(ctx, colour_items, 0, n_items, True, inv_h, push_max)
+        for b in range(nb):
+            _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h)
+        _solve_range(ctx, colour_items, 0, n_items, False, inv_h, push_max)
 
 
 def serial_versions():

@@ -33,8 +33,8 @@ References
 - Gilbert, Johnson and Keerthi (1988) GJK; van den Bergen (2001) EPA: see ``inertia.geometry.convex``.
 
 Limitations
-- The general path allocates a few small arrays per pair per step (GJK simplex, EPA polytope ~70 KB,
-  feature scratch); only pairs without a closed form take it.
+- Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`
+  allocated once per run of pairs; GJK/EPA (``inertia.geometry.convex``) keep their own work arrays.
 - Curved cylinder sides converge in EPA only to its tolerance (~1e-6 m) when a cylinder's side is deep in
   a shape that is not a polytope face (parallel round sides and faces snap the normal exactly).
 - A support feature is flat within ~2 degrees (``FEATURE_SIN``); a cylinder cap is a 12-gon on its rim.
@@ -43,6 +43,7 @@ Limitations
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -54,6 +55,35 @@ from ._tup import add, cross, dot, madd, norm, normalize, orthonormal_basis, qro
 __all__ = ["narrow_phase", "match_warm_start"]
 
 _inl = njit(inline="always")
+
+# Rows of the per-run scratch (module docstring, "Scratch"): enough for every clip in this module (a box
+# face: 4 + 2 * 4 points; the general path: a feature of at most _MAX_FEATURE points clipped by at most
+# _MAX_FEATURE side planes: _MAX_FEATURE + 2 * _MAX_FEATURE + 4); a hull with more vertices against a
+# plane allocates.
+SCRATCH_ROWS = 128
+
+
+class NarrowScratch(NamedTuple):
+    """Work arrays of one run of pairs (allocated once per run, reused by every pair of the run)."""
+    poly: np.ndarray      # (SCRATCH_ROWS, 4) clip polygon: x, y, z, feature id
+    tmp: np.ndarray       # (SCRATCH_ROWS, 4) clip output
+    pts: np.ndarray       # (SCRATCH_ROWS, 3) candidate contact points
+    seps: np.ndarray      # (SCRATCH_ROWS,) their separations
+    feats: np.ndarray     # (SCRATCH_ROWS,) int64 their feature keys
+    feat_a: np.ndarray    # (SCRATCH_ROWS, 3) support feature of A (general path)
+    feat_b: np.ndarray    # (SCRATCH_ROWS, 3) support feature of B
+    side: np.ndarray      # (SCRATCH_ROWS, 4) side planes of the reference feature
+    hull_xy: np.ndarray   # (SCRATCH_ROWS, 2) a support feature projected on its plane
+    hull_idx: np.ndarray  # (3 * SCRATCH_ROWS + 1,) int64 sort order, then hull chain
+
+
+@njit(cache=True)
+def new_scratch():
+    """A `NarrowScratch` of ``SCRATCH_ROWS`` rows."""
+    r = SCRATCH_ROWS
+    return NarrowScratch(np.empty((r, 4)), np.empty((r, 4)), np.empty((r, 3)), np.empty(r), np.empty(r, np.int64),
+                         np.empty((r, 3)), np.empty((r, 3)), np.empty((r, 4)), np.empty((r, 2)),
+                         np.empty(3 * r + 1, np.int64))
 
 
 @_inl
@@ -225,12 +255,10 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
         for k in range(n_in):
             _emit(ca, i, k, (pts[k, 0], pts[k, 1], pts[k, 2]), seps[k], feats[k])
         return n_in
-    chosen = np.full(4, -1, np.int64)
     best = 0
     for k in range(1, n_in):
         if seps[k] < seps[best]:
             best = k
-    chosen[0] = best
     p0 = (pts[best, 0], pts[best, 1], pts[best, 2])
     far, far_d = -1, -1.0
     for k in range(n_in):
@@ -238,7 +266,6 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
         dd = dot(d, d)
         if k != best and dd > far_d:
             far, far_d = k, dd
-    chosen[1] = far
     p1 = (pts[far, 0], pts[far, 1], pts[far, 2])
     third, third_a = -1, -1e300
     for k in range(n_in):
@@ -248,7 +275,6 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
         a = dot(cross(sub(p1, p0), sub(pk, p0)), normal)
         if abs(a) > third_a:
             third, third_a = k, abs(a)
-    chosen[2] = third
     p2 = (pts[third, 0], pts[third, 1], pts[third, 2])
     # orient the triangle, then the point most outside one of its edges
     sgn = 1.0 if dot(cross(sub(p1, p0), sub(p2, p0)), normal) >= 0 else -1.0
@@ -265,7 +291,7 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
             fourth, fourth_a = k, a
     cnt = 0
     for c in range(4):
-        k = chosen[c] if c < 3 else fourth
+        k = best if c == 0 else (far if c == 1 else (third if c == 2 else fourth))
         if k < 0:
             continue
         _emit(ca, i, cnt, (pts[k, 0], pts[k, 1], pts[k, 2]), seps[k], feats[k])
@@ -275,11 +301,9 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
 
 # ---------------------------------------------------------------------------------------- box-plane
 @njit(cache=True)
-def _box_plane(ca, i, pb, qb, h, pp, pq, spec):
+def _box_plane(ca, i, pb, qb, h, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
-    pts = np.empty((8, 3))
-    seps = np.empty(8)
-    feats = np.empty(8, np.int64)
+    pts, seps, feats = scr.pts, scr.seps, scr.feats
     cnt = 0
     for v in range(8):
         lv = (h[0] if v & 1 else -h[0], h[1] if v & 2 else -h[1], h[2] if v & 4 else -h[2])
@@ -299,12 +323,10 @@ def _box_plane(ca, i, pb, qb, h, pp, pq, spec):
 
 # -------------------------------------------------------------------------------------- cylinder/hull
 @njit(cache=True)
-def _cylinder_plane(ca, i, pc, qc, r, h, pp, pq, spec):
+def _cylinder_plane(ca, i, pc, qc, r, h, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
     u = qrot(qc, (0.0, 0.0, 1.0))
-    pts = np.empty((8, 3))
-    seps = np.empty(8)
-    feats = np.empty(8, np.int64)
+    pts, seps, feats = scr.pts, scr.seps, scr.feats
     cnt = 0
     # rim direction of each cap pointing most into the plane: -n with its axial part removed
     m = madd(scale(n, -1.0), u, dot(n, u))
@@ -343,11 +365,12 @@ def _cylinder_plane(ca, i, pc, qc, r, h, pp, pq, spec):
 
 
 @njit(cache=True)
-def _hull_plane(ca, i, ph, qh, verts, v0, nv, pp, pq, spec):
+def _hull_plane(ca, i, ph, qh, verts, v0, nv, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
-    pts = np.empty((nv, 3))
-    seps = np.empty(nv)
-    feats = np.empty(nv, np.int64)
+    if nv <= SCRATCH_ROWS:
+        pts, seps, feats = scr.pts, scr.seps, scr.feats
+    else:
+        pts, seps, feats = np.empty((nv, 3)), np.empty(nv), np.empty(nv, np.int64)
     cnt = 0
     for k in range(nv):
         v = verts[v0 + k]
@@ -367,7 +390,7 @@ def _hull_plane(ca, i, ph, qh, verts, v0, nv, pp, pq, spec):
 
 # ------------------------------------------------------------------------------------------- box-box
 @njit(cache=True)
-def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, spec, ref_is_a, code):
+def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, spec, ref_is_a, code, scr):
     """Clip the incident box's face most opposed to ``n`` (reference -> incident) against the side
     planes of the reference face ``k`` and keep the points within ``spec`` of the reference plane."""
     cf = madd(ref_p, n, ref_h[k])
@@ -385,8 +408,7 @@ def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, 
     e1, e2 = inc_ax[(j + 1) % 3], inc_ax[(j + 2) % 3]
     h1, h2 = inc_h[(j + 1) % 3], inc_h[(j + 2) % 3]
     # polygon in reference-face coordinates (x along u, y along v, z along n) + feature ids
-    poly = np.empty((16, 4))
-    tmp = np.empty((16, 4))
+    poly, tmp = scr.poly, scr.tmp
     for c in range(4):
         s1 = 1.0 if (c == 0 or c == 3) else -1.0
         s2 = 1.0 if c < 2 else -1.0
@@ -418,9 +440,7 @@ def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, 
                 poly[c, m] = tmp[c, m]
         if count == 0:
             return 0
-    pts = np.empty((16, 3))
-    seps = np.empty(16)
-    feats = np.empty(16, np.int64)
+    pts, seps, feats = scr.pts, scr.seps, scr.feats
     cnt = 0
     for c in range(count):
         z = poly[c, 2]
@@ -438,7 +458,7 @@ def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, 
 
 
 @njit(cache=True)
-def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec):
+def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
     A = (qrot(qa, (1.0, 0.0, 0.0)), qrot(qa, (0.0, 1.0, 0.0)), qrot(qa, (0.0, 0.0, 1.0)))
     B = (qrot(qb, (1.0, 0.0, 0.0)), qrot(qb, (0.0, 1.0, 0.0)), qrot(qb, (0.0, 0.0, 1.0)))
     d = sub(pb, pa)
@@ -503,9 +523,9 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec):
         return 1
     if use_b:
         n = B[kb] if dot(d, B[kb]) < 0 else scale(B[kb], -1.0)      # B -> A
-        return _box_face_manifold(ca, i, pb, B, hb, kb, n, pa, A, ha, spec, False, 3 + kb)
+        return _box_face_manifold(ca, i, pb, B, hb, kb, n, pa, A, ha, spec, False, 3 + kb, scr)
     n = A[ka] if dot(d, A[ka]) > 0 else scale(A[ka], -1.0)          # A -> B
-    return _box_face_manifold(ca, i, pa, A, ha, ka, n, pb, B, hb, spec, True, ka)
+    return _box_face_manifold(ca, i, pa, A, ha, ka, n, pb, B, hb, spec, True, ka, scr)
 
 
 
@@ -518,7 +538,7 @@ _MAX_FEATURE = 32         # at most this many vertices in one support feature
 
 
 @njit(cache=True)
-def _support_feature(t, params, pose_row, verts, vs, vc, d, out):
+def _support_feature(t, params, pose_row, verts, vs, vc, d, out, scr):
     """The support feature of a shape's core along the world unit direction ``d``: world points in
     ``out[:m]``, returns ``m`` (1 vertex, 2 segment, >= 3 convex polygon counter-clockwise about ``d``)."""
     p = (pose_row[0], pose_row[1], pose_row[2])
@@ -572,7 +592,7 @@ def _support_feature(t, params, pose_row, verts, vs, vc, d, out):
                     <= 1e-9 * (1.0 + ext):
                 m = 1
             return m
-    return _convex_polygon(out, m, d)
+    return _convex_polygon(out, m, d, scr)
 
 
 @_inl
@@ -585,12 +605,13 @@ def _poly_vertex(t, params, verts, vs, k):
 
 
 @njit(cache=True)
-def _convex_polygon(pts, m, d):
+def _convex_polygon(pts, m, d, scr):
     """Reorder ``pts[:m]`` in place as their convex hull projected along ``d``, counter-clockwise about
-    ``d`` (Andrew's monotone chain); returns the hull's vertex count (collinear points dropped)."""
+    ``d`` (Andrew's monotone chain); returns the hull's vertex count (collinear points dropped). Works in
+    the scratch ``scr`` (m <= _MAX_FEATURE)."""
     t1, t2 = orthonormal_basis(d)
-    xy = np.empty((m, 2))
-    order = np.empty(m, np.int64)
+    xy = scr.hull_xy
+    order = scr.hull_idx[:m]
     for k in range(m):
         w = (pts[k, 0], pts[k, 1], pts[k, 2])
         xy[k, 0] = dot(w, t1)
@@ -603,7 +624,7 @@ def _convex_polygon(pts, m, d):
                          (xy[order[b], 0] == xy[order[b - 1], 0] and xy[order[b], 1] < xy[order[b - 1], 1])):
             order[b], order[b - 1] = order[b - 1], order[b]
             b -= 1
-    hull = np.empty(2 * m + 1, np.int64)
+    hull = scr.hull_idx[m:3 * m + 1]
     k = 0
     scale2 = 0.0
     for a in range(m):
@@ -633,7 +654,7 @@ def _convex_polygon(pts, m, d):
     k -= 1                                               # last point repeats the first
     if k < 1:
         k = 1
-    tmp = np.empty((k, 3))
+    tmp = scr.tmp                                        # (rows, 4): the first 3 columns
     for a in range(k):
         for c in range(3):
             tmp[a, c] = pts[hull[a], c]
@@ -667,7 +688,7 @@ def _polygon_normal(pts, m, d):
 
 
 @njit(cache=True)
-def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
+def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
     """Any two convex shapes: GJK on the cores (exact distance when separated), EPA when the cores overlap,
     then the manifold by clipping the incident support feature against the reference feature's side
     planes (Gregorius 2015), reduced to four points. Normal A -> B."""
@@ -692,10 +713,9 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
         wa = wa + ra * nrm
         wb = wb - rb * nrm
     n = (nrm[0], nrm[1], nrm[2])
-    fa = np.empty((_MAX_FEATURE, 3))
-    fb = np.empty((_MAX_FEATURE, 3))
-    ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa)
-    mb = _support_feature(tb, par_b, pose_b, verts, vs_b, vc_b, scale(n, -1.0), fb)
+    fa, fb = scr.feat_a, scr.feat_b
+    ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa, scr)
+    mb = _support_feature(tb, par_b, pose_b, verts, vs_b, vc_b, scale(n, -1.0), fb, scr)
     single = ma == 1 or mb == 1
     if ma == 2 and mb == 2:
         ua = normalize(sub(_row(fa, 1), _row(fa, 0)))
@@ -737,7 +757,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
     n_ab = nr if ref_is_a else scale(nr, -1.0)
     # side planes of the reference feature (outward normals s_k, offsets)
     nplanes = mr if mr >= 3 else 2
-    side = np.empty((nplanes, 4))
+    side = scr.side
     if mr >= 3:
         for k in range(mr):
             e = sub(_row(ref, (k + 1) % mr), _row(ref, k))
@@ -751,9 +771,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
         side[1, 0], side[1, 1], side[1, 2] = scale(u, -1.0)
         side[1, 3] = -dot(u, _row(ref, 0))
     # Sutherland-Hodgman clip of the incident feature; column 3 carries a feature id per point
-    cap = mi + 2 * nplanes + 4
-    poly = np.empty((cap, 4))
-    tmp = np.empty((cap, 4))
+    poly, tmp = scr.poly, scr.tmp            # mi + 2 * nplanes + 4 <= SCRATCH_ROWS rows
     for k in range(mi):
         poly[k, 0], poly[k, 1], poly[k, 2] = _row(inc, k)
         poly[k, 3] = k
@@ -786,9 +804,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
                 poly[k, m] = tmp[k, m]
         if count == 0:
             break
-    pts = np.empty((max(count, 1), 3))
-    seps = np.empty(max(count, 1))
-    feats = np.empty(max(count, 1), np.int64)
+    pts, seps, feats = scr.pts, scr.seps, scr.feats
     cnt = 0
     for k in range(count):
         x = (poly[k, 0], poly[k, 1], poly[k, 2])
@@ -814,7 +830,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec):
 
 # ------------------------------------------------------------------------------------------ dispatch
 @njit(cache=True)
-def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
+def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
     pa, qa = _pose(pose, sa)
     pb, qb = _pose(pose, sb)
     A = shapes.shape_params[sa]
@@ -832,9 +848,9 @@ def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
             return _sphere_plane(ca, i, pa, A[0], pb, qb, spec)
     elif ta == S.BOX:
         if tb == S.BOX:
-            return _box_box(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec)
+            return _box_box(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec, scr)
         if tb == S.PLANE:
-            return _box_plane(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec)
+            return _box_plane(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec, scr)
     elif ta == S.CAPSULE:
         if tb == S.CAPSULE:
             return _capsule_capsule(ca, i, pa, qa, A[0], A[1], pb, qb, B[0], B[1], spec)
@@ -842,13 +858,13 @@ def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec):
             return _capsule_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec)
     elif ta == S.CYLINDER:
         if tb == S.PLANE:
-            return _cylinder_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec)
+            return _cylinder_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec, scr)
     elif ta == S.CONVEX_HULL:
         if tb == S.PLANE:
             return _hull_plane(ca, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
-                               shapes.shape_vert_count[sa], pb, qb, spec)
+                               shapes.shape_vert_count[sa], pb, qb, spec, scr)
     if tb <= S.CONVEX_HULL:
-        return _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec)
+        return _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr)
     return 0
 
 
@@ -862,7 +878,7 @@ def _body_speed(b, body_qd, radius):
 
 
 @njit(inline="always")
-def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr):
     sa, sb = pairs[i, 0], pairs[i, 1]
     ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
     ca.contact_shape[i, 0] = sa
@@ -879,7 +895,7 @@ def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca
     va, wa = _body_speed(ba, body_qd, body_bound_radius)
     vb, wb = _body_speed(bb, body_qd, body_bound_radius)
     spec = max(shapes.shape_margin[sa], shapes.shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
-    cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec)
+    cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec, scr)
     ca.contact_point_count[i] = cnt
     n = (ca.contact_normal[i, 0], ca.contact_normal[i, 1], ca.contact_normal[i, 2])
     t1, t2 = orthonormal_basis(n)
@@ -897,8 +913,9 @@ def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca
 
 @njit(cache=True)
 def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    scr = new_scratch()                 # one scratch per run of pairs: no allocation per pair
     for i in range(lo, hi):
-        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca)
+        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr)
 
 
 @njit(cache=True, parallel=True)

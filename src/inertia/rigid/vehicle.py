@@ -86,7 +86,10 @@ class RaycastVehicle:
 
     State (read after `update`): ``wheel_omega (W,)`` rad/s spin, ``wheel_compression (W,)`` m,
     ``wheel_in_contact (W,) bool``, ``wheel_contact_point (W, 3)`` m, ``wheel_suspension_force (W,)`` N,
-    ``wheel_tyre_force (W, 2)`` N (longitudinal, lateral)."""
+    ``wheel_tyre_force (W, 2)`` N (longitudinal, lateral).
+
+    Checkpoints: the vehicle registers with ``world.checkpoint_parts``, so ``world.save()`` /
+    ``world.restore()`` carry its wheel spin and inputs (`save` / `restore` here do it alone)."""
 
     def __init__(self, world, chassis: int, wheels: list[Wheel], *, queries: WorldQueries | None = None):
         m = world.model
@@ -125,6 +128,28 @@ class RaycastVehicle:
         self._wheelbase = float(np.mean(front)) - self._rear_x if front else 1.0
         if front and self._wheelbase <= 0:
             raise ValueError("steered wheels must sit ahead (+x) of the unsteered ones (wheelbase > 0)")
+        # the world's checkpoint (RigidWorld.save / restore) carries this vehicle's state too
+        parts = getattr(world, "checkpoint_parts", None)
+        if parts is not None:
+            parts.append(self)
+
+    _STATE = ("wheel_omega", "wheel_compression", "wheel_in_contact", "wheel_contact_point",
+              "wheel_suspension_force", "wheel_tyre_force")
+    _INPUTS = ("steering", "engine_torque", "brake_torque")
+
+    def save(self) -> dict:
+        """Checkpoint of the state that carries over steps: wheel spin (the only integrated quantity),
+        the last update's wheel outputs and the driver's inputs (steering, engine and brake torque)."""
+        cp = {name: getattr(self, name).copy() for name in self._STATE}
+        cp.update({name: float(getattr(self, name)) for name in self._INPUTS})
+        return cp
+
+    def restore(self, checkpoint: dict) -> None:
+        """Continue bit for bit from `save` (the world restores its own state: `RigidWorld.restore`)."""
+        for name in self._STATE:
+            getattr(self, name)[...] = checkpoint[name]
+        for name in self._INPUTS:
+            setattr(self, name, checkpoint[name])
 
     def update(self) -> None:
         """Wheel rays, suspension and tyre forces for the next ``world.step()`` (see the module docstring)."""

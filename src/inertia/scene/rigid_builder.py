@@ -181,7 +181,8 @@ class _RigidBuilder:
                         bi = b.add_body(position=pos, orientation=q_body, linear_velocity=body.velocity,
                                         angular_velocity=body.angular_velocity, body_type=body.motion,
                                         mass=body.mass, linear_damping=body.linear_damping,
-                                        angular_damping=body.angular_damping, name=label)
+                                        angular_damping=body.angular_damping, name=label,
+                                        bullet=bool(getattr(body, "bullet", False)))
                     body_colors.append(color)
                 for spec, spath in specs:
                     n_before = len(b._shapes)
