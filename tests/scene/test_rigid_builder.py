@@ -354,3 +354,20 @@ color = "#d04030"
     np.testing.assert_allclose(drawn.shape_meshes[row][2], [0xd0 / 255, 0x40 / 255, 0x30 / 255], rtol=1e-6)
     ground = int(np.flatnonzero(~np.isfinite(arrays["shape_color"][:, 0]))[0])
     assert np.all(np.isfinite(drawn.shape_meshes[ground][2]))      # default colour, not NaN
+
+
+def test_bullet_key_flags_the_body(write_scene):
+    """`bullet = true` in [bodies.NAME] sets the model's body_bullet flag (swept for time of impact);
+    a non-boolean is refused with the key path."""
+    w, _ = _world(write_scene, """
+[bodies.shot]
+shape = { type = "sphere", radius = 0.005 }
+bullet = true
+[bodies.crate]
+shape = { type = "box", half_extents = [0.1, 0.1, 0.1] }
+position = [1.0, 0.0, 0.0]
+""")
+    names = list(w.model.body_name)
+    assert bool(w.model.body_bullet[names.index("shot")]) and not bool(w.model.body_bullet[names.index("crate")])
+    with pytest.raises(SceneError, match="bullet"):
+        _world(write_scene, '[bodies.shot]\nshape = { type = "sphere", radius = 0.005 }\nbullet = "yes"\n')

@@ -242,6 +242,7 @@ class Body(_Model):
     angular_velocity: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0], description="rad/s, world frame")
     linear_damping: NonNegative = 0.0
     angular_damping: NonNegative = 0.0
+    bullet: bool = Field(False, description="sweep this body for its time of impact every step (fast projectiles)")
     array: ArrayLayout | None = None
     pyramid: PyramidLayout | None = None
     color: str | None = Field(None, description="#rrggbb")
