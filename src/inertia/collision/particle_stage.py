@@ -548,6 +548,8 @@ class ParticleCollisionStage:
     def _push_out_start(self, system):
         d = self.data
         d.check_start = False
+        if not system.active.any():  # nothing to push out (e.g. an emitter's empty pool): no kernel
+            return
         inside = np.zeros(d.cint.shape[0], np.int64)
         moved = pk.kernels_for(d.cint).push_out(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                        d.pose0, d.ref, d.distance_tolerance, inside)
