@@ -500,6 +500,33 @@ def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, dx, dy, dz):
     return near
 
 
+@njit(cache=True, inline="always")
+def _far_from_all(cnear, cf, r, tol, ex, ey, ez, dx, dy, dz):
+    """True when the step's path (displacement d, ending at e) provably reaches no collider: the
+    cheap half of ``_near_mask`` (the path's length bounded by |d|_1, no square root) for every
+    collider, without the bit mask. It implies ``_near_mask(...) == 0`` (the same comparisons,
+    rounded the same way), so it may only send a far particle to the exact test, never miss a
+    near one. Few branches: the integrating loop of ``step_and_collide`` runs it per particle."""
+    reach0 = r + 2.0 * tol
+    l1 = abs(dx) + abs(dy) + abs(dz)
+    far = cnear.shape[0] <= 62  # beyond 62 colliders the mask marks every particle near
+    for k in range(cnear.shape[0]):
+        kind = cnear[k, 0]
+        lin = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
+        if kind == NEAR_PLANES:
+            o, m = int(cnear[k, 1]), int(cnear[k, 2])
+            lin = 1e300
+            for p in range(m):
+                b = o + 4 * p
+                lin = min(lin, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
+        bx, by, bz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
+        reach = cnear[k, 4] + (reach0 + l1)
+        ball = reach > 0.0 and bx * bx + by * by + bz * bz > reach * reach
+        far &= (((kind == NEAR_PLANE or kind == NEAR_PLANES) and lin - reach0 > l1)
+                or (kind == NEAR_BALL and ball) or kind == NEAR_NEVER)
+    return far
+
+
 @njit(cache=True)
 def _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, ez):
     """True when every collider in ``near`` is a static plane or sphere and the chord s -> e
@@ -695,7 +722,7 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     Each particle's start (x, v) and end of step stay in registers: no start-of-step copy is
     written or read (the separate path moves x0, v0 through memory twice). The particles go in
     chunks of ``STEP_CHUNK`` (in parallel): a first, tight loop integrates the chunk and tests
-    each path against the colliders (``_near_mask``, a few flops per collider); particles whose
+    each path against the colliders (``_far_from_all``, a few flops per collider); particles whose
     path cannot reach a collider (and that rest on none) are written back at once, the others
     are left at their start and their indices noted in ``near_list`` (N,) int64 (a preallocated
     scratch array: the chunk's near particles from the chunk's first slot, ended by -1). A
@@ -737,9 +764,8 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
             else:
                 ez, evz = 0.0, 0.0
-            kr = rest_k[i]
-            if kr >= 0 or _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, ex - sx, ey - sy,
-                                     ez - sz) != 0:
+            if rest_k[i] >= 0 or not _far_from_all(cnear, cf, radius[i], tol, ex, ey, ez, ex - sx,
+                                                   ey - sy, ez - sz):
                 near_list[count] = i
                 count += 1
                 continue
@@ -768,14 +794,15 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 ez, evz = 0.0, 0.0
             kr = rest_k[i]
             near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, ex - sx, ey - sy, ez - sz)
-            ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
-                i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
-                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                rest_speed, a_priori, max_sub, max_iter, True, False, True, kinds, motion)
-            if mod:
-                chunk_changed += 1
-            if rests:
-                chunk_resting += 1
+            if near != 0 or kr >= 0:  # the exact test (the first loop's may send far particles)
+                ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
+                    i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
+                    static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
+                    rest_speed, a_priori, max_sub, max_iter, True, False, True, kinds, motion)
+                if mod:
+                    chunk_changed += 1
+                if rests:
+                    chunk_resting += 1
             chunk_check += (ex + ey + ez + evx + evy + evz) * 0.0
             x[i, 0], x[i, 1] = ex, ey
             v[i, 0], v[i, 1] = evx, evy
