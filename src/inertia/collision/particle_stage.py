@@ -258,7 +258,7 @@ class ParticleCollisionData:
         self.fused_result = pk.kernels_for(self.cint).step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
             self.cint, self.cnear, self.cmat, self.cf, self.ci, self.pose1, self.ref, self.rest_k,
-            self.rest_n, self.rest_u, self.load, self.static_ok, dt, self.distance_tolerance,
+            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, dt, self.distance_tolerance,
             self.rest_speed, self.mode == "a_priori", self.max_substeps, self.max_iterations)
         self.profile["collide"] += time.perf_counter() - tic
 
@@ -327,6 +327,7 @@ class ParticleCollisionData:
             self.rest_u = np.zeros((n, 3))
             self.load = np.zeros(n)
             self.static_ok = np.zeros(n, bool)
+            self.near_list = np.empty(n, np.int64)  # scratch of the fused step (step_and_collide)
             self._valid_revision = None
         if self.self_collisions:
             self.table_size = bp.table_size_for(n)
@@ -547,6 +548,8 @@ class ParticleCollisionStage:
     def _push_out_start(self, system):
         d = self.data
         d.check_start = False
+        if not system.active.any():  # nothing to push out (e.g. an emitter's empty pool): no kernel
+            return
         inside = np.zeros(d.cint.shape[0], np.int64)
         moved = pk.kernels_for(d.cint).push_out(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                        d.pose0, d.ref, d.distance_tolerance, inside)

@@ -1,0 +1,43 @@
+"""The particle collision kernels' far test (``particle_kernels._far_from_all``).
+
+The fused step (``step_and_collide``) integrates each chunk of particles in a loop that only
+asks "can this path reach any collider?" with ``_far_from_all`` and leaves the exact mask
+(``_near_mask``) and the response to the few particles it sets aside. The results stay the
+bits of the separate pass (test_particle_stage.py) only if the cheap test never calls a particle
+far that the exact mask calls near; it must also send most far particles straight through, or
+the split buys nothing.
+"""
+
+import numpy as np
+
+import inertia as ia
+from inertia.collision import particle_kernels as pk
+
+C = ia.colliders
+
+
+def test_far_test_implies_the_exact_mask_is_empty():
+    ps = ia.ParticleSystem(np.zeros((1, 3)), radius=0.0)
+    ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
+    ps.add_collider(C.Sphere(center=(0.3, 0, 0.4), radius=0.4))
+    ps.add_collider(C.Container(center=(0, 0, 1), half_extents=(1.2, 1.2, 1.2)))
+    ps.add_collider(C.Box(center=(-0.5, 0.5, 0.2), half_extents=(0.2, 0.1, 0.2), rotation=(0, 0, 0.5)))
+    d = ps._collision
+    rng = np.random.default_rng(5)
+    m = 6000
+    ends = rng.uniform([-1.3, -1.3, -0.1], [1.3, 1.3, 2.3], (m, 3))
+    steps = rng.normal(0.0, 0.02, (m, 3)) * rng.uniform(0, 1, (m, 1)) ** 3  # a range of speeds
+    radii = rng.uniform(0.0, 0.05, m)
+    tol = d.distance_tolerance
+    far_count = 0
+    for cnear in (d.cnear, d.cnear[:2], d.cnear[1:2]):  # all kinds; plane + sphere; sphere alone
+        for i in range(m):
+            e, s, r = ends[i], steps[i], radii[i]
+            far = pk._far_from_all(cnear, d.cf, r, tol, e[0], e[1], e[2], s[0], s[1], s[2])
+            mask = pk._near_mask(cnear, d.cf, -1, r, tol, e[0], e[1], e[2], s[0], s[1], s[2])
+            assert not (far and mask != 0), (i, e, s, r, mask)
+            far_count += far
+    # not vacuous: most of the exact test's far particles pass the cheap test too
+    exact_far = sum(pk._near_mask(c, d.cf, -1, radii[i], tol, *ends[i], *steps[i]) == 0
+                    for c in (d.cnear, d.cnear[:2], d.cnear[1:2]) for i in range(m))
+    assert far_count >= 0.9 * exact_far > 0
