@@ -104,7 +104,7 @@ def _tracers(dim: int, integrator: str) -> dict:
     return scene
 
 
-def _colliders(dim: int, mode: str) -> dict:
+def _colliders(dim: int, mode: str, moving: bool = True) -> dict:
     scene = _base(dim, "semi_implicit_euler")
     zero = [0.0] * dim
     up = [0.0] * (dim - 1) + [1.0]
@@ -115,7 +115,7 @@ def _colliders(dim: int, mode: str) -> dict:
     colliders = [{"type": "plane", "point": zero, "normal": up},
                  {"type": "sphere", "center": [2.0] + zero[1:], "radius": 0.3},
                  {"type": "box", "center": [-2.0] + zero[1:], "half_extents": [0.3] * dim,
-                  "motion": {"velocity": [0.1] + zero[1:]}},
+                  **({"motion": {"velocity": [0.1] + zero[1:]}} if moving else {})},
                  {"type": "capsule", "a": [0.0, 2.0] + zero[2:], "b": [0.5, 2.0] + zero[2:], "radius": 0.1},
                  {"type": "container", "center": zero, "half_extents": [5.0] * dim}]
     if dim == 3:
@@ -158,6 +158,7 @@ def _scenes():
             scenes.append((f"{dim}-D tracers, {name}", _tracers(dim, name)))
         for mode in ("a_priori", "a_posteriori"):
             scenes.append((f"{dim}-D colliders, {mode}", _colliders(dim, mode)))
+            scenes.append((f"{dim}-D static colliders, {mode}", _colliders(dim, mode, moving=False)))
     # the fused collision kernels of both kind sets (the same compiled code in 2-D and 3-D)
     scenes.append(("3-D fused colliders, planes/spheres/containers", _fused_colliders(True)))
     scenes.append(("3-D fused colliders, every kind", _fused_colliders(False)))
