@@ -189,13 +189,24 @@ class SPHFluid:
     implicit_viscosity : bool, default False: solve the viscosity implicitly (Weiler et al.
         2018: (I - dt nu L) v = v*, conjugate gradients, relative residual 1e-6) so that its
         step limit 0.125 h^2 / nu no longer applies (honey, lava; nu >~ 0.01 m^2/s at dx ~ 1 cm).
+    local_density_tolerance : float, default 10 x density_tolerance (1 %): DFSPH also iterates
+        until no particle is compressed by more than this (the mean criterion alone lets the
+        bottom rows of a tall column be compressed by several % while the mean is met). A solve
+        that misses either tolerance within ``max_iterations`` halves the next adaptive steps
+        (they grow back by 10 % per converged step).
+    runaway_speed : float [m/s] or None: a particle faster than this raises
+        ``SimulationDiverged`` (a blow-up caught while the values are still finite); default 10 x
+        the flow's speed scale max(max_speed, sqrt(2 |g| domain height), initial speeds,
+        spacing / dt_max). Also raised: an adaptive step below 1e-3 of ``cfl spacing /
+        speed scale``.
     """
 
     def __init__(self, positions, *, spacing, domain, method="dfsph", kernel="cubic_spline",
                  smoothing_length=None, velocities=None, rest_density=1000.0, gravity=None,
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
                  divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
-                 dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False):
+                 dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
+                 local_density_tolerance=None, runaway_speed=None):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
         self.dim = dim
@@ -273,6 +284,20 @@ class SPHFluid:
         self.tait_stiffness = self.rest_density * self.sound_speed ** 2 / TAIT_EXPONENT
         self.divergence_solve = bool(divergence_solve)
         self.implicit_viscosity = bool(implicit_viscosity)
+        self.local_density_tolerance = 10.0 * self.density_tolerance if local_density_tolerance is None else \
+            _validate.positive_scalar(local_density_tolerance, "local_density_tolerance")
+        if self.local_density_tolerance < self.density_tolerance:
+            raise ValueError(f"local_density_tolerance must be >= density_tolerance ({self.density_tolerance:g}); "
+                             f"got {local_density_tolerance}")
+        # speed scale of the flow: a particle at 10x it, or a step 1e-3 of the CFL step at it, is a blow-up
+        height = float(np.abs((hi - lo) @ (self.gravity / gmag))) if gmag > 0 else 0.0
+        v0 = 0.0 if velocities is None else float(np.sqrt((np.asarray(velocities, float) ** 2).sum(axis=1).max(
+            initial=0.0)))
+        self.speed_scale = max(self.max_speed, math.sqrt(2.0 * gmag * height), v0, self.spacing / self.dt_max)
+        self.runaway_speed = 10.0 * self.speed_scale if runaway_speed is None else \
+            _validate.positive_scalar(runaway_speed, "runaway_speed")
+        self.min_dt = 1e-3 * self.cfl * self.spacing / self.speed_scale
+        self._dt_scale = 1.0  # adaptive-step factor of the DFSPH convergence control (saved in the state)
         self.fixed_dt = None
         if dt is not None:
             dt = _validate.positive_scalar(dt, "dt")
@@ -556,7 +581,8 @@ class SPHFluid:
             out["body_force"], out["body_torque"] = self.body_force.copy(), self.body_torque.copy()
         out["emitter_travel"] = np.array([e["travel"] for e in self._emitters], float)
         out["counters"] = np.array([self.time, self.step_count, self.last_dt, self._n, self._next_id,
-                                    self.stats.get("removed", 0), self.stats.get("emitter_dropped", 0)], float)
+                                    self.stats.get("removed", 0), self.stats.get("emitter_dropped", 0),
+                                    self._dt_scale], float)
         return out
 
     def restore_state(self, state: dict) -> None:
@@ -601,6 +627,7 @@ class SPHFluid:
         c = np.asarray(state["counters"], float)
         self.time, self.step_count, self.last_dt = float(c[0]), int(c[1]), float(c[2])
         self._n, self._next_id = int(c[3]), int(c[4])
+        self._dt_scale = float(c[7]) if c.shape[0] > 7 else 1.0
         if c[5]:
             self.stats["removed"] = int(c[5])
         if self._emitters:
@@ -798,6 +825,9 @@ class SPHFluid:
         return float(self._red[0]), float(self._red[1])
 
     def _solve(self, density_mode, dt, tolerance):
+        """One DFSPH solve; returns (iterations, mean error, max error, converged). The density
+        solve stops when the mean compression is below ``tolerance`` *and* the largest one below
+        ``local_density_tolerance``; the divergence solve on the mean only (as the paper)."""
         F, nf, nb, B, n, m = self._F, self._nf, self._nbn, self._B, self._n, self.mass
         total = F.k_dens if density_mode else F.k_div
         if density_mode:
@@ -808,17 +838,21 @@ class SPHFluid:
             # no warm start for the divergence solve: its impulse answers the last step's
             # residual divergence, which does not recur; re-applying it expands the fluid
             total[:n] = 0.0
-        err = 0.0
+        scale = 1.0 / self.rest_density * (1.0 if density_mode else dt)
+        local = self.local_density_tolerance if density_mode else math.inf
+        err = big = 0.0
         it = 0
-        while it < self.max_iterations:
+        converged = False
+        while True:
             self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total)
-            s, _ = self._reduce(F.err, n)
-            err = s / max(n, 1) / self.rest_density * (1.0 if density_mode else dt)
-            if err <= tolerance and it >= 1:
+            s, mx = self._reduce(F.err, n)
+            err, big = s / max(n, 1) * scale, mx * scale
+            converged = err <= tolerance and big <= local
+            if (converged and it >= 1) or it >= self.max_iterations:
                 break
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True)
             it += 1
-        return it, err
+        return it, err, big, converged
 
     def _solve_viscosity(self, dt, tolerance=1e-6, max_iterations=200):
         # (I - dt nu L) v = v* + wall terms, preconditioned CG from v* (kernels.viscosity_operator)
@@ -878,9 +912,18 @@ class SPHFluid:
         vmax = math.sqrt(self._reduce(self._tmp1, n)[1])
         if not math.isfinite(vmax):
             self._diverged(self.last_dt)
+        if vmax > self.runaway_speed:
+            self._runaway(f"a particle moves at {vmax:.3g} m/s, more than runaway_speed = {self.runaway_speed:.3g} "
+                          f"m/s (10x the flow's speed scale {self.speed_scale:.3g} m/s)")
         limit = self._dt_limit(vmax)
         if dt is None:
-            dt = self.fixed_dt if self.fixed_dt is not None else min(self.dt_max, limit)
+            if self.fixed_dt is not None:
+                dt = self.fixed_dt
+            else:
+                dt = min(self.dt_max, limit) * self._dt_scale
+                if dt < self.min_dt:
+                    self._runaway(f"the adaptive step fell to {dt:.3g} s, below 1e-3 of the CFL step at the flow's "
+                                  f"speed scale ({self.min_dt:.3g} s)")
         else:
             dt = _validate.positive_scalar(dt, "dt")
         if at_most is not None:
@@ -889,7 +932,7 @@ class SPHFluid:
         self.stats["max_speed"] = vmax
         # 5. divergence solve
         if self.method == "dfsph" and self.divergence_solve and n:
-            it, err = self._solve(False, dt, self.divergence_tolerance)
+            it, err, _, _ = self._solve(False, dt, self.divergence_tolerance)
             self.stats["divergence_iterations"], self.stats["divergence_error"] = it, err
         t0 = self._tick("divergence", t0)
         # 6. non-pressure forces
@@ -909,8 +952,17 @@ class SPHFluid:
         # 7. pressure
         if self.method == "dfsph":
             if n:
-                it, err = self._solve(True, dt, self.density_tolerance)
+                it, err, big, converged = self._solve(True, dt, self.density_tolerance)
                 self.stats["density_iterations"], self.stats["density_error"] = it, err
+                self.stats["max_density_error"] = big
+                # convergence control of the adaptive step: a solve that misses its tolerances
+                # halves the next steps (the remaining compression would build up: the runaway
+                # of a tall column at fine spacing); converged steps grow back by 10 %
+                if not converged:
+                    self.stats["unconverged_solves"] = self.stats.get("unconverged_solves", 0) + 1
+                    self._dt_scale *= 0.5
+                elif it <= self.max_iterations // 2:
+                    self._dt_scale = min(1.0, self._dt_scale * 1.1)
         else:
             self._K.tait_pressure(F, n, self.rest_density, self.tait_stiffness, TAIT_EXPONENT)
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.k_dens, F.k_dens, False)
@@ -955,6 +1007,23 @@ class SPHFluid:
                 self._id[a:b] = np.arange(self._next_id, self._next_id + room)
                 self._next_id += room
                 self._n = b
+
+    def _runaway(self, what):
+        n = self._n
+        self._K.speed_squared(self._F.v, n, self._tmp1)
+        worst = np.argsort(self._tmp1[:n])[::-1][:10]
+        ids = self._id[:n][worst]
+        where = ", ".join(f"{i} at {np.round(self._F.x[k], 4).tolist()} ({math.sqrt(self._tmp1[k]):.3g} m/s)"
+                          for i, k in zip(ids[:3], worst[:3]))
+        if self.method == "wcsph":
+            cause = "stiffness/time step: the sound speed is too low for the flow (lower density_tolerance) or dt too large"
+        else:
+            cause = ("time step / pressure-solve tolerance: the DFSPH solve leaves compression that builds up "
+                     f"({self.stats.get('unconverged_solves', 0)} unconverged solves so far; raise max_iterations, "
+                     "lower dt_max, cfl or local_density_tolerance)")
+        raise SimulationDiverged(
+            f"SPH step {self.step_count} (t = {self.time:g} s) ran away: {what}. Fastest particles (ids): {where}; "
+            f"likely cause: {cause}", step=self.step_count, time=self.time, indices=ids)
 
     def _diverged(self, dt):
         v = self._F.v[:self._n]
