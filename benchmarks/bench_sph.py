@@ -114,7 +114,8 @@ def run_inertia(dim, dx, steps3d):
     share = (spent.get("sort", 0.0) + spent.get("neighbours", 0.0)) / total
     return dict(n=fluid.particle_count, per_step=samples, wall=wall, sim_t=sim_t, dt=float(np.mean(dts)),
                 iters=float(np.mean(iters)), share=share, fronts=fronts, first=first,
-                stages={k: v / total for k, v in spent.items()}, nb=fluid.boundary_x.shape[0])
+                stages={k: v / total for k, v in spent.items()}, nb=fluid.boundary_x.shape[0],
+                unconverged=fluid.stats.get("unconverged_solves", 0), steps=fluid.step_count)
 
 
 def run_numba_peer():
@@ -151,7 +152,8 @@ def report_inertia(name, r, dim):
     if r["fronts"]:
         print(f"{'':12s} front x(0.1, 0.2, 0.3 s) = " + ", ".join(f"{f:.3f}" for f in r["fronts"]) +
               " m (Koshizuka & Oka: 1.13, 1.33, 1.68)")
-    print(f"{'':12s} setup + first step (JIT) {r['first']:.1f} s")
+    print(f"{'':12s} setup + first step (JIT) {r['first']:.1f} s; {r['steps']} steps in all, "
+          f"{r['unconverged']} density solves stopped at max_iterations (each halves the next steps)")
     for peer, ms, s_per_s in BASELINES[f"{dim}d"]:
         print(f"{'':12s} vs {peer} [BASELINES.md, not this run]: per step x{ms / (med * 1e3):.2f}, "
               f"per simulated s x{s_per_s / per_sim_s:.2f} (>1 = Inertia faster)")
@@ -198,10 +200,17 @@ def main():
     print(f"numba {numba.__version__}, {numba.get_num_threads()} threads, {os.cpu_count()} cpus")
     ours = ours3 = None
     for case in a.cases:
-        if case == "dfsph:2d":
-            ours = report_inertia("inertia 2D", run_inertia(2, 0.01, a.steps3d), 2)
-        elif case == "dfsph:3d":
-            ours3 = report_inertia("inertia 3D", run_inertia(3, 0.027, a.steps3d), 3)
+        if case in ("dfsph:2d", "dfsph:3d"):
+            dim = int(case[-2])
+            try:
+                r = run_inertia(dim, 0.01 if dim == 2 else 0.027, a.steps3d)
+            except ia.errors.SimulationDiverged as e:
+                print(f"inertia {dim}D  diverged: {e}")
+                continue
+            if dim == 2:
+                ours = report_inertia("inertia 2D", r, 2)
+            else:
+                ours3 = report_inertia("inertia 3D", r, 3)
         elif case == "numba:2d":
             try:
                 r = run_numba_peer()
@@ -232,7 +241,10 @@ def main():
                 print(f"{'':12s} inertia vs {case} (same run): per step x{med / mine[0]:.2f}, per simulated s "
                       f"x{per_sim_s / mine[1]:.2f} (>1 = Inertia faster)")
         elif case == "scaling":
-            scaling(a.million, a.scale_steps)
+            try:
+                scaling(a.million, a.scale_steps)
+            except ia.errors.SimulationDiverged as e:
+                print(f"scaling      diverged: {e}")
         else:
             raise SystemExit(f"unknown case {case!r}")
 

@@ -375,6 +375,10 @@ class SPHFluid:
         self._count = np.empty(cap, np.int64)
         self._nf = self._alloc_neighbours(cap, 32 * cap if dim == 3 else 16 * cap)
         self._nbn = self._alloc_neighbours(cap, 4 * cap)
+        # one-pass neighbour search rows: 1.5x the neighbours of a lattice particle + 8
+        reach = 2.0 * h / self.spacing
+        self._stride = int(1.5 * (math.pi * reach ** 2 if dim == 2 else 4.0 / 3.0 * math.pi * reach ** 3)) + 8
+        self._strided = self._alloc_strided(self._stride)
         self._partial = np.zeros((_k.REDUCE_CHUNKS, 2))
         if implicit_viscosity:
             self._cg = tuple(np.zeros((cap, dim)) for _ in range(5)) + (np.ones(cap),)
@@ -828,14 +832,27 @@ class SPHFluid:
     def _neighbour_lists(self, xt, start_t, exclude_self, nl):
         F = self._F
         n = self._n
-        self._K.count_neighbours(F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self, self._count)
+        K = self._K
+        args = (F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self)
+        stride = self._stride
+        sj, sw, sg = self._strided
+        K.fill_strided(*args, stride, self._count, sj, sw, sg)
         total = _nb.exclusive_scan(self._count, n, nl.start)
         if total > nl.j.shape[0]:
             nl = self._alloc_neighbours(self.capacity, int(total * 1.25) + 16)
             _nb.exclusive_scan(self._count, n, nl.start)
-        self._K.fill_neighbours(F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self, nl.start, nl.j,
-                            nl.w, nl.g)
+        widest = int(self._count[:n].max()) if n else 0
+        if widest <= stride:
+            K.compact(n, stride, nl.start, sj, sw, sg, nl.j, nl.w, nl.g)
+        else:  # a row overflowed its stride: the two-pass fill, and a wider stride from now on
+            K.fill_neighbours(*args, nl.start, nl.j, nl.w, nl.g)
+            self._stride = int(widest * 1.25) + 4
+            self._strided = self._alloc_strided(self._stride)
         return nl, total
+
+    def _alloc_strided(self, stride):
+        cap = self.capacity
+        return np.zeros(cap * stride, np.int32), np.zeros(cap * stride), np.zeros((cap * stride, self.dim))
 
     def _dt_limit(self, vmax):
         # CFL with gravity: (vmax + |g| dt) dt <= cfl dx; explicit viscosity; WCSPH acoustic CFL

@@ -483,7 +483,7 @@ def kernel_set(n: int):
     if serial not in _SETS:
         g = globals()
         ns = {name: (serial_twin(g[name]) if serial else g[name]) for name in _PARALLEL_KERNELS}
-        for name in ("bin_cells", "count_neighbours", "fill_neighbours"):
+        for name in ("bin_cells", "count_neighbours", "fill_neighbours", "fill_strided", "compact"):
             kern = getattr(nb, name)
             ns[name] = serial_twin(kern) if serial else kern
         from ...collision import broadphase as bp
