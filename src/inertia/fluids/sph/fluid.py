@@ -21,7 +21,9 @@ The step (``SPHFluid.step``), each stage timed in ``fluid.profile``:
 6. ``forces``: gravity, viscosity, surface tension; v += dt a; implicit viscosity solve; XSPH.
 7. ``pressure``: DFSPH constant-density solve to ``density_tolerance`` (mean, algorithm 3) and
    ``local_density_tolerance`` (largest compression), or the WCSPH Tait pressure force
-   (Becker & Teschner 2007). An unconverged DFSPH solve halves the next adaptive steps.
+   (Becker & Teschner 2007). An unconverged DFSPH solve halves the next adaptive steps; in
+   steps shorter than the CFL step at the flow's speed scale the compression present at the
+   start is removed at a proportionally lower rate (see ``_solve``).
 8. ``bodies``: force and torque of the fluid on every body (``body_force``, ``body_torque``).
 9. ``advect``: x += dt v (symplectic Euler), periodic wrap; emitters spawn; finite check.
 
@@ -99,6 +101,7 @@ METHODS = ("dfsph", "wcsph")
 MAX_CELLS = 1 << 26
 TAIT_EXPONENT = 7.0
 RELAXATION = 0.5  # relaxed Jacobi for the DFSPH solves (see kernels.pressure_increment)
+UNCONVERGED_SHRINK = 0.5
 BOUNDARY_PRESSURE = {"akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
 
 
@@ -324,6 +327,7 @@ class SPHFluid:
         self.runaway_speed = 10.0 * self.speed_scale if runaway_speed is None else \
             _validate.positive_scalar(runaway_speed, "runaway_speed")
         self.min_dt = 1e-3 * self.cfl * self.spacing / self.speed_scale
+        self._dt_ref = self.cfl * self.spacing / self.speed_scale
         if boundary_pressure not in BOUNDARY_PRESSURE:
             raise ValueError(f"boundary_pressure must be one of {sorted(BOUNDARY_PRESSURE)}; got {boundary_pressure!r}")
         self.boundary_pressure = boundary_pressure
@@ -895,11 +899,17 @@ class SPHFluid:
                 total[:n] = 0.0
         scale = 1.0 / self.rest_density * (1.0 if density_mode else dt)
         local = self.local_density_tolerance if density_mode else math.inf
+        # compression present at the start of a step shorter than the CFL step at the flow's
+        # speed scale is removed at that step's pace (a share dt / dt_ref per step): removing it
+        # all within dt needs a speed e dx / dt, which shortens the next CFL step, which raises
+        # that speed again (the runaway of tall columns started from rest)
+        beta = min(1.0, dt / self._dt_ref)
         err = big = 0.0
         it = 0
         converged = False
         while True:
-            self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total)
+            self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total,
+                                       beta)
             s, mx = self._reduce(F.err, n)
             err, big = s / max(n, 1) * scale, mx * scale
             converged = err <= tolerance and big <= local
@@ -1015,7 +1025,7 @@ class SPHFluid:
                 # of a tall column at fine spacing); converged steps grow back by 10 %
                 if not converged:
                     self.stats["unconverged_solves"] = self.stats.get("unconverged_solves", 0) + 1
-                    self._dt_scale *= 0.5
+                    self._dt_scale *= UNCONVERGED_SHRINK
                 elif it <= self.max_iterations // 2:
                     self._dt_scale = min(1.0, self._dt_scale * 1.1)
         else:

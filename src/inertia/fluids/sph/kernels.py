@@ -154,11 +154,14 @@ def _density_rate(F, nf, nb, B, i, mass):
 
 
 @njit(cache=True, parallel=True)
-def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total):
+def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total, beta):
     """One DFSPH iteration, first half (Bender & Koschier 2017, algorithms 2 and 3).
 
     density_mode: predicted density rho*_i = rho_i + dt drho_i/dt must reach rho0:
-        kappa_i = omega (rho*_i - rho0) / dt^2 * factor_i;  e_i = rho*_i - rho0.
+        kappa_i = omega e_i / dt^2 * factor_i;  e_i = beta (rho_i - rho0) + dt drho_i/dt,
+        beta <= 1 the share of the present compression removed within this step (1: all of it,
+        as the paper; SPHFluid lowers it for steps shorter than the CFL step at the flow's
+        speed scale, so that removing old compression never needs more than that speed).
     divergence mode: drho_i/dt must vanish:
         kappa_i = omega (drho_i/dt) / dt * factor_i;  e_i = drho_i/dt.
     err_i = |e_i| where the particle is compressed or carries pressure, else 0 (the residual
@@ -176,7 +179,7 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
     for i in prange(n):
         rate = _density_rate(F, nf, nb, B, i, mass)
         if density_mode:
-            e = F_rho[i] + dt * rate - rho0
+            e = beta * (F_rho[i] - rho0) + dt * rate
             kap = relaxation * e * F_factor[i] / (dt * dt)
         else:
             e = rate
