@@ -16,8 +16,11 @@ def _brute(x, support, length, periodic):
     return [set(np.flatnonzero(row < support)) for row in r]
 
 
-@pytest.mark.parametrize("dim,periodic", [(2, (False, False)), (2, (True, False)), (3, (True, True, True))])
-def test_neighbour_lists_match_brute_force(dim, periodic):
+@pytest.mark.parametrize("dim,periodic,stride", [(2, (False, False), None), (2, (True, False), None),
+                                                 (3, (True, True, True), None), (2, (False, False), 3)])
+def test_neighbour_lists_match_brute_force(dim, periodic, stride):
+    # stride=3: the one-pass rows overflow (random points have up to ~15 neighbours here), so
+    # the two-pass fill runs and the stride grows past the widest row
     rng = np.random.default_rng(3)
     lo, hi = np.zeros(dim), np.full(dim, 1.0)
     x = rng.uniform(0.0, 1.0, size=(400 if dim == 2 else 600, dim))
@@ -26,7 +29,11 @@ def test_neighbour_lists_match_brute_force(dim, periodic):
     from inertia.fluids.sph import kernels as K
     fluid._K = K.kernel_set(fluid.particle_count)
     fluid._sort_fluid()
+    if stride is not None:
+        fluid._stride, fluid._strided = stride, fluid._alloc_strided(stride)
     nl, total = fluid._neighbour_lists(fluid._F.x, fluid._cell_start, True, fluid._nf)
+    if stride is not None:
+        assert fluid._stride > np.diff(nl.start[:fluid.particle_count + 1]).max()
     xs = fluid.x.copy()
     want = _brute(xs, fluid.support, hi - lo, periodic)
     got = [set(nl.j[nl.start[i]:nl.start[i + 1]].tolist()) for i in range(fluid.particle_count)]

@@ -16,12 +16,21 @@ The step (``SPHFluid.step``), each stage timed in ``fluid.profile``:
 2. ``neighbours``: CSR lists fluid-fluid and fluid-boundary with W and grad W per pair.
 3. ``density``: rho by summation (fluid + boundary), the DFSPH factor.
 4. ``dt``: adaptive time step (CFL with gravity, explicit viscosity, WCSPH acoustic limit).
-5. ``divergence`` (DFSPH): make d rho/dt vanish (Bender & Koschier 2017, algorithm 2).
+5. ``divergence`` (DFSPH): make d rho/dt vanish (Bender & Koschier 2017, algorithm 2),
+   optionally warm-started (``warm_start_divergence``).
 6. ``forces``: gravity, viscosity, surface tension; v += dt a; implicit viscosity solve; XSPH.
-7. ``pressure``: DFSPH constant-density solve to ``density_tolerance`` (algorithm 3), or the
-   WCSPH Tait pressure force (Becker & Teschner 2007).
+7. ``pressure``: DFSPH constant-density solve to ``density_tolerance`` (mean, algorithm 3) and
+   ``local_density_tolerance`` (largest compression), or the WCSPH Tait pressure force
+   (Becker & Teschner 2007). An unconverged DFSPH solve halves the next adaptive steps; in
+   steps shorter than the CFL step at the flow's speed scale the compression present at the
+   start is removed at a proportionally lower rate (see ``_solve``).
 8. ``bodies``: force and torque of the fluid on every body (``body_force``, ``body_torque``).
 9. ``advect``: x += dt v (symplectic Euler), periodic wrap; emitters spawn; finite check.
+
+Runaway detection (before the step): a particle faster than ``runaway_speed`` (10x the flow's
+speed scale) or an adaptive step below 1e-3 of the CFL step at that scale raises
+``SimulationDiverged`` naming the step, the fastest particles and the likely cause: a blow-up
+whose values stay finite (the dam break at 200 rows collapsed to 1e-6 s steps without a NaN).
 
 References
 ----------
@@ -59,7 +68,12 @@ Limitations
   not their strain-rate formulation with block preconditioning). Adhesion (Akinci 2013, eq. 7)
   is not implemented. Surface tension has no time-step limit of its own.
 - The DFSPH error is the mean over all particles (as in the paper): below the surface layers
-  the compression is ~1.7x the tolerance (measured, hydrostatic column).
+  the compression is ~1.7x the tolerance (measured, hydrostatic column); the largest one is
+  bounded separately (``local_density_tolerance``, default 10x).
+- Boundary pressure: Akinci's single term (default) leaves the fluid row on a wall at ~1.7x
+  the hydrostatic pressure; the mirrored form fixes that but destabilised the start of a tall
+  (200-row) dam break (see ``boundary_pressure``). Neither is Band et al. 2018's MLS
+  extrapolation.
 - Body coupling is explicit (the body integrates the force of the step it was posed for).
 - Particles are reordered every step: ``x``, ``v`` rows move; ``particle_id`` follows them.
 - The domain grid is dense: its cell count is capped at ``MAX_CELLS``.
@@ -87,6 +101,8 @@ METHODS = ("dfsph", "wcsph")
 MAX_CELLS = 1 << 26
 TAIT_EXPONENT = 7.0
 RELAXATION = 0.5  # relaxed Jacobi for the DFSPH solves (see kernels.pressure_increment)
+UNCONVERGED_SHRINK = 0.5
+BOUNDARY_PRESSURE = {"akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
 
 
 def _lattice(lo, hi, spacing, origin=None):
@@ -189,13 +205,38 @@ class SPHFluid:
     implicit_viscosity : bool, default False: solve the viscosity implicitly (Weiler et al.
         2018: (I - dt nu L) v = v*, conjugate gradients, relative residual 1e-6) so that its
         step limit 0.125 h^2 / nu no longer applies (honey, lava; nu >~ 0.01 m^2/s at dx ~ 1 cm).
+    local_density_tolerance : float, default 10 x density_tolerance (1 %): DFSPH also iterates
+        until no particle is compressed by more than this (the mean criterion alone lets the
+        bottom rows of a tall column be compressed by several % while the mean is met). A solve
+        that misses either tolerance within ``max_iterations`` halves the next adaptive steps
+        (they grow back by 10 % per converged step).
+    runaway_speed : float [m/s] or None: a particle faster than this raises
+        ``SimulationDiverged`` (a blow-up caught while the values are still finite); default 10 x
+        the flow's speed scale max(max_speed, sqrt(2 |g| domain height), initial speeds,
+        spacing / dt_max). Also raised: an adaptive step below 1e-3 of ``cfl spacing /
+        speed scale``.
+    boundary_pressure : "akinci" (default) or "mirror": the pressure of a fluid particle on the
+        boundary particles b. "akinci": a_i = -k_i sum_b psi_b grad W_ib (Akinci et al. 2012, as
+        SPlisHSPlasH's DFSPH); "mirror": the boundary particle takes the fluid particle's
+        pressure into the symmetric sum, -(k_i + k_b) with k_b = k_i (pressure mirroring, see
+        Band et al. 2018), twice the push. With "akinci" a wall carries its load with half the
+        per-unit-pressure push, so the fluid row on a floor holds ~1.7x rho0 g (H - y) (measured,
+        hydrostatic column; rows above within 5 %); "mirror" gives every row within 5 % but made
+        the start of the 20 000-particle dam break run away (measured; not the default).
+    warm_start_divergence : bool, default False: start the divergence solve from the previous
+        step's k (Bender & Koschier 2017; the density solve always is). At rest the two solves
+        then share the hydrostatic load (needed with "mirror" for 5 % in every row), but in the
+        20 000-particle dam break it shot surface particles at the wall out at 100+ m/s at
+        t = 0.33 s (measured; without it the run reaches T = 3), hence off by default.
     """
 
     def __init__(self, positions, *, spacing, domain, method="dfsph", kernel="cubic_spline",
                  smoothing_length=None, velocities=None, rest_density=1000.0, gravity=None,
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
                  divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
-                 dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False):
+                 dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
+                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="akinci",
+                 warm_start_divergence=False):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
         self.dim = dim
@@ -273,6 +314,26 @@ class SPHFluid:
         self.tait_stiffness = self.rest_density * self.sound_speed ** 2 / TAIT_EXPONENT
         self.divergence_solve = bool(divergence_solve)
         self.implicit_viscosity = bool(implicit_viscosity)
+        self.local_density_tolerance = 10.0 * self.density_tolerance if local_density_tolerance is None else \
+            _validate.positive_scalar(local_density_tolerance, "local_density_tolerance")
+        if self.local_density_tolerance < self.density_tolerance:
+            raise ValueError(f"local_density_tolerance must be >= density_tolerance ({self.density_tolerance:g}); "
+                             f"got {local_density_tolerance}")
+        # speed scale of the flow: a particle at 10x it, or a step 1e-3 of the CFL step at it, is a blow-up
+        height = float(np.abs((hi - lo) @ (self.gravity / gmag))) if gmag > 0 else 0.0
+        v0 = 0.0 if velocities is None else float(np.sqrt((np.asarray(velocities, float) ** 2).sum(axis=1).max(
+            initial=0.0)))
+        self.speed_scale = max(self.max_speed, math.sqrt(2.0 * gmag * height), v0, self.spacing / self.dt_max)
+        self.runaway_speed = 10.0 * self.speed_scale if runaway_speed is None else \
+            _validate.positive_scalar(runaway_speed, "runaway_speed")
+        self.min_dt = 1e-3 * self.cfl * self.spacing / self.speed_scale
+        self._dt_ref = self.cfl * self.spacing / self.speed_scale
+        if boundary_pressure not in BOUNDARY_PRESSURE:
+            raise ValueError(f"boundary_pressure must be one of {sorted(BOUNDARY_PRESSURE)}; got {boundary_pressure!r}")
+        self.boundary_pressure = boundary_pressure
+        self._mirror = BOUNDARY_PRESSURE[boundary_pressure]
+        self.warm_start_divergence = bool(warm_start_divergence)
+        self._dt_scale = 1.0  # adaptive-step factor of the DFSPH convergence control (saved in the state)
         self.fixed_dt = None
         if dt is not None:
             dt = _validate.positive_scalar(dt, "dt")
@@ -325,6 +386,10 @@ class SPHFluid:
         self._count = np.empty(cap, np.int64)
         self._nf = self._alloc_neighbours(cap, 32 * cap if dim == 3 else 16 * cap)
         self._nbn = self._alloc_neighbours(cap, 4 * cap)
+        # one-pass neighbour search rows: 1.5x the neighbours of a lattice particle + 8
+        reach = 2.0 * h / self.spacing
+        self._stride = int(1.5 * (math.pi * reach ** 2 if dim == 2 else 4.0 / 3.0 * math.pi * reach ** 3)) + 8
+        self._strided = self._alloc_strided(self._stride)
         self._partial = np.zeros((_k.REDUCE_CHUNKS, 2))
         if implicit_viscosity:
             self._cg = tuple(np.zeros((cap, dim)) for _ in range(5)) + (np.ones(cap),)
@@ -378,9 +443,12 @@ class SPHFluid:
 
     @property
     def pressure(self) -> np.ndarray:
-        """(n,) [Pa] pressure of the last step's pressure solve (DFSPH: the constant-density
-        solve's total; WCSPH: Tait), p = k rho^2 (a new array)."""
-        return self._F.k_dens[:self._n] * self._F.rho[:self._n] ** 2
+        """(n,) [Pa] pressure of the last step, p = k rho^2 (a new array): DFSPH the sum of the
+        divergence and constant-density solves' k (both act on the velocity every step and
+        share the hydrostatic load, Bender & Koschier 2017); WCSPH the Tait pressure."""
+        n = self._n
+        k = self._F.k_dens[:n] + self._F.k_div[:n] if self.method == "dfsph" else self._F.k_dens[:n]
+        return k * self._F.rho[:n] ** 2
 
     @property
     def boundary_x(self) -> np.ndarray:
@@ -556,7 +624,8 @@ class SPHFluid:
             out["body_force"], out["body_torque"] = self.body_force.copy(), self.body_torque.copy()
         out["emitter_travel"] = np.array([e["travel"] for e in self._emitters], float)
         out["counters"] = np.array([self.time, self.step_count, self.last_dt, self._n, self._next_id,
-                                    self.stats.get("removed", 0), self.stats.get("emitter_dropped", 0)], float)
+                                    self.stats.get("removed", 0), self.stats.get("emitter_dropped", 0),
+                                    self._dt_scale], float)
         return out
 
     def restore_state(self, state: dict) -> None:
@@ -601,6 +670,7 @@ class SPHFluid:
         c = np.asarray(state["counters"], float)
         self.time, self.step_count, self.last_dt = float(c[0]), int(c[1]), float(c[2])
         self._n, self._next_id = int(c[3]), int(c[4])
+        self._dt_scale = float(c[7]) if c.shape[0] > 7 else 1.0
         if c[5]:
             self.stats["removed"] = int(c[5])
         if self._emitters:
@@ -773,14 +843,27 @@ class SPHFluid:
     def _neighbour_lists(self, xt, start_t, exclude_self, nl):
         F = self._F
         n = self._n
-        self._K.count_neighbours(F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self, self._count)
+        K = self._K
+        args = (F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self)
+        stride = self._stride
+        sj, sw, sg = self._strided
+        K.fill_strided(*args, stride, self._count, sj, sw, sg)
         total = _nb.exclusive_scan(self._count, n, nl.start)
         if total > nl.j.shape[0]:
             nl = self._alloc_neighbours(self.capacity, int(total * 1.25) + 16)
             _nb.exclusive_scan(self._count, n, nl.start)
-        self._K.fill_neighbours(F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self, nl.start, nl.j,
-                            nl.w, nl.g)
+        widest = int(self._count[:n].max()) if n else 0
+        if widest <= stride:
+            K.compact(n, stride, nl.start, sj, sw, sg, nl.j, nl.w, nl.g)
+        else:  # a row overflowed its stride: the two-pass fill, and a wider stride from now on
+            K.fill_neighbours(*args, nl.start, nl.j, nl.w, nl.g)
+            self._stride = int(widest * 1.25) + 4
+            self._strided = self._alloc_strided(self._stride)
         return nl, total
+
+    def _alloc_strided(self, stride):
+        cap = self.capacity
+        return np.zeros(cap * stride, np.int32), np.zeros(cap * stride), np.zeros((cap * stride, self.dim))
 
     def _dt_limit(self, vmax):
         # CFL with gravity: (vmax + |g| dt) dt <= cfl dx; explicit viscosity; WCSPH acoustic CFL
@@ -798,27 +881,43 @@ class SPHFluid:
         return float(self._red[0]), float(self._red[1])
 
     def _solve(self, density_mode, dt, tolerance):
+        """One DFSPH solve; returns (iterations, mean error, max error, converged). The density
+        solve stops when the mean compression is below ``tolerance`` *and* the largest one below
+        ``local_density_tolerance``; the divergence solve on the mean only (as the paper)."""
         F, nf, nb, B, n, m = self._F, self._nf, self._nbn, self._B, self._n, self.mass
         total = F.k_dens if density_mode else F.k_div
         if density_mode:
             # warm start with the previous step's pressure (Bender & Koschier 2017, sec. 4.3):
             # the constant-density solve balances the same forces (gravity) every step
-            self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False)
+            self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
         else:
-            # no warm start for the divergence solve: its impulse answers the last step's
-            # residual divergence, which does not recur; re-applying it expands the fluid
-            total[:n] = 0.0
-        err = 0.0
+            # optional warm start of the divergence solve (Bender & Koschier 2017): at rest it
+            # then carries part of the hydrostatic load (see warm_start_divergence)
+            if self.warm_start_divergence:
+                self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
+            else:
+                total[:n] = 0.0
+        scale = 1.0 / self.rest_density * (1.0 if density_mode else dt)
+        local = self.local_density_tolerance if density_mode else math.inf
+        # compression present at the start of a step shorter than the CFL step at the flow's
+        # speed scale is removed at that step's pace (a share dt / dt_ref per step): removing it
+        # all within dt needs a speed e dx / dt, which shortens the next CFL step, which raises
+        # that speed again (the runaway of tall columns started from rest)
+        beta = min(1.0, dt / self._dt_ref)
+        err = big = 0.0
         it = 0
-        while it < self.max_iterations:
-            self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total)
-            s, _ = self._reduce(F.err, n)
-            err = s / max(n, 1) / self.rest_density * (1.0 if density_mode else dt)
-            if err <= tolerance and it >= 1:
+        converged = False
+        while True:
+            self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total,
+                                       beta)
+            s, mx = self._reduce(F.err, n)
+            err, big = s / max(n, 1) * scale, mx * scale
+            converged = err <= tolerance and big <= local
+            if (converged and it >= 1) or it >= self.max_iterations:
                 break
-            self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True)
+            self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True, self._mirror)
             it += 1
-        return it, err
+        return it, err, big, converged
 
     def _solve_viscosity(self, dt, tolerance=1e-6, max_iterations=200):
         # (I - dt nu L) v = v* + wall terms, preconditioned CG from v* (kernels.viscosity_operator)
@@ -871,16 +970,25 @@ class SPHFluid:
         self.stats["neighbours_per_particle"] = pairs / max(n, 1)
         t0 = self._tick("neighbours", t0)
         # 3. density
-        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps)
+        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._mirror)
         t0 = self._tick("density", t0)
         # 4. dt
         self._K.speed_squared(F.v, n, self._tmp1)
         vmax = math.sqrt(self._reduce(self._tmp1, n)[1])
         if not math.isfinite(vmax):
             self._diverged(self.last_dt)
+        if vmax > self.runaway_speed:
+            self._runaway(f"a particle moves at {vmax:.3g} m/s, more than runaway_speed = {self.runaway_speed:.3g} "
+                          f"m/s (10x the flow's speed scale {self.speed_scale:.3g} m/s)")
         limit = self._dt_limit(vmax)
         if dt is None:
-            dt = self.fixed_dt if self.fixed_dt is not None else min(self.dt_max, limit)
+            if self.fixed_dt is not None:
+                dt = self.fixed_dt
+            else:
+                dt = min(self.dt_max, limit) * self._dt_scale
+                if dt < self.min_dt:
+                    self._runaway(f"the adaptive step fell to {dt:.3g} s, below 1e-3 of the CFL step at the flow's "
+                                  f"speed scale ({self.min_dt:.3g} s)")
         else:
             dt = _validate.positive_scalar(dt, "dt")
         if at_most is not None:
@@ -889,7 +997,7 @@ class SPHFluid:
         self.stats["max_speed"] = vmax
         # 5. divergence solve
         if self.method == "dfsph" and self.divergence_solve and n:
-            it, err = self._solve(False, dt, self.divergence_tolerance)
+            it, err, _, _ = self._solve(False, dt, self.divergence_tolerance)
             self.stats["divergence_iterations"], self.stats["divergence_error"] = it, err
         t0 = self._tick("divergence", t0)
         # 6. non-pressure forces
@@ -909,11 +1017,20 @@ class SPHFluid:
         # 7. pressure
         if self.method == "dfsph":
             if n:
-                it, err = self._solve(True, dt, self.density_tolerance)
+                it, err, big, converged = self._solve(True, dt, self.density_tolerance)
                 self.stats["density_iterations"], self.stats["density_error"] = it, err
+                self.stats["max_density_error"] = big
+                # convergence control of the adaptive step: a solve that misses its tolerances
+                # halves the next steps (the remaining compression would build up: the runaway
+                # of a tall column at fine spacing); converged steps grow back by 10 %
+                if not converged:
+                    self.stats["unconverged_solves"] = self.stats.get("unconverged_solves", 0) + 1
+                    self._dt_scale *= UNCONVERGED_SHRINK
+                elif it <= self.max_iterations // 2:
+                    self._dt_scale = min(1.0, self._dt_scale * 1.1)
         else:
             self._K.tait_pressure(F, n, self.rest_density, self.tait_stiffness, TAIT_EXPONENT)
-            self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.k_dens, F.k_dens, False)
+            self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.k_dens, F.k_dens, False, self._mirror)
             np.subtract(F.rho[:n], self.rest_density, out=self._tmp1[:n])
             np.maximum(self._tmp1[:n], 0.0, out=self._tmp1[:n])
             self.stats["density_error"] = self._reduce(self._tmp1, n)[0] / max(n, 1) / self.rest_density
@@ -921,7 +1038,7 @@ class SPHFluid:
         # 8. bodies
         if self._bodies:
             _k.body_wrench(F, nb, B, n, m, self.rest_density, self.h, self._body_x, self.body_force,
-                           self.body_torque)
+                           self.body_torque, self._mirror)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)
@@ -955,6 +1072,23 @@ class SPHFluid:
                 self._id[a:b] = np.arange(self._next_id, self._next_id + room)
                 self._next_id += room
                 self._n = b
+
+    def _runaway(self, what):
+        n = self._n
+        self._K.speed_squared(self._F.v, n, self._tmp1)
+        worst = np.argsort(self._tmp1[:n])[::-1][:10]
+        ids = self._id[:n][worst]
+        where = ", ".join(f"{i} at {np.round(self._F.x[k], 4).tolist()} ({math.sqrt(self._tmp1[k]):.3g} m/s)"
+                          for i, k in zip(ids[:3], worst[:3]))
+        if self.method == "wcsph":
+            cause = "stiffness/time step: the sound speed is too low for the flow (lower density_tolerance) or dt too large"
+        else:
+            cause = ("time step / pressure-solve tolerance: the DFSPH solve leaves compression that builds up "
+                     f"({self.stats.get('unconverged_solves', 0)} unconverged solves so far; raise max_iterations, "
+                     "lower dt_max, cfl or local_density_tolerance)")
+        raise SimulationDiverged(
+            f"SPH step {self.step_count} (t = {self.time:g} s) ran away: {what}. Fastest particles (ids): {where}; "
+            f"likely cause: {cause}", step=self.step_count, time=self.time, indices=ids)
 
     def _diverged(self, dt):
         v = self._F.v[:self._n]

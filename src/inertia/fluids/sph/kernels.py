@@ -8,8 +8,9 @@ All kernels work in sorted space (see ``neighbours``) on the bundles ``FluidArra
 Notation: ``m`` fluid particle mass [kg], ``rho0`` rest density [kg/m^3], ``psi_b = rho0 V_b``
 the boundary particle's "mass" [kg] (Akinci et al. 2012), ``g_ij = grad_i W(x_i - x_j)``.
 The pressure is carried as ``k_i = p_i / rho_i^2`` [m^5/(kg s^2)]: the symmetric pressure
-acceleration is ``a_i = -sum_j m (k_i + k_j) g_ij - k_i sum_b psi_b g_ib`` (pressure mirrored
-onto the boundary, Akinci et al. 2012) for both WCSPH and DFSPH.
+acceleration is ``a_i = -sum_j m (k_i + k_j) g_ij - bfac k_i sum_b psi_b g_ib`` for both WCSPH
+and DFSPH: ``bfac = 1`` Akinci et al. 2012's boundary force, ``bfac = 2`` the pressure mirrored
+into the symmetric sum (k_b = k_i; ``SPHFluid(boundary_pressure=...)``).
 
 References: see the module docstring of ``inertia.fluids.sph.fluid``.
 """
@@ -94,10 +95,12 @@ def speed_squared(v, n, out):
 
 
 @njit(cache=True, parallel=True)
-def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps):
+def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps, bfac):
     """rho_i = m W(0) + sum_j m W_ij + sum_b psi_b W_ib; DFSPH factor (Bender & Koschier 2017,
-    eq. 8 with the mass inside the sums): 1 / (|sum_j m g_ij + sum_b psi_b g_ib|^2 +
-    sum_j |m g_ij|^2), 0 where the denominator is below factor_eps (isolated particles)."""
+    eq. 8 with the mass inside the sums), the exact diagonal d rho_i / d k_i of the pressure
+    system with the boundary weight bfac: 1 / ((a + bfac b) . (a + b) + sum_j |m g_ij|^2) with
+    a = sum_j m g_ij, b = sum_b psi_b g_ib (bfac = 1: |a + b|^2 as in the paper); 0 where the
+    denominator is below factor_eps (isolated particles)."""
     F_factor = F.factor  # unpacked: Numba drops writes through a named tuple inside prange
     F_rho = F.rho
     F_x = F.x
@@ -107,6 +110,9 @@ def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps):
         gx = 0.0
         gy = 0.0
         gz = 0.0
+        bx = 0.0
+        by = 0.0
+        bz = 0.0
         s = 0.0
         for k in range(nf.start[i], nf.start[i + 1]):
             rho += mass * nf.w[k]
@@ -120,12 +126,13 @@ def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps):
         for k in range(nb.start[i], nb.start[i + 1]):
             psi = B.psi[nb.j[k]]
             rho += psi * nb.w[k]
-            gx += psi * nb.g[k, 0]
-            gy += psi * nb.g[k, 1]
+            bx += psi * nb.g[k, 0]
+            by += psi * nb.g[k, 1]
             if dim == 3:
-                gz += psi * nb.g[k, 2]
+                bz += psi * nb.g[k, 2]
         F_rho[i] = rho
-        denom = gx * gx + gy * gy + gz * gz + s
+        # d rho_i / d k_i: the own push (fluid a + bfac x boundary b) against both sums (a + b)
+        denom = (gx + bfac * bx) * (gx + bx) + (gy + bfac * by) * (gy + by) + (gz + bfac * bz) * (gz + bz) + s
         F_factor[i] = 1.0 / denom if denom > factor_eps else 0.0
 
 
@@ -147,11 +154,14 @@ def _density_rate(F, nf, nb, B, i, mass):
 
 
 @njit(cache=True, parallel=True)
-def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total):
+def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total, beta):
     """One DFSPH iteration, first half (Bender & Koschier 2017, algorithms 2 and 3).
 
     density_mode: predicted density rho*_i = rho_i + dt drho_i/dt must reach rho0:
-        kappa_i = omega (rho*_i - rho0) / dt^2 * factor_i;  e_i = rho*_i - rho0.
+        kappa_i = omega e_i / dt^2 * factor_i;  e_i = beta (rho_i - rho0) + dt drho_i/dt,
+        beta <= 1 the share of the present compression removed within this step (1: all of it,
+        as the paper; SPHFluid lowers it for steps shorter than the CFL step at the flow's
+        speed scale, so that removing old compression never needs more than that speed).
     divergence mode: drho_i/dt must vanish:
         kappa_i = omega (drho_i/dt) / dt * factor_i;  e_i = drho_i/dt.
     err_i = |e_i| where the particle is compressed or carries pressure, else 0 (the residual
@@ -169,7 +179,7 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
     for i in prange(n):
         rate = _density_rate(F, nf, nb, B, i, mass)
         if density_mode:
-            e = F_rho[i] + dt * rate - rho0
+            e = beta * (F_rho[i] - rho0) + dt * rate
             kap = relaxation * e * F_factor[i] / (dt * dt)
         else:
             e = rate
@@ -182,9 +192,9 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
 
 
 @njit(cache=True, parallel=True)
-def apply_pressure(F, nf, nb, B, n, mass, dt, kappa, total, accumulate):
-    """v_i += dt a_i with a_i = -sum_j m (kappa_i + kappa_j) g_ij - kappa_i sum_b psi_b g_ib
-    (the symmetric SPH pressure acceleration, kappa = p / rho^2; boundary pressure mirrored);
+def apply_pressure(F, nf, nb, B, n, mass, dt, kappa, total, accumulate, bfac):
+    """v_i += dt a_i with a_i = -sum_j m (kappa_i + kappa_j) g_ij - bfac kappa_i sum_b psi_b g_ib
+    (the symmetric SPH pressure acceleration, kappa = p / rho^2; bfac see the module docstring);
     with accumulate, total_i += kappa_i (row i only: the sums read kappa, never total)."""
     F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
     F_x = F.x
@@ -202,7 +212,7 @@ def apply_pressure(F, nf, nb, B, n, mass, dt, kappa, total, accumulate):
                 az -= s * nf.g[k, 2]
         if ki != 0.0:
             for k in range(nb.start[i], nb.start[i + 1]):
-                s = ki * B.psi[nb.j[k]]
+                s = bfac * ki * B.psi[nb.j[k]]
                 ax -= s * nb.g[k, 0]
                 ay -= s * nb.g[k, 1]
                 if dim == 3:
@@ -380,11 +390,11 @@ def advect(F, grid, n, dt):
 
 
 @njit(cache=True)
-def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
+def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque, bfac):
     """Force and torque of the fluid on each body (serial, fixed order: deterministic).
 
     The reaction of the pressure acceleration on fluid particle i from boundary particle b
-    (Akinci et al. 2012, eq. 10): f_b = m (k_dens_i + k_div_i) psi_b g_ib, plus the reaction of
+    (Akinci et al. 2012, eq. 10): f_b = bfac m (k_dens_i + k_div_i) psi_b g_ib, plus the reaction of
     the no-slip viscous term; torque about com[body]: (x_b - com) x f_b. force, torque (nbody, 3)."""
     dim = F.x.shape[1]
     force[:] = 0.0
@@ -399,7 +409,7 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
             body = B.body[b]
             if body < 0:
                 continue
-            s = mass * ki * B.psi[b]
+            s = bfac * mass * ki * B.psi[b]
             nu_b = B.noslip[b]
             if nu_b > 0.0:
                 rx = F.x[i, 0] - B.x[b, 0]
@@ -476,7 +486,7 @@ def kernel_set(n: int):
     if serial not in _SETS:
         g = globals()
         ns = {name: (serial_twin(g[name]) if serial else g[name]) for name in _PARALLEL_KERNELS}
-        for name in ("bin_cells", "count_neighbours", "fill_neighbours"):
+        for name in ("bin_cells", "count_neighbours", "fill_neighbours", "fill_strided", "compact"):
             kern = getattr(nb, name)
             ns[name] = serial_twin(kern) if serial else kern
         from ...collision import broadphase as bp

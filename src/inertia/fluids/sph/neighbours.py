@@ -12,7 +12,9 @@ Each step (``SPHFluid._neighbours``):
    same at any thread count) and ``broadphase.gather``: the fluid arrays are *reordered* into
    cell order and stay in that order ("sorted space"): neighbours become neighbours in memory.
    ``SPHFluid.particle_id`` follows the particles through the reordering.
-3. ``count_neighbours`` / ``exclusive_scan`` / ``fill_neighbours``: every particle i records *all*
+3. ``fill_strided`` / ``exclusive_scan`` / ``compact`` (one distance pass into fixed-stride rows,
+   then a copy into CSR; ``count_neighbours`` / ``fill_neighbours`` when a row overflows its
+   stride, which then grows): every particle i records *all*
    its neighbours j (fluid-fluid, excluding itself) and b (fluid-boundary) within the support,
    in CSR form, with the kernel value ``W_ij`` and gradient ``grad W_ij`` of each pair. Each
    particle writes only its own slice, so both passes are parallel and write-disjoint; every
@@ -112,8 +114,9 @@ def _min_image(r, d, grid):
 
 
 @njit(cache=True)
-def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, write, slot, nbr, w_out, g_out):
-    # gather (count, or write into slot..) the particles of set t within the support of point xi
+def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, write, slot, limit, nbr, w_out, g_out):
+    # gather (count, or write into slot.. at most limit entries) the particles of set t within the
+    # support of point xi; returns the full count
     dim = xt.shape[1]
     support2 = 4.0 * h * h
     zr = 1 if dim == 3 else 0
@@ -149,7 +152,7 @@ def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 
                     r2 = rx * rx + ry * ry + rz * rz
                     if r2 >= support2:
                         continue
-                    if write:
+                    if write and count < limit:
                         r = np.sqrt(r2)
                         w, dw = w_and_dwdr(kernel, r, h, sigma)
                         k = slot + count
@@ -175,7 +178,7 @@ def count_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, count)
     dummy_g = np.zeros((1, dim))
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
-        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, False, 0,
+        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, False, 0, 0,
                           dummy_i, dummy_w, dummy_g)
 
 
@@ -187,7 +190,37 @@ def fill_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, start, 
     sigma = kernel_norm(kernel, dim, h)
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
-        _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True, start[i], nbr, w_out, g_out)
+        _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True, start[i],
+               start[i + 1] - start[i], nbr, w_out, g_out)
+
+
+@njit(cache=True, parallel=True)
+def fill_strided(x, n, xt, cell_start, grid, kernel, h, exclude_self, stride, count, nbr, w_out, g_out):
+    """One pass instead of count + fill: the neighbours of particle i go to rows
+    i * stride .. of the scratch buffers (at most ``stride``), count[i] gets the full count (a
+    count above stride means the rows are incomplete: the caller falls back to fill_neighbours)."""
+    dim = x.shape[1]
+    sigma = kernel_norm(kernel, dim, h)
+    for i in prange(n):
+        x2 = x[i, 2] if dim == 3 else 0.0
+        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True,
+                          i * stride, stride, nbr, w_out, g_out)
+
+
+@njit(cache=True, parallel=True)
+def compact(n, stride, start, nbr_s, w_s, g_s, nbr, w_out, g_out):
+    """Copy the strided rows of fill_strided into CSR form (start from exclusive_scan): the same
+    lists, in the same order, as count_neighbours + fill_neighbours."""
+    dim = g_s.shape[1]
+    for i in prange(n):
+        a = start[i]
+        c = start[i + 1] - a
+        b = i * stride
+        for k in range(c):
+            nbr[a + k] = nbr_s[b + k]
+            w_out[a + k] = w_s[b + k]
+            for d in range(dim):
+                g_out[a + k, d] = g_s[b + k, d]
 
 
 @njit(cache=True)
