@@ -18,7 +18,8 @@ with gradient per point):
 - tracer advection of the same points with RK4 (``ia.Tracers`` + ``ia.Simulation``): ms per
   step (4 field evaluations per step).
 
-``--compare-with SRC`` measures the sampling table only (1 thread by default, ``--threads``),
+``--compare-with SRC`` measures the sampling table only (1 thread and CPU time by default;
+``--threads 2`` for the wall clock on two threads),
 alternating, round by round, between this source tree and another one (for instance
 ``/work/main/src``, before the batched lattice walk) in subprocesses, and prints each
 configuration's best time on both and their ratio: both trees see the same machine load.
@@ -52,13 +53,13 @@ import inertia as ia  # noqa: E402
 from inertia.fields.noise import _GRADIENTS, lattice_tables  # noqa: E402
 
 
-def best_of(fn, repeat):
+def best_of(fn, repeat, clock=time.perf_counter):
     fn()  # warm-up (compilation, caches)
     times = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     return min(times)
 
 
@@ -187,7 +188,10 @@ def main(argv=None):
 
 def sampling_table(M, repeat):
     """Best seconds per `sample` call of 3-D curl-noise (3 octaves) at M points, per
-    configuration: kind x steady / time-varying x no boundary / sphere / container."""
+    configuration: kind x steady / time-varying x no boundary / sphere / container.
+    Process CPU time when Numba runs one thread (less disturbed by other processes on a
+    shared machine than the wall clock), wall-clock time otherwise."""
+    clock = time.process_time if numba.get_num_threads() == 1 else time.perf_counter
     pts = np.random.default_rng(0).uniform(-1.0, 1.0, (M, 3)) * 0.999
     out = np.empty_like(pts)
     sphere = ia.colliders.Sphere(center=(0.0, 0.0, 0.0), radius=0.3)
@@ -199,7 +203,7 @@ def sampling_table(M, repeat):
                 field = ia.fields.CurlNoise(dim=3, seed=1, kind=kind, frequency=2.0, octaves=3,
                                             time_frequency=time_frequency, boundaries=boundaries)
                 label = f"{kind} {'4-D (t)' if time_frequency else '3-D'} {name}"
-                table[label] = best_of(lambda f=field: f.sample(pts, 0.25, out), repeat)
+                table[label] = best_of(lambda f=field: f.sample(pts, 0.25, out), repeat, clock)
     return table
 
 
@@ -221,7 +225,8 @@ def compare(args):
                 best[name][label] = min(s, best[name].get(label, np.inf))
         print(f"round {r + 1} of {args.rounds} done, load average {os.getloadavg()[0]:.1f}", flush=True)
     M = args.points
-    print(f"3-D curl-noise, 3 octaves, {M:,} points, {args.threads} thread(s), best of "
+    clock = "CPU time" if args.threads == 1 else "wall clock"
+    print(f"3-D curl-noise, 3 octaves, {M:,} points, {args.threads} thread(s), {clock}, best of "
           f"{args.rounds} rounds x {args.repeat}: this tree {trees['this']}, other {trees['other']}")
     print(f"{'configuration':30s} {'other Mpts/s':>12s} {'this Mpts/s':>12s} {'speed-up':>9s}")
     for label in best["this"]:
