@@ -693,7 +693,7 @@ def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
 # Per corner with weight W(x) and offset d: n_c += W (g_c . d), J_ca += dW/dx_a (g_c . d) + W g_ca.
 # ---------------------------------------------------------------------------------------------
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST)
 def simplex3_batch(x, y, z, perm, table):
     """Three 3-D simplex noises (shared lattice, own gradients) and their gradients."""
     G3 = 1.0 / 6.0
@@ -748,7 +748,7 @@ def simplex3_batch(x, y, z, perm, table):
     return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST)
 def simplex4_batch(x, y, z, w, perm, table):
     """Three 4-D simplex noises (shared lattice, own gradients) and their spatial gradients."""
     F4 = 0.30901699437494745  # (sqrt(5) - 1) / 4
@@ -810,7 +810,7 @@ def simplex4_batch(x, y, z, w, perm, table):
     return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST)
 def perlin3_batch(x, y, z, perm, table):
     """Three 3-D improved Perlin noises (shared lattice, own gradients) and their gradients."""
     fx = math.floor(x)
@@ -868,7 +868,7 @@ def perlin3_batch(x, y, z, perm, table):
     return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST)
 def perlin4_batch(x, y, z, w, perm, table):
     """Three 4-D improved Perlin noises (shared lattice, own gradients), spatial gradients."""
     fx = math.floor(x)
@@ -931,7 +931,7 @@ def perlin4_batch(x, y, z, w, perm, table):
     return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST)
 def potential3_batch(p0, p1, p2, t, offsets, perm, table, kind, frequency, lacunarity, gain,
                      octaves, time_frequency, scale, psi, J):
     """Fractal vector potential psi (3,) and its Jacobian J (3, 3), J[c, a] = d psi_c / dx_a,
