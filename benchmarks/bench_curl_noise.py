@@ -18,6 +18,14 @@ with gradient per point):
 - tracer advection of the same points with RK4 (``ia.Tracers`` + ``ia.Simulation``): ms per
   step (4 field evaluations per step).
 
+``--compare-with SRC`` measures the sampling table only (1 thread and CPU time by default;
+``--threads 2`` for the wall clock on two threads),
+alternating, round by round, between this source tree and another one (for instance
+``/work/main/src``, before the batched lattice walk) in subprocesses, and prints each
+configuration's best time on both and their ratio: both trees see the same machine load.
+
+    python benchmarks/bench_curl_noise.py --compare-with /work/main/src --rounds 3
+
 ``--leak`` instead runs issue 8's containment check: 3000 tracers spread uniformly inside
 ``Container(half_extents=(1, 1, 1))`` in ``CurlNoise(dim=3, seed=7)``, RK4 at ``--leak-dt`` for
 10 s, and prints how many left and the least signed distance seen (before the continuous wall
@@ -29,7 +37,9 @@ Timings are the best of ``--repeat`` runs after one warm-up call (Numba compilat
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import sys
 import time
 
@@ -43,13 +53,13 @@ import inertia as ia  # noqa: E402
 from inertia.fields.noise import _GRADIENTS, lattice_tables  # noqa: E402
 
 
-def best_of(fn, repeat):
+def best_of(fn, repeat, clock=time.perf_counter):
     fn()  # warm-up (compilation, caches)
     times = []
     for _ in range(repeat):
-        t0 = time.perf_counter()
+        t0 = clock()
         fn()
-        times.append(time.perf_counter() - t0)
+        times.append(clock() - t0)
     return min(times)
 
 
@@ -89,9 +99,18 @@ def main(argv=None):
     parser.add_argument("--steps", type=int, default=5, help="RK4 steps timed for advection")
     parser.add_argument("--leak", action="store_true", help="run the 3000-tracer container check only")
     parser.add_argument("--leak-dt", type=float, default=0.005)
+    parser.add_argument("--compare-with", metavar="SRC", help="another source tree to compare with")
+    parser.add_argument("--rounds", type=int, default=3, help="alternations for --compare-with")
+    parser.add_argument("--threads", type=int, default=1, help="Numba threads for --compare-with")
+    parser.add_argument("--sampling-json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.leak:
         return leak_check(args.leak_dt)
+    if args.sampling_json:
+        print(json.dumps(sampling_table(args.points, args.repeat)))
+        return None
+    if args.compare_with:
+        return compare(args)
     M = args.points
     rng = np.random.default_rng(0)
     pts = rng.uniform(-1.0, 1.0, (M, 3))
@@ -165,6 +184,54 @@ def main(argv=None):
         step_s = (time.perf_counter() - t0) / args.steps
         print(f"RK4 advection, simplex 4-D (t) {'sphere' if boundaries else 'free  '}: "
               f"{step_s * 1e3:9.2f} ms/step ({M * 4 / step_s / 1e6:.2f} Mpoint-evaluations/s)")
+
+
+def sampling_table(M, repeat):
+    """Best seconds per `sample` call of 3-D curl-noise (3 octaves) at M points, per
+    configuration: kind x steady / time-varying x no boundary / sphere / container.
+    Process CPU time when Numba runs one thread (less disturbed by other processes on a
+    shared machine than the wall clock), wall-clock time otherwise."""
+    clock = time.process_time if numba.get_num_threads() == 1 else time.perf_counter
+    pts = np.random.default_rng(0).uniform(-1.0, 1.0, (M, 3)) * 0.999
+    out = np.empty_like(pts)
+    sphere = ia.colliders.Sphere(center=(0.0, 0.0, 0.0), radius=0.3)
+    room = ia.colliders.Container(half_extents=(1.0, 1.0, 1.0))
+    table = {}
+    for kind in ("simplex", "perlin"):
+        for time_frequency in (0.0, 0.5):
+            for name, boundaries in (("free", []), ("sphere", [sphere]), ("container", [room])):
+                field = ia.fields.CurlNoise(dim=3, seed=1, kind=kind, frequency=2.0, octaves=3,
+                                            time_frequency=time_frequency, boundaries=boundaries)
+                label = f"{kind} {'4-D (t)' if time_frequency else '3-D'} {name}"
+                table[label] = best_of(lambda f=field: f.sample(pts, 0.25, out), repeat, clock)
+    return table
+
+
+def compare(args):
+    """The sampling table on this tree and on args.compare_with, alternating round by round."""
+    here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src")
+    trees = {"this": os.path.abspath(here), "other": os.path.abspath(args.compare_with)}
+    best = {"this": {}, "other": {}}
+    for r in range(args.rounds):
+        for name, src in trees.items():
+            env = dict(os.environ, PYTHONPATH=src, NUMBA_NUM_THREADS=str(args.threads))
+            if name == "other":  # compile the other tree's kernels into a cache of our own
+                env["NUMBA_CACHE_DIR"] = os.path.join(os.path.expanduser("~"), ".cache",
+                                                      "inertia-bench-compare")
+            run = subprocess.run([sys.executable, os.path.abspath(__file__), "--sampling-json",
+                                  "--points", str(args.points), "--repeat", str(args.repeat)],
+                                 env=env, capture_output=True, text=True, check=True)
+            for label, s in json.loads(run.stdout.strip().splitlines()[-1]).items():
+                best[name][label] = min(s, best[name].get(label, np.inf))
+        print(f"round {r + 1} of {args.rounds} done, load average {os.getloadavg()[0]:.1f}", flush=True)
+    M = args.points
+    clock = "CPU time" if args.threads == 1 else "wall clock"
+    print(f"3-D curl-noise, 3 octaves, {M:,} points, {args.threads} thread(s), {clock}, best of "
+          f"{args.rounds} rounds x {args.repeat}: this tree {trees['this']}, other {trees['other']}")
+    print(f"{'configuration':30s} {'other Mpts/s':>12s} {'this Mpts/s':>12s} {'speed-up':>9s}")
+    for label in best["this"]:
+        a, b = best["other"].get(label, np.nan), best["this"][label]
+        print(f"{label:30s} {M / a / 1e6:12.2f} {M / b / 1e6:12.2f} {a / b:8.2f}x")
 
 
 def leak_check(dt: float, count: int = 3000, duration: float = 10.0) -> None:

@@ -188,3 +188,24 @@ def test_public_names():
     assert ia.fields.Noise is Noise
     for name in ia.fields.__all__:
         assert hasattr(ia.fields, name)
+
+
+@pytest.mark.parametrize("D", [3, 4])
+def test_component_gradient_tables_are_balanced_and_uncorrelated(D):
+    # 3-D curl-noise's three potentials share the lattice and differ only in these tables.
+    # Independent noises need, over the 256 hashes: zero mean per table (E[n_c] = 0) and zero
+    # covariance between tables (then E[n_a n_b] = sum_corners W^2 d^T E[g_a g_b^T] d = 0);
+    # the construction makes both exact (rounding only), and every entry is a lattice
+    # gradient of unit length (so the range bound of noise.py still holds).
+    from inertia.fields.noise import _GRADIENTS, component_gradients
+    T = component_gradients(7, 3, D)
+    assert T.shape == (3, 256, D)
+    np.testing.assert_array_equal(T[0], _GRADIENTS[D][np.arange(256) % len(_GRADIENTS[D])])
+    np.testing.assert_allclose(np.linalg.norm(T, axis=2), 1.0, rtol=1e-15)
+    assert np.abs(T.sum(axis=1)).max() < 1e-12
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        assert np.abs(T[a].T @ T[b]).max() < 1e-12
+        assert np.mean(np.all(T[a] == T[b], axis=1)) < 0.2  # not the same table
+    # Different seeds give different tables 1 and 2; the same seed the same.
+    np.testing.assert_array_equal(component_gradients(7, 3, D), T)
+    assert np.any(component_gradients(8, 3, D)[1] != T[1])

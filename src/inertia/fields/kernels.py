@@ -17,7 +17,9 @@ References
   and its derivatives are continuous).
 - Bridson, R., Hourihan, J. & Nordenstam, M. (2007), "Curl-noise for procedural fluid flow",
   ACM Trans. Graph. 26(3) (SIGGRAPH): velocity as the curl of a noise potential, the boundary
-  ramp and the normal-component blend of the potential near solids.
+  ramp and the normal-component blend of the potential near solids. The three potentials of
+  3-D curl-noise share one lattice walk per octave (``potential3_batch``): same lattice point,
+  three gradient tables, three dot products per corner.
 
 Notation used below: ``D`` is the dimension of the noise lattice (2, 3 or 4: the spatial
 dimension plus one when time is an axis), ``S`` the spatial dimension of the points.
@@ -681,6 +683,315 @@ def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
 
 
 # ---------------------------------------------------------------------------------------------
+# Three noises on one lattice walk (3-D curl-noise's vector potential). The three potentials
+# sample the same lattice point and differ only in their gradient tables (`table`, (256, 3, D):
+# table[h, c] is the gradient of potential c at a corner of hash h; ``noise.component_gradients``),
+# so the cell, the ranks or fade weights, the hash of every corner and the corner weights are
+# computed once, and each corner costs three dot products. Each returns
+#   (n0, n1, n2, J00, J01, J02, J10, J11, J12, J20, J21, J22),  J_ca = dn_c / dx_a
+# in lattice units, spatial axes a = 0, 1, 2 only (the time axis' derivative is never needed).
+# Per corner with weight W(x) and offset d: n_c += W (g_c . d), J_ca += dW/dx_a (g_c . d) + W g_ca.
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True, fastmath=_FAST)
+def simplex3_batch(x, y, z, perm, table):
+    """Three 3-D simplex noises (shared lattice, own gradients) and their gradients."""
+    G3 = 1.0 / 6.0
+    s = (x + y + z) * (1.0 / 3.0)
+    fi = math.floor(x + s)
+    fj = math.floor(y + s)
+    fk = math.floor(z + s)
+    t = (fi + fj + fk) * G3
+    x0 = x - (fi - t)
+    y0 = y - (fj - t)
+    z0 = z - (fk - t)
+    i = np.int64(fi) & 255
+    j = np.int64(fj) & 255
+    k = np.int64(fk) & 255
+    rx = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0)
+    ry = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0)
+    rz = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0)
+    n0 = n1 = n2 = 0.0
+    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
+    for c in range(4):
+        oi = 1 if rx < c else 0
+        oj = 1 if ry < c else 0
+        ok = 1 if rz < c else 0
+        dx = x0 - oi + c * G3
+        dy = y0 - oj + c * G3
+        dz = z0 - ok + c * G3
+        q = _SIMPLEX_R2 - dx * dx - dy * dy - dz * dz
+        if q > 0.0:
+            h = perm[i + oi + perm[j + oj + perm[k + ok]]]
+            g = table[h]
+            q2 = q * q
+            W = q2 * q2
+            s8 = -8.0 * q2 * q  # dW/dx_a = s8 d_a
+            u0 = g[0, 0] * dx + g[0, 1] * dy + g[0, 2] * dz
+            u1 = g[1, 0] * dx + g[1, 1] * dy + g[1, 2] * dz
+            u2 = g[2, 0] * dx + g[2, 1] * dy + g[2, 2] * dz
+            n0 += W * u0
+            n1 += W * u1
+            n2 += W * u2
+            wx = s8 * dx
+            wy = s8 * dy
+            wz = s8 * dz
+            j00 += wx * u0 + W * g[0, 0]
+            j01 += wy * u0 + W * g[0, 1]
+            j02 += wz * u0 + W * g[0, 2]
+            j10 += wx * u1 + W * g[1, 0]
+            j11 += wy * u1 + W * g[1, 1]
+            j12 += wz * u1 + W * g[1, 2]
+            j20 += wx * u2 + W * g[2, 0]
+            j21 += wy * u2 + W * g[2, 1]
+            j22 += wz * u2 + W * g[2, 2]
+    return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
+
+
+@njit(cache=True, fastmath=_FAST)
+def simplex4_batch(x, y, z, w, perm, table):
+    """Three 4-D simplex noises (shared lattice, own gradients) and their spatial gradients."""
+    F4 = 0.30901699437494745  # (sqrt(5) - 1) / 4
+    G4 = 0.1381966011250105  # (5 - sqrt(5)) / 20
+    s = (x + y + z + w) * F4
+    fi = math.floor(x + s)
+    fj = math.floor(y + s)
+    fk = math.floor(z + s)
+    fl = math.floor(w + s)
+    t = (fi + fj + fk + fl) * G4
+    x0 = x - (fi - t)
+    y0 = y - (fj - t)
+    z0 = z - (fk - t)
+    w0 = w - (fl - t)
+    i = np.int64(fi) & 255
+    j = np.int64(fj) & 255
+    k = np.int64(fk) & 255
+    l = np.int64(fl) & 255
+    rx = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0) + (1 if w0 > x0 else 0)
+    ry = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0) + (1 if w0 > y0 else 0)
+    rz = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0) + (1 if w0 > z0 else 0)
+    rw = (1 if x0 >= w0 else 0) + (1 if y0 >= w0 else 0) + (1 if z0 >= w0 else 0)
+    n0 = n1 = n2 = 0.0
+    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
+    for c in range(5):
+        oi = 1 if rx < c else 0
+        oj = 1 if ry < c else 0
+        ok = 1 if rz < c else 0
+        ol = 1 if rw < c else 0
+        dx = x0 - oi + c * G4
+        dy = y0 - oj + c * G4
+        dz = z0 - ok + c * G4
+        dw = w0 - ol + c * G4
+        q = _SIMPLEX_R2 - dx * dx - dy * dy - dz * dz - dw * dw
+        if q > 0.0:
+            h = perm[i + oi + perm[j + oj + perm[k + ok + perm[l + ol]]]]
+            g = table[h]
+            q2 = q * q
+            W = q2 * q2
+            s8 = -8.0 * q2 * q
+            u0 = g[0, 0] * dx + g[0, 1] * dy + g[0, 2] * dz + g[0, 3] * dw
+            u1 = g[1, 0] * dx + g[1, 1] * dy + g[1, 2] * dz + g[1, 3] * dw
+            u2 = g[2, 0] * dx + g[2, 1] * dy + g[2, 2] * dz + g[2, 3] * dw
+            n0 += W * u0
+            n1 += W * u1
+            n2 += W * u2
+            wx = s8 * dx
+            wy = s8 * dy
+            wz = s8 * dz
+            j00 += wx * u0 + W * g[0, 0]
+            j01 += wy * u0 + W * g[0, 1]
+            j02 += wz * u0 + W * g[0, 2]
+            j10 += wx * u1 + W * g[1, 0]
+            j11 += wy * u1 + W * g[1, 1]
+            j12 += wz * u1 + W * g[1, 2]
+            j20 += wx * u2 + W * g[2, 0]
+            j21 += wy * u2 + W * g[2, 1]
+            j22 += wz * u2 + W * g[2, 2]
+    return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
+
+
+@njit(cache=True, fastmath=_FAST)
+def perlin3_batch(x, y, z, perm, table):
+    """Three 3-D improved Perlin noises (shared lattice, own gradients) and their gradients."""
+    fx = math.floor(x)
+    fy = math.floor(y)
+    fz = math.floor(z)
+    i = np.int64(fx) & 255
+    j = np.int64(fy) & 255
+    k = np.int64(fz) & 255
+    ux = x - fx
+    uy = y - fy
+    uz = z - fz
+    sx, dsx, _ = _fade(ux)
+    sy, dsy, _ = _fade(uy)
+    sz, dsz, _ = _fade(uz)
+    # The hash chain's inner lookups are shared by the corners: 2 + 4 + 8 reads, not 24.
+    hz0 = perm[k]
+    hz1 = perm[k + 1]
+    n0 = n1 = n2 = 0.0
+    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
+    for bz in range(2):
+        hz = hz1 if bz else hz0
+        dz = uz - bz
+        wz = sz if bz else 1.0 - sz
+        dwz = dsz if bz else -dsz
+        for by in range(2):
+            hy = perm[j + by + hz]
+            dy = uy - by
+            wy = sy if by else 1.0 - sy
+            dwy = dsy if by else -dsy
+            wyz = wy * wz
+            for bx in range(2):
+                g = table[perm[i + bx + hy]]
+                dx = ux - bx
+                wx = sx if bx else 1.0 - sx
+                dwx = dsx if bx else -dsx
+                W = wx * wyz
+                gx = dwx * wyz
+                gy = wx * dwy * wz
+                gz = wx * wy * dwz
+                u0 = g[0, 0] * dx + g[0, 1] * dy + g[0, 2] * dz
+                u1 = g[1, 0] * dx + g[1, 1] * dy + g[1, 2] * dz
+                u2 = g[2, 0] * dx + g[2, 1] * dy + g[2, 2] * dz
+                n0 += W * u0
+                n1 += W * u1
+                n2 += W * u2
+                j00 += gx * u0 + W * g[0, 0]
+                j01 += gy * u0 + W * g[0, 1]
+                j02 += gz * u0 + W * g[0, 2]
+                j10 += gx * u1 + W * g[1, 0]
+                j11 += gy * u1 + W * g[1, 1]
+                j12 += gz * u1 + W * g[1, 2]
+                j20 += gx * u2 + W * g[2, 0]
+                j21 += gy * u2 + W * g[2, 1]
+                j22 += gz * u2 + W * g[2, 2]
+    return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
+
+
+@njit(cache=True, fastmath=_FAST)
+def perlin4_batch(x, y, z, w, perm, table):
+    """Three 4-D improved Perlin noises (shared lattice, own gradients), spatial gradients."""
+    fx = math.floor(x)
+    fy = math.floor(y)
+    fz = math.floor(z)
+    fw = math.floor(w)
+    i = np.int64(fx) & 255
+    j = np.int64(fy) & 255
+    k = np.int64(fz) & 255
+    l = np.int64(fw) & 255
+    ux = x - fx
+    uy = y - fy
+    uz = z - fz
+    uw = w - fw
+    sx, dsx, _ = _fade(ux)
+    sy, dsy, _ = _fade(uy)
+    sz, dsz, _ = _fade(uz)
+    sw, _, _ = _fade(uw)
+    n0 = n1 = n2 = 0.0
+    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
+    for bw in range(2):
+        hw = perm[l + bw]
+        dw = uw - bw
+        ww = sw if bw else 1.0 - sw
+        for bz in range(2):
+            hz = perm[k + bz + hw]
+            dz = uz - bz
+            wz = (sz if bz else 1.0 - sz) * ww
+            dwz = (dsz if bz else -dsz) * ww
+            for by in range(2):
+                hy = perm[j + by + hz]
+                dy = uy - by
+                wy = sy if by else 1.0 - sy
+                dwy = dsy if by else -dsy
+                wyz = wy * wz
+                for bx in range(2):
+                    g = table[perm[i + bx + hy]]
+                    dx = ux - bx
+                    wx = sx if bx else 1.0 - sx
+                    dwx = dsx if bx else -dsx
+                    W = wx * wyz
+                    gx = dwx * wyz
+                    gy = wx * dwy * wz
+                    gz = wx * wy * dwz
+                    u0 = g[0, 0] * dx + g[0, 1] * dy + g[0, 2] * dz + g[0, 3] * dw
+                    u1 = g[1, 0] * dx + g[1, 1] * dy + g[1, 2] * dz + g[1, 3] * dw
+                    u2 = g[2, 0] * dx + g[2, 1] * dy + g[2, 2] * dz + g[2, 3] * dw
+                    n0 += W * u0
+                    n1 += W * u1
+                    n2 += W * u2
+                    j00 += gx * u0 + W * g[0, 0]
+                    j01 += gy * u0 + W * g[0, 1]
+                    j02 += gz * u0 + W * g[0, 2]
+                    j10 += gx * u1 + W * g[1, 0]
+                    j11 += gy * u1 + W * g[1, 1]
+                    j12 += gz * u1 + W * g[1, 2]
+                    j20 += gx * u2 + W * g[2, 0]
+                    j21 += gy * u2 + W * g[2, 1]
+                    j22 += gz * u2 + W * g[2, 2]
+    return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
+
+
+@njit(cache=True, fastmath=_FAST)
+def potential3_batch(p0, p1, p2, t, offsets, perm, table, kind, frequency, lacunarity, gain,
+                     octaves, time_frequency, scale, psi, J):
+    """Fractal vector potential psi (3,) and its Jacobian J (3, 3), J[c, a] = d psi_c / dx_a,
+    at the 3-D point p and time t: every octave's lattice walk serves all three components.
+
+        psi_c = scale * sum_o gain^o n_c(f_o p + s_o, f_o tf t + s_o,t),  f_o = frequency lacunarity^o
+
+    offsets is (octaves, 4): one lattice offset per octave, shared by the components.
+    """
+    timed = time_frequency != 0.0
+    n0 = n1 = n2 = 0.0
+    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
+    f = frequency
+    ft = time_frequency
+    a = scale
+    for o in range(octaves):
+        x = p0 * f + offsets[o, 0]
+        y = p1 * f + offsets[o, 1]
+        z = p2 * f + offsets[o, 2]
+        if timed:
+            w = t * ft + offsets[o, 3]
+            if kind == KIND_SIMPLEX:
+                r = simplex4_batch(x, y, z, w, perm, table)
+            else:
+                r = perlin4_batch(x, y, z, w, perm, table)
+        elif kind == KIND_SIMPLEX:
+            r = simplex3_batch(x, y, z, perm, table)
+        else:
+            r = perlin3_batch(x, y, z, perm, table)
+        af = a * f  # chain rule: d/dp n(f p) = f grad n
+        n0 += a * r[0]
+        n1 += a * r[1]
+        n2 += a * r[2]
+        j00 += af * r[3]
+        j01 += af * r[4]
+        j02 += af * r[5]
+        j10 += af * r[6]
+        j11 += af * r[7]
+        j12 += af * r[8]
+        j20 += af * r[9]
+        j21 += af * r[10]
+        j22 += af * r[11]
+        f *= lacunarity
+        ft *= lacunarity
+        a *= gain
+    psi[0] = n0
+    psi[1] = n1
+    psi[2] = n2
+    J[0, 0] = j00
+    J[0, 1] = j01
+    J[0, 2] = j02
+    J[1, 0] = j10
+    J[1, 1] = j11
+    J[1, 2] = j12
+    J[2, 0] = j20
+    J[2, 1] = j21
+    J[2, 2] = j22
+
+
+# ---------------------------------------------------------------------------------------------
 # Curl-noise (Bridson et al. 2007).
 # ---------------------------------------------------------------------------------------------
 
@@ -726,17 +1037,20 @@ def _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, base, m, ski
 
 
 @njit(cache=True, fastmath=_FAST)
-def curl_noise_range(start, stop, points, offsets, perm, grads,
-               slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
-               rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-               out,
-               t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
-               boundary_width):
+def curl_noise_range(start, stop, points, offsets, perm, grads, table,
+                     slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+                     rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+                     out,
+                     t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+                     boundary_width):
     """Velocity of curl-noise at every point, with optional boundaries.
 
-    Potentials (unit-range noise times `scale`, decorrelated by offsets[c]):
-      2-D: scalar psi;         v = (dpsi/dy, -dpsi/dx)
-      3-D: psi = (psi0, psi1, psi2); v = curl psi
+    Potentials (unit-range noise times `scale`; offsets (1, octaves, 4), one lattice offset
+    per octave):
+      2-D: scalar psi, the noise with gradients `grads` (256, 2);   v = (dpsi/dy, -dpsi/dx)
+      3-D: psi = (psi0, psi1, psi2), three noises on the same lattice points with the gradient
+           tables table[:, c] (256, 3, D), one lattice walk per octave (`potential3_batch`);
+           v = curl psi
     Boundaries: point i has bnd_count[i] walls within `boundary_width` = d0, at rows
     slot[i] .. slot[i] + bnd_count[i] - 1 of the bnd_* arrays (slot[i] = -1: none). Wall k has
     the signed distance d_k, normal n_k = grad d_k, H_k = grad n_k, ramp a_k = ramp(d_k / d0),
@@ -762,7 +1076,7 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
     (rigid_radius2 holds R^2; rigid_center c; for static colliders V = W = 0).
     """
     S = points.shape[1]
-    ncomp = 1 if S == 2 else 3
+    shared = offsets[0]
     bounded = slot.shape[0] > 0  # an empty slot array means: no boundaries
     psi = np.empty(3)
     J = np.empty((3, 3))  # J[c, j] = d psi_c / d x_j
@@ -776,10 +1090,12 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
     ramp_slope = np.empty(most)
     for i in range(start, stop):
         p = points[i]
-        p2 = p[2] if S == 3 else 0.0
-        for c in range(ncomp):
-            psi[c], J[c, 0], J[c, 1], J[c, 2] = fractal_grad(
-                p[0], p[1], p2, S, t, offsets, c, perm, grads, kind, frequency, lacunarity,
+        if S == 3:
+            potential3_batch(p[0], p[1], p[2], t, shared, perm, table, kind, frequency,
+                             lacunarity, gain, octaves, time_frequency, scale, psi, J)
+        else:
+            psi[0], J[0, 0], J[0, 1], J[0, 2] = fractal_grad(
+                p[0], p[1], 0.0, S, t, offsets, 0, perm, grads, kind, frequency, lacunarity,
                 gain, octaves, time_frequency, scale)
         sl = slot[i] if bounded else -1
         if sl < 0:
@@ -923,7 +1239,7 @@ def curl_noise_range(start, stop, points, offsets, perm, grads,
 
 
 @parallel_kernel(serial_below=SERIAL_BELOW)
-def curl_noise(points, offsets, perm, grads,
+def curl_noise(points, offsets, perm, grads, table,
                slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                out,
@@ -934,7 +1250,7 @@ def curl_noise(points, offsets, perm, grads,
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
         curl_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
-                         slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+                         table, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                          rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                          out, t, kind, frequency, lacunarity, gain, octaves, time_frequency,
                          scale, boundary_width)
@@ -944,6 +1260,10 @@ def curl_noise(points, offsets, perm, grads,
 def curl_noise_jacobian(points, offsets, perm, grads, out,
                         t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale):
     """Analytic Jacobian dv_i/dx_j of boundary-free curl-noise, out (M, S, S).
+
+    grads is (components, 256, D): potential c is the noise with gradient table grads[c],
+    evaluated one component at a time by the general kernels (`fractal_point`), a second
+    implementation independent of `potential3_batch`. offsets is (1, octaves, 4).
 
       2-D: v = (psi_y, -psi_x)          -> dv/dx = [[psi_yx, psi_yy], [-psi_xx, -psi_xy]]
       3-D: v_i = eps_ijk d_j psi_k      -> dv_i/dx_l = eps_ijk d_l d_j psi_k
@@ -967,7 +1287,7 @@ def curl_noise_jacobian(points, offsets, perm, grads, out,
     for i in range(M):
         p = points[i]
         for c in range(ncomp):
-            fractal_point(p, S, t, offsets[c], perm, grads, kind, 2, vg, hh,
+            fractal_point(p, S, t, offsets[0], perm, grads[c], kind, 2, vg, hh,
                           x, g1, h1, cell, xa, rank, corner, dc, w,
                           frequency, lacunarity, gain, octaves, time_frequency, scale)
             for a in range(S):
@@ -1130,6 +1450,74 @@ def source_field(points, center, out, jac, strength, core2, order):
                 for b in range(S):
                     db = points[i, b] - center[b]
                     jac[i, a, b] = df * da * db + (f if a == b else 0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Boundary geometry: per point, the walls within the boundary width (curl.py's _Boundaries).
+# ---------------------------------------------------------------------------------------------
+
+@njit(cache=True, fastmath=_FAST, inline="always")
+def _wall_distance(x0, x1, x2, i, w, wall_plane, plane_point, plane_normal, query_distance):
+    """Signed distance of point i (x0, x1, x2) to wall w: a plane's (x - p) . n (planes are
+    stored with 3 columns, zero-padded in 2-D), or a collider's query distance."""
+    r = wall_plane[w]
+    if r < 0:
+        return query_distance[-r - 1, i]
+    return ((x0 - plane_point[r, 0]) * plane_normal[r, 0] + (x1 - plane_point[r, 1]) * plane_normal[r, 1]
+            + (x2 - plane_point[r, 2]) * plane_normal[r, 2])
+
+
+@njit(cache=True, fastmath=_FAST)
+def wall_counts(points, wall_plane, plane_point, plane_normal, query_distance, width, slot, count):
+    """How many walls lie within `width` of each point: count (M,), slot (M,) (the point's first
+    row in the lists `wall_rows` fills, -1 where none); returns the number of rows.
+
+    Wall w is plane wall_plane[w] >= 0 (a point and a unit normal: a container's face, whose
+    distance (x - p) . n is computed here; plane_point and plane_normal have 3 columns,
+    zero-padded in 2-D) or, for wall_plane[w] < 0, the distances
+    query_distance[-wall_plane[w] - 1] (M,) that a collider's query gave.
+    """
+    M, S = points.shape
+    nw = wall_plane.shape[0]
+    total = 0
+    for i in range(M):
+        x2 = points[i, 2] if S == 3 else 0.0
+        m = 0
+        for w in range(nw):
+            if _wall_distance(points[i, 0], points[i, 1], x2, i, w, wall_plane, plane_point,
+                              plane_normal, query_distance) < width:
+                m += 1
+        count[i] = m
+        slot[i] = total if m > 0 else -1
+        total += m
+    return total
+
+
+@njit(cache=True, fastmath=_FAST)
+def wall_rows(points, wall_plane, wall_collider, plane_point, plane_normal, query_distance,
+              width, distance, normal, collider, wall_of_row, point_of_row):
+    """The rows counted by `wall_counts`, point by point and, per point, in wall order
+    (collider, then plane: independent of the thread count): distance, collider, wall_of_row,
+    point_of_row and, for planes, normal (rows of query walls are left to the caller)."""
+    M = points.shape[0]
+    S = points.shape[1]
+    nw = wall_plane.shape[0]
+    row = 0
+    for i in range(M):
+        x2 = points[i, 2] if S == 3 else 0.0
+        for w in range(nw):
+            d = _wall_distance(points[i, 0], points[i, 1], x2, i, w, wall_plane, plane_point,
+                               plane_normal, query_distance)
+            if d < width:
+                distance[row] = d
+                collider[row] = wall_collider[w]
+                wall_of_row[row] = w
+                point_of_row[row] = i
+                r = wall_plane[w]
+                if r >= 0:
+                    for a in range(S):
+                        normal[row, a] = plane_normal[r, a]
+                row += 1
 
 
 # ---------------------------------------------------------------------------------------------

@@ -125,6 +125,50 @@ def lattice_tables(seed: int, components: int, octaves: int):
     return np.array(perm + perm, dtype=np.int64), offsets
 
 
+def component_gradients(seed: int, components: int, D: int) -> np.ndarray:
+    """Gradient tables of `components` noises that share one lattice: (components, 256, D).
+
+    Entry [c, h] is the gradient noise c takes at a lattice corner whose hash is h, so several
+    noises are read with one lattice walk (one hash per corner) and one dot product each.
+    Table 0 is the base table repeated (``grads[h % count]``: the same noise as ``Noise``).
+    Tables 1 and 2 (3-D curl-noise's other potentials) are seeded so that, over the 256
+    hashes, every table has zero mean and any two tables have exactly zero covariance
+    (sum_h T_a[h] T_b[h]^T = 0): the hashes holding one gradient of table 0 are split into
+    groups of four that take (+a, +b), (-a, +b), (+a, -b), (-a, -b) in tables 1 and 2, with
+    a and b drawn evenly from the base table. The three potentials are therefore uncorrelated,
+    as three independent noises are, although they sample the same lattice points.
+    """
+    base = _GRADIENTS[D]
+    count = base.shape[0]
+    tables = np.empty((components, 256, D))
+    tables[0] = base[np.arange(256) % count]
+    if components == 1:
+        return tables
+    if components != 3:
+        raise ValueError(f"components must be 1 or 3; got {components!r}")
+    stream = _splitmix64(seed ^ 0x2545F4914F6CDD1D)
+
+    def shuffled(values):
+        values = list(values)
+        for i in range(len(values) - 1, 0, -1):  # Fisher-Yates
+            j = next(stream) % (i + 1)
+            values[i], values[j] = values[j], values[i]
+        return values
+
+    # Hashes grouped by their table-0 gradient (h % count), each group in seeded order, then
+    # cut into fours; 256 / count (16 in 3-D, 8 in 4-D) hashes per gradient.
+    order = [h for g in range(count) for h in shuffled(range(g, 256, count))]
+    a_rows = shuffled(np.arange(64) % count)
+    b_rows = shuffled(np.arange(64) % count)
+    signs = ((1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0))
+    for q in range(64):
+        for r, (sa, sb) in enumerate(signs):
+            h = order[4 * q + r]
+            tables[1, h] = sa * base[a_rows[q]]
+            tables[2, h] = sb * base[b_rows[q]]
+    return tables
+
+
 @dataclass(frozen=True)
 class NoiseParameters:
     """Validated fractal-noise parameters shared by ``Noise`` and ``CurlNoise``."""
