@@ -290,3 +290,81 @@ def test_particles_land_on_hull_and_mesh_bodies():
     np.testing.assert_allclose(ps.x[:2, 2], top + 0.005, atol=4e-3)
     assert touched > 5                                   # it slid along the ramp ...
     assert ps.x[2, 1] < -0.2 and ps.x[2, 2] == pytest.approx(0.005, abs=1e-3)   # ... off it to the ground
+
+
+def _box_on_ground_world(particles, velocities, *, sensor=False):
+    from inertia.model import ModelBuilder
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    b.add_plane(restitution=0.0, friction=0.0)
+    box = b.add_body(position=(0.0, 0.0, 0.1))
+    b.add_box(box, half_extents=(0.1, 0.1, 0.1), density=500.0, restitution=0.0, friction=0.0)
+    if sensor:   # a sensor slab above the box, on the static world
+        b.add_box(-1, half_extents=(0.2, 0.2, 0.05), position=(0.0, 0.0, 0.5), is_sensor=True)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem(np.asarray(particles, float), np.asarray(velocities, float), masses=0.001,
+                           radius=0.005)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("drops", ps, integrator="semi_implicit_euler")
+    return world, ps
+
+
+def test_a_particle_landing_on_a_box_begins_persists_and_ends_when_it_slides_off():
+    # a particle dropped 5 cm onto the top of a box (restitution 0) with a sideways speed of 0.3 m/s
+    # lands, slides on the frictionless top and falls off the edge: one begin event for
+    # (group 0, particle 0, shape 1), then a persist every step while on top, then one end; then it
+    # begins touching the ground (shape 0). Resting on the static ground the row's normal impulse is
+    # its weight times the step, m g dt (the resting load, exact for a constant force), to 1e-9; on
+    # the (settling, dynamic) box within 1 %
+    # away from its edge.
+    world, ps = _box_on_ground_world([[0.0, 0.0, 0.255]], [[0.3, 0.0, 0.0]])
+    history = []
+    ground_persists = 0
+    for _ in range(80):
+        world.step()
+        ev = world.contact_events()
+        history.append(ev)
+        for imp, trip in zip(ev["particle_persist_impulse"], ev["particle_persist"]):
+            if trip[2] == 1 and ps.x[0, 0] > 0.09:
+                continue                                  # at the edge: leaving within the step
+            rel = 1e-9 if trip[2] == 0 else 1e-2
+            assert imp == pytest.approx(0.001 * 9.81 / 120, rel=rel)
+            ground_persists += trip[2] == 0
+    on_box = [(k, kind) for k, ev in enumerate(history) for kind in ("particle_begin", "particle_persist",
+                                                                      "particle_end")
+              for t in ev[kind] if tuple(t) == (0, 0, 1)]
+    kinds = [kind for _, kind in on_box]
+    assert kinds.count("particle_begin") == 1 and kinds.count("particle_end") == 1
+    first, last = on_box[0][0], on_box[-1][0]
+    assert kinds[0] == "particle_begin" and kinds[-1] == "particle_end"
+    assert kinds[1:-1] == ["particle_persist"] * (last - first - 1)   # every step between: persist
+    assert last - first > 10                                          # it slid for a while (0.2 m at 0.3 m/s)
+    grounds = [k for k, ev in enumerate(history) for t in ev["particle_begin"] if tuple(t) == (0, 0, 0)]
+    assert len(grounds) == 1 and grounds[0] > last - 1
+    assert ground_persists >= 5
+
+
+def test_a_sensor_counts_the_particles_inside_it_without_touching_them():
+    # a static sensor slab (0.4 x 0.4 x 0.1 m centred at z = 0.5) under a column of falling particles:
+    # each step the sensor rows name exactly the particles whose centre is within the radius of the
+    # slab (reference: the count from the closed-form box test on the positions), and the particles
+    # fall freely through it (semi-implicit Euler: v = -g t exactly as without the sensor).
+    n = 12
+    x = np.column_stack([np.linspace(-0.15, 0.15, n), np.zeros(n), 0.6 + 0.02 * np.arange(n)])
+    world, ps = _box_on_ground_world(x, np.zeros((n, 3)), sensor=True)
+    seen = 0
+    for k in range(30):
+        world.step()
+        c = world.rigid.contacts
+        rows = c.particle_rows()
+        sens = rows[c.contact_is_sensor[rows]]
+        assert np.all(c.contact_shape[sens, 0] == 2) and np.all(c.contact_total_normal_impulse[sens] == 0.0)
+        q = np.abs(ps.x - [0.0, 0.0, 0.5]) - [0.2, 0.2, 0.05]
+        dist = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+        inside = np.flatnonzero(dist <= 0.005)
+        assert np.array_equal(np.sort(c.contact_particle[sens, 1]), inside)
+        seen += inside.size
+        ev = world.contact_events()
+        assert len(ev["particle_begin"]) + len(ev["particle_persist"]) >= inside.size
+    assert seen > 0
+    expected_v = -9.81 * world.dt * 30
+    assert np.allclose(ps.v[:, 2], expected_v, rtol=1e-12)
