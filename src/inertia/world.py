@@ -26,7 +26,18 @@ One `World.step` runs these stages in order, each timed in ``world.profile`` (se
                      body's poses before and after the rigid stage. The momentum the particles
                      gain from body rows is gathered per body (`inertia.dynamics.particle_coupling`);
 5. ``coupling``   -- those impulses are applied to the bodies (``apply_body_impulses``):
-                     linear and angular momentum of particles plus bodies are conserved.
+                     linear and angular momentum of particles plus bodies are conserved; then the
+                     particle rows of the step are appended to the rigid world's ``Contacts``
+                     buffer after its rigid rows (``_fill_particle_contacts``: per group in order,
+                     count, grow, fill; `inertia.dynamics.contacts` documents a row).
+
+Particle contacts (worlds with bodies): a 3-D particle group's coupling records, per particle and
+step, the table rows (static rows too) that pushed it -- the collision pass's momentum change
+attributed to the nearest row, the resting filter's load -- with the impulse each gave it (two slots
+per particle: a third row met in one step adds to the second), plus the row it rests on at the end of
+the step. Those become the particle rows; `World.contact_events` reports their begin / persist / end
+keyed by (group, particle, shape). Sensor rows are not collided with; a particle overlapping one
+(distance minus radius <= 0 at the end of the step) gets a sensor row.
 
 Rows the particle colliders became are *not* added to the particle groups a second time: a
 particle system sees a collider through ``system.add_collider`` (with its own restitution and
@@ -71,7 +82,10 @@ Limitations: all groups share dim and dt; groups do not interact with each other
 self-collisions and forces act within a group); the particle count is fixed for a run. The
 coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
 particles see a body's surface velocity as the average over the (sub)step of its rows' motion.
-Heightfield rows are not seen by particles. Rigid bodies do not collide with ``SDF`` colliders,
+Heightfield rows are not seen by particles. Particle rows are recorded only in worlds with bodies
+(a world of static colliders has no Contacts buffer), for the table's rows (not for colliders attached
+with ``system.add_collider``), for 3-D particle groups (not tracers); a particle row's impulse
+includes particle-particle impulses of particles touching the row (the coupling's attribution). Rigid bodies do not collide with ``SDF`` colliders,
 and a ``Container``'s walls are infinite planes for them.
 """
 
