@@ -368,3 +368,23 @@ def test_a_sensor_counts_the_particles_inside_it_without_touching_them():
     assert seen > 0
     expected_v = -9.81 * world.dt * 30
     assert np.allclose(ps.v[:, 2], expected_v, rtol=1e-12)
+
+
+def test_particle_contact_events_continue_across_save_and_restore():
+    # a particle resting on the box: after restoring a saved state into a fresh world, the next step
+    # reports the contact as persisting (the checkpoint holds the last step's particle rows), not as a
+    # new begin, and the row's impulse equals the uninterrupted world's bit for bit.
+    world, ps = _box_on_ground_world([[0.0, 0.0, 0.206]], [[0.0, 0.0, 0.0]])
+    for _ in range(15):
+        world.step()
+    saved = world.save_state()
+    world.step()
+    ev = world.contact_events()
+    fresh, _ = _box_on_ground_world([[0.0, 0.0, 0.206]], [[0.0, 0.0, 0.0]])
+    fresh.restore_state(saved)
+    assert fresh.rigid.contacts.particle_count == 1
+    fresh.step()
+    ev2 = fresh.contact_events()
+    assert ev["particle_persist"].tolist() == ev2["particle_persist"].tolist() == [[0, 0, 1]]
+    assert len(ev2["particle_begin"]) == 0 and len(ev2["particle_end"]) == 0
+    assert ev2["particle_persist_impulse"][0] == ev["particle_persist_impulse"][0]
