@@ -388,3 +388,33 @@ def test_particle_contact_events_continue_across_save_and_restore():
     assert ev["particle_persist"].tolist() == ev2["particle_persist"].tolist() == [[0, 0, 1]]
     assert len(ev2["particle_begin"]) == 0 and len(ev2["particle_end"]) == 0
     assert ev2["particle_persist_impulse"][0] == ev["particle_persist_impulse"][0]
+
+
+def test_a_particle_on_a_kinematic_turntable_is_carried_at_omega_r():
+    # a particle resting on a kinematic disc spinning at w = 2 rad/s (friction 1: static friction holds
+    # it, w^2 R = 0.8 m/s^2 < mu g) moves with the surface: tangential speed w R. The stage takes the
+    # surface velocity from the body row's pose change over each substep (a chord: speed
+    # 2 sin(w h / 2) / h R, low by (w h)^2 / 24 ~ 1e-5 here), and the explicit step lets the radius
+    # creep outward; bounds: speed within 1e-4 of w R after the spin-up, radius within 1 mm over 1 s, angle
+    # turned w t within 1e-3.
+    from inertia.model import ModelBuilder
+    w0, R, r = 2.0, 0.2, 0.01
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    disc = b.add_body(body_type="kinematic", angular_velocity=(0.0, 0.0, w0))
+    b.add_cylinder(disc, radius=0.5, half_height=0.05, friction=1.0, restitution=0.0)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem(np.array([[R, 0.0, 0.05 + r]]), masses=0.001, radius=r)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("p", ps, integrator="semi_implicit_euler")
+    for k in range(120):
+        world.step()
+        if k == 60:
+            angle0 = np.arctan2(ps.x[0, 1], ps.x[0, 0])
+        if k < 10:
+            continue        # spin-up from rest: kinetic friction, mu g = 9.8 m/s^2, takes 0.04 s
+        x, v = ps.x[0], ps.v[0]
+        rad = np.hypot(x[0], x[1])
+        assert (x[0] * v[1] - x[1] * v[0]) / rad == pytest.approx(w0 * rad, rel=1e-4)
+        assert abs(rad - R) < 1e-3 and x[2] == pytest.approx(0.05 + r, abs=1e-6)
+    turned = (np.arctan2(ps.x[0, 1], ps.x[0, 0]) - angle0) % (2 * np.pi)
+    assert turned == pytest.approx(w0 * 59 * world.dt, rel=1e-3)
