@@ -482,12 +482,13 @@ class World:
                 if sensors.shape.size == 0:
                     continue
                 n = system.x.shape[0]
-                if self._no_slots is None or self._no_slots[0].entry.shape[0] != n:
+                if self._no_slots is None or self._no_slots[0].entry.shape[0] != n:   # built once
                     self._no_slots = (ContactSlots(np.full((n, SLOTS), -1, np.int64), np.zeros((n, SLOTS, 3))),
-                                      np.full(n, -1, np.int32))
-                slots, rest_k = self._no_slots
-                rows = PackedRows(np.zeros((1, 4), np.int64), np.zeros(1), np.zeros(1, np.int64), np.zeros((1, 12)),
-                                  np.zeros((1, 3)), np.full(1, -1, np.int64), np.full(1, -1, np.int64))
+                                      np.full(n, -1, np.int32),
+                                      PackedRows(np.zeros((1, 4), np.int64), np.zeros(1), np.zeros(1, np.int64),
+                                                 np.zeros((1, 12)), np.zeros((1, 3)), np.full(1, -1, np.int64),
+                                                 np.full(1, -1, np.int64)))
+                slots, rest_k, rows = self._no_slots
             start = c.particle_start + c.particle_count
             args = (system.x, system.radius, system.active, rest_k, slots, rows, self.model.shape_body,
                     sensors, gi)

@@ -15,6 +15,12 @@ colliders). Whatever momentum a particle gains from a body's surface, the body l
   shape (normal load and friction), ``F = f_applied - f_filtered``, acts on the body at the particle's
   position over the substep: ``J = F h``, ``A = (x - c) x J``.
 
+Per contact (the rows of the world's ``Contacts`` buffer): both gathers also add the impulse each
+particle received to its contact slot of that row (`ContactSlots`, two per particle and world step;
+static rows, which push no body, included), and `fill_particle_contacts` turns the slots, the row a
+particle rests on at the end of the step and the sensor rows it overlaps into buffer rows. The slots'
+impulses on a body's rows sum to minus what the body received (the same numbers, summed in another order).
+
 Impulses are summed per body in particle order, group order and substep order (serial, fixed order:
 deterministic at any thread count), then applied once per world step by `apply_body_impulses`:
 ``dv = J / m``, ``dw = I_world^-1 A`` for dynamic bodies (zero for static and kinematic ones); a
@@ -34,6 +40,8 @@ Limitations
 - Attribution is geometric: a particle's change in the pass goes to the nearest shape; particle-particle
   impulses (``self_collisions``) of particles touching a body are attributed to that body.
 - 3-D only; particles need a finite mass (pinned particles push nothing).
+- Contact rows: at most two rows per particle and step (a third row's impulse is added to the second
+  slot); particle-particle impulses of a particle touching a row are part of that row's impulse.
 """
 
 from __future__ import annotations
