@@ -418,3 +418,33 @@ def test_a_particle_on_a_kinematic_turntable_is_carried_at_omega_r():
         assert abs(rad - R) < 1e-3 and x[2] == pytest.approx(0.05 + r, abs=1e-6)
     turned = (np.arctan2(ps.x[0, 1], ps.x[0, 0]) - angle0) % (2 * np.pi)
     assert turned == pytest.approx(w0 * 59 * world.dt, rel=1e-3)
+
+
+def test_a_sensor_sphere_reports_when_a_falling_particle_enters_and_leaves_it():
+    # a group whose only table row is a sensor (sphere R = 0.1 m at z = 0.5 on a kinematic body): the
+    # particle falling from z = 0.7 on the axis begins overlapping at the first step with
+    # z <= 0.5 + R + r and ends at the first step with z < 0.5 - R - r (closed form from its
+    # free-fall positions, which the sensor does not change).
+    from inertia.model import ModelBuilder
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    k = b.add_body(body_type="kinematic", position=(0.0, 0.0, 0.5))
+    b.add_sphere(k, 0.1, is_sensor=True)
+    world = World(dt=1 / 120, model=b.finalize())
+    ps = ia.ParticleSystem(np.array([[0.0, 0.0, 0.7]]), masses=0.001, radius=0.01)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("p", ps, integrator="semi_implicit_euler")
+    begin = end = None
+    z = []
+    for step in range(40):
+        world.step()
+        z.append(ps.x[0, 2])
+        ev = world.contact_events()
+        if len(ev["particle_begin"]):
+            assert begin is None and ev["particle_begin"].tolist() == [[0, 0, 0]]
+            begin = step
+        if len(ev["particle_end"]):
+            assert end is None
+            end = step
+    z = np.array(z)
+    assert begin == np.flatnonzero(z <= 0.61)[0]
+    assert end == np.flatnonzero(z < 0.39)[0]
