@@ -164,6 +164,7 @@ def test_fluids_are_stepped_after_the_bodies_recorded_and_checkpointed(tmp_path)
 
 
 GOLDEN_HASH = "03b7a57385224b7c"   # measured at 1 and 2 threads (this branch, numba 0.68)
+GOLDEN_PARTICLE_ROWS = "a2ca1377a5fe6cca 30"   # particle rows: hash and count, measured at 1 and 2 threads
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -178,11 +179,20 @@ def test_rain_on_stack_golden_hash_at_one_and_two_threads(threads):
         h.update(np.ascontiguousarray(world.rigid.state.body_q).tobytes())
         h.update(np.ascontiguousarray(world.rigid.state.body_qd).tobytes())
         print(h.hexdigest()[:16])
+        c, rows = world.rigid.contacts, world.rigid.contacts.particle_rows()
+        h = hashlib.sha256()
+        for name in ("contact_particle", "contact_shape", "contact_normal", "contact_separation",
+                     "contact_normal_impulse", "contact_tangent_impulse"):
+            h.update(np.ascontiguousarray(getattr(c, name)[rows]).tobytes())
+        print(h.hexdigest()[:16], rows.size)
     """)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=900)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == GOLDEN_HASH
+    state_hash, rows_hash = out.stdout.strip().splitlines()
+    assert state_hash == GOLDEN_HASH
+    # the particle rows of the Contacts buffer (filled serially in a fixed order) at the last step
+    assert rows_hash == GOLDEN_PARTICLE_ROWS
 
 
 def test_emitted_particles_collide_with_a_dynamic_body():
