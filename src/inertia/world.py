@@ -82,10 +82,12 @@ Limitations: all groups share dim and dt; groups do not interact with each other
 self-collisions and forces act within a group); the particle count is fixed for a run. The
 coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
 particles see a body's surface velocity as the average over the (sub)step of its rows' motion.
-Heightfield rows are not seen by particles. Particle rows are recorded only in worlds with bodies
-(a world of static colliders has no Contacts buffer), for the table's rows (not for colliders attached
-with ``system.add_collider``), for 3-D particle groups (not tracers); a particle row's impulse
-includes particle-particle impulses of particles touching the row (the coupling's attribution). Rigid bodies do not collide with ``SDF`` colliders,
+Heightfield rows are seen by particles as the solid under the rigid side's triangles
+(`inertia.collision.heightfield_distance`), a column ``max(1 m, grid extent)`` deep. Particle rows
+are recorded only in worlds with bodies (a world of static colliders has no Contacts buffer), for the
+table's rows (not for colliders attached with ``system.add_collider``), for 3-D particle groups (not
+tracers); a particle row's impulse includes particle-particle impulses of particles touching the row
+(the coupling's attribution). Rigid bodies do not collide with ``SDF`` colliders,
 and a ``Container``'s walls are infinite planes for them.
 """
 
