@@ -458,3 +458,21 @@ def test_a_sensor_sphere_reports_when_a_falling_particle_enters_and_leaves_it():
     z = np.array(z)
     assert begin == np.flatnonzero(z <= 0.61)[0]
     assert end == np.flatnonzero(z < 0.39)[0]
+
+
+def test_a_particle_bounces_off_a_moving_kinematic_wall_with_the_relative_velocity_law():
+    # Newton's impact law in the wall's frame (Witkin & Baraff 2001): a particle at v = -2 m/s hits a
+    # wall (kinematic box) moving at u = +1 m/s with restitution e = 0.5 and no friction:
+    # v' = u - e (v - u) = 2.5 m/s, to 1e-9 (the wall's translation is exact in the pose difference).
+    from inertia.model import ModelBuilder
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    wall = b.add_body(body_type="kinematic", position=(0.0, 0.0, 0.0), linear_velocity=(1.0, 0.0, 0.0))
+    b.add_box(wall, half_extents=(0.05, 0.5, 0.5), restitution=0.5, friction=0.0)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem(np.array([[0.5, 0.0, 0.0]]), np.array([[-2.0, 0.0, 0.0]]), masses=0.001,
+                           radius=0.01)
+    world.add("p", ps, integrator="semi_implicit_euler")
+    for _ in range(30):
+        world.step()
+    assert ps.v[0] == pytest.approx([2.5, 0.0, 0.0], rel=1e-9, abs=1e-12)
+    assert ps.x[0, 0] > world.rigid.state.body_q[wall, 0] + 0.05 + 0.01      # in front of the wall
