@@ -164,6 +164,7 @@ def test_fluids_are_stepped_after_the_bodies_recorded_and_checkpointed(tmp_path)
 
 
 GOLDEN_HASH = "03b7a57385224b7c"   # measured at 1 and 2 threads (this branch, numba 0.68)
+GOLDEN_PARTICLE_ROWS = "a2ca1377a5fe6cca 30"   # particle rows: hash and count, measured at 1 and 2 threads
 
 
 @pytest.mark.parametrize("threads", [1, 2])
@@ -178,11 +179,20 @@ def test_rain_on_stack_golden_hash_at_one_and_two_threads(threads):
         h.update(np.ascontiguousarray(world.rigid.state.body_q).tobytes())
         h.update(np.ascontiguousarray(world.rigid.state.body_qd).tobytes())
         print(h.hexdigest()[:16])
+        c, rows = world.rigid.contacts, world.rigid.contacts.particle_rows()
+        h = hashlib.sha256()
+        for name in ("contact_particle", "contact_shape", "contact_normal", "contact_separation",
+                     "contact_normal_impulse", "contact_tangent_impulse"):
+            h.update(np.ascontiguousarray(getattr(c, name)[rows]).tobytes())
+        print(h.hexdigest()[:16], rows.size)
     """)
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
     out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True, timeout=900)
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == GOLDEN_HASH
+    state_hash, rows_hash = out.stdout.strip().splitlines()
+    assert state_hash == GOLDEN_HASH
+    # the particle rows of the Contacts buffer (filled serially in a fixed order) at the last step
+    assert rows_hash == GOLDEN_PARTICLE_ROWS
 
 
 def test_emitted_particles_collide_with_a_dynamic_body():
@@ -290,3 +300,179 @@ def test_particles_land_on_hull_and_mesh_bodies():
     np.testing.assert_allclose(ps.x[:2, 2], top + 0.005, atol=4e-3)
     assert touched > 5                                   # it slid along the ramp ...
     assert ps.x[2, 1] < -0.2 and ps.x[2, 2] == pytest.approx(0.005, abs=1e-3)   # ... off it to the ground
+
+
+def _box_on_ground_world(particles, velocities, *, sensor=False):
+    from inertia.model import ModelBuilder
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    b.add_plane(restitution=0.0, friction=0.0)
+    box = b.add_body(position=(0.0, 0.0, 0.1))
+    b.add_box(box, half_extents=(0.1, 0.1, 0.1), density=500.0, restitution=0.0, friction=0.0)
+    if sensor:   # a sensor slab above the box, on the static world
+        b.add_box(-1, half_extents=(0.2, 0.2, 0.05), position=(0.0, 0.0, 0.5), is_sensor=True)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem(np.asarray(particles, float), np.asarray(velocities, float), masses=0.001,
+                           radius=0.005)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("drops", ps, integrator="semi_implicit_euler")
+    return world, ps
+
+
+def test_a_particle_landing_on_a_box_begins_persists_and_ends_when_it_slides_off():
+    # a particle dropped 5 cm onto the top of a box (restitution 0) with a sideways speed of 0.3 m/s
+    # lands, slides on the frictionless top and falls off the edge: one begin event for
+    # (group 0, particle 0, shape 1), then a persist every step while on top, then one end; then it
+    # begins touching the ground (shape 0). Resting on the static ground the row's normal impulse is
+    # its weight times the step, m g dt (the resting load, exact for a constant force), to 1e-9; on
+    # the (settling, dynamic) box within 1 %
+    # away from its edge.
+    world, ps = _box_on_ground_world([[0.0, 0.0, 0.255]], [[0.3, 0.0, 0.0]])
+    history = []
+    ground_persists = 0
+    for _ in range(80):
+        world.step()
+        ev = world.contact_events()
+        history.append(ev)
+        for imp, trip in zip(ev["particle_persist_impulse"], ev["particle_persist"]):
+            if trip[2] == 1 and ps.x[0, 0] > 0.09:
+                continue                                  # at the edge: leaving within the step
+            rel = 1e-9 if trip[2] == 0 else 1e-2
+            assert imp == pytest.approx(0.001 * 9.81 / 120, rel=rel)
+            ground_persists += trip[2] == 0
+    on_box = [(k, kind) for k, ev in enumerate(history) for kind in ("particle_begin", "particle_persist",
+                                                                      "particle_end")
+              for t in ev[kind] if tuple(t) == (0, 0, 1)]
+    kinds = [kind for _, kind in on_box]
+    assert kinds.count("particle_begin") == 1 and kinds.count("particle_end") == 1
+    first, last = on_box[0][0], on_box[-1][0]
+    assert kinds[0] == "particle_begin" and kinds[-1] == "particle_end"
+    assert kinds[1:-1] == ["particle_persist"] * (last - first - 1)   # every step between: persist
+    assert last - first > 10                                          # it slid for a while (0.2 m at 0.3 m/s)
+    grounds = [k for k, ev in enumerate(history) for t in ev["particle_begin"] if tuple(t) == (0, 0, 0)]
+    assert len(grounds) == 1 and grounds[0] > last - 1
+    assert ground_persists >= 5
+
+
+def test_a_sensor_counts_the_particles_inside_it_without_touching_them():
+    # a static sensor slab (0.4 x 0.4 x 0.1 m centred at z = 0.5) under a column of falling particles:
+    # each step the sensor rows name exactly the particles whose centre is within the radius of the
+    # slab (reference: the count from the closed-form box test on the positions), and the particles
+    # fall freely through it (semi-implicit Euler: v = -g t exactly as without the sensor).
+    n = 12
+    x = np.column_stack([np.linspace(-0.15, 0.15, n), np.zeros(n), 0.6 + 0.02 * np.arange(n)])
+    world, ps = _box_on_ground_world(x, np.zeros((n, 3)), sensor=True)
+    seen = 0
+    for k in range(30):
+        world.step()
+        c = world.rigid.contacts
+        rows = c.particle_rows()
+        sens = rows[c.contact_is_sensor[rows]]
+        assert np.all(c.contact_shape[sens, 0] == 2) and np.all(c.contact_total_normal_impulse[sens] == 0.0)
+        q = np.abs(ps.x - [0.0, 0.0, 0.5]) - [0.2, 0.2, 0.05]
+        dist = np.linalg.norm(np.maximum(q, 0.0), axis=1) + np.minimum(q.max(axis=1), 0.0)
+        inside = np.flatnonzero(dist <= 0.005)
+        assert np.array_equal(np.sort(c.contact_particle[sens, 1]), inside)
+        seen += inside.size
+        ev = world.contact_events()
+        assert len(ev["particle_begin"]) + len(ev["particle_persist"]) >= inside.size
+    assert seen > 0
+    expected_v = -9.81 * world.dt * 30
+    assert np.allclose(ps.v[:, 2], expected_v, rtol=1e-12)
+
+
+def test_particle_contact_events_continue_across_save_and_restore():
+    # a particle resting on the box: after restoring a saved state into a fresh world, the next step
+    # reports the contact as persisting (the checkpoint holds the last step's particle rows), not as a
+    # new begin, and the row's impulse equals the uninterrupted world's bit for bit.
+    world, ps = _box_on_ground_world([[0.0, 0.0, 0.206]], [[0.0, 0.0, 0.0]])
+    for _ in range(15):
+        world.step()
+    saved = world.save_state()
+    world.step()
+    ev = world.contact_events()
+    fresh, _ = _box_on_ground_world([[0.0, 0.0, 0.206]], [[0.0, 0.0, 0.0]])
+    fresh.restore_state(saved)
+    assert fresh.rigid.contacts.particle_count == 1
+    fresh.step()
+    ev2 = fresh.contact_events()
+    assert ev["particle_persist"].tolist() == ev2["particle_persist"].tolist() == [[0, 0, 1]]
+    assert len(ev2["particle_begin"]) == 0 and len(ev2["particle_end"]) == 0
+    assert ev2["particle_persist_impulse"][0] == ev["particle_persist_impulse"][0]
+
+
+def test_a_particle_on_a_kinematic_turntable_is_carried_at_omega_r():
+    # a particle resting on a kinematic disc spinning at w = 2 rad/s (friction 1: static friction holds
+    # it, w^2 R = 0.8 m/s^2 < mu g) moves with the surface: tangential speed w R. The stage takes the
+    # surface velocity from the body row's pose change over each substep (a chord: speed
+    # 2 sin(w h / 2) / h R, low by (w h)^2 / 24 ~ 1e-5 here), and the explicit step lets the radius
+    # creep outward; bounds: speed within 1e-4 of w R after the spin-up, radius within 1 mm over 1 s, angle
+    # turned w t within 1e-3.
+    from inertia.model import ModelBuilder
+    w0, R, r = 2.0, 0.2, 0.01
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    disc = b.add_body(body_type="kinematic", angular_velocity=(0.0, 0.0, w0))
+    b.add_cylinder(disc, radius=0.5, half_height=0.05, friction=1.0, restitution=0.0)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem(np.array([[R, 0.0, 0.05 + r]]), masses=0.001, radius=r)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("p", ps, integrator="semi_implicit_euler")
+    for k in range(120):
+        world.step()
+        if k == 60:
+            angle0 = np.arctan2(ps.x[0, 1], ps.x[0, 0])
+        if k < 10:
+            continue        # spin-up from rest: kinetic friction, mu g = 9.8 m/s^2, takes 0.04 s
+        x, v = ps.x[0], ps.v[0]
+        rad = np.hypot(x[0], x[1])
+        assert (x[0] * v[1] - x[1] * v[0]) / rad == pytest.approx(w0 * rad, rel=1e-4)
+        assert abs(rad - R) < 1e-3 and x[2] == pytest.approx(0.05 + r, abs=1e-6)
+    turned = (np.arctan2(ps.x[0, 1], ps.x[0, 0]) - angle0) % (2 * np.pi)
+    assert turned == pytest.approx(w0 * 59 * world.dt, rel=1e-3)
+
+
+def test_a_sensor_sphere_reports_when_a_falling_particle_enters_and_leaves_it():
+    # a group whose only table row is a sensor (sphere R = 0.1 m at z = 0.5 on a kinematic body): the
+    # particle falling from z = 0.7 on the axis begins overlapping at the first step with
+    # z <= 0.5 + R + r and ends at the first step with z < 0.5 - R - r (closed form from its
+    # free-fall positions, which the sensor does not change).
+    from inertia.model import ModelBuilder
+    b = ModelBuilder(gravity=(0.0, 0.0, -9.81))
+    k = b.add_body(body_type="kinematic", position=(0.0, 0.0, 0.5))
+    b.add_sphere(k, 0.1, is_sensor=True)
+    world = World(dt=1 / 120, model=b.finalize())
+    ps = ia.ParticleSystem(np.array([[0.0, 0.0, 0.7]]), masses=0.001, radius=0.01)
+    ps.add_force(ia.forces.Gravity((0.0, 0.0, -9.81)))
+    world.add("p", ps, integrator="semi_implicit_euler")
+    begin = end = None
+    z = []
+    for step in range(40):
+        world.step()
+        z.append(ps.x[0, 2])
+        ev = world.contact_events()
+        if len(ev["particle_begin"]):
+            assert begin is None and ev["particle_begin"].tolist() == [[0, 0, 0]]
+            begin = step
+        if len(ev["particle_end"]):
+            assert end is None
+            end = step
+    z = np.array(z)
+    assert begin == np.flatnonzero(z <= 0.61)[0]
+    assert end == np.flatnonzero(z < 0.39)[0]
+
+
+def test_a_particle_bounces_off_a_moving_kinematic_wall_with_the_relative_velocity_law():
+    # Newton's impact law in the wall's frame (Witkin & Baraff 2001): a particle at v = -2 m/s hits a
+    # wall (kinematic box) moving at u = +1 m/s with restitution e = 0.5 and no friction:
+    # v' = u - e (v - u) = 2.5 m/s, to 1e-9 (the wall's translation is exact in the pose difference).
+    from inertia.model import ModelBuilder
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    wall = b.add_body(body_type="kinematic", position=(0.0, 0.0, 0.0), linear_velocity=(1.0, 0.0, 0.0))
+    b.add_box(wall, half_extents=(0.05, 0.5, 0.5), restitution=0.5, friction=0.0)
+    world = World(dt=1 / 120, model=b.finalize(), rigid_options={"substeps": 4})
+    ps = ia.ParticleSystem(np.array([[0.5, 0.0, 0.0]]), np.array([[-2.0, 0.0, 0.0]]), masses=0.001,
+                           radius=0.01)
+    world.add("p", ps, integrator="semi_implicit_euler")
+    for _ in range(30):
+        world.step()
+    assert ps.v[0] == pytest.approx([2.5, 0.0, 0.0], rel=1e-9, abs=1e-12)
+    assert ps.x[0, 0] > world.rigid.state.body_q[wall, 0] + 0.05 + 0.01      # in front of the wall

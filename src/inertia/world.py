@@ -26,7 +26,18 @@ One `World.step` runs these stages in order, each timed in ``world.profile`` (se
                      body's poses before and after the rigid stage. The momentum the particles
                      gain from body rows is gathered per body (`inertia.dynamics.particle_coupling`);
 5. ``coupling``   -- those impulses are applied to the bodies (``apply_body_impulses``):
-                     linear and angular momentum of particles plus bodies are conserved.
+                     linear and angular momentum of particles plus bodies are conserved; then the
+                     particle rows of the step are appended to the rigid world's ``Contacts``
+                     buffer after its rigid rows (``_fill_particle_contacts``: per group in order,
+                     count, grow, fill; `inertia.dynamics.contacts` documents a row).
+
+Particle contacts (worlds with bodies): a 3-D particle group's coupling records, per particle and
+step, the table rows (static rows too) that pushed it -- the collision pass's momentum change
+attributed to the nearest row, the resting filter's load -- with the impulse each gave it (two slots
+per particle: a third row met in one step adds to the second), plus the row it rests on at the end of
+the step. Those become the particle rows; `World.contact_events` reports their begin / persist / end
+keyed by (group, particle, shape). Sensor rows are not collided with; a particle overlapping one
+(distance minus radius <= 0 at the end of the step) gets a sensor row.
 
 Rows the particle colliders became are *not* added to the particle groups a second time: a
 particle system sees a collider through ``system.add_collider`` (with its own restitution and
@@ -71,7 +82,12 @@ Limitations: all groups share dim and dt; groups do not interact with each other
 self-collisions and forces act within a group); the particle count is fixed for a run. The
 coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
 particles see a body's surface velocity as the average over the (sub)step of its rows' motion.
-Heightfield rows are not seen by particles. Rigid bodies do not collide with ``SDF`` colliders,
+Heightfield rows are seen by particles as the solid under the rigid side's triangles
+(`inertia.collision.heightfield_distance`), a column ``max(1 m, grid extent)`` deep. Particle rows
+are recorded only in worlds with bodies (a world of static colliders has no Contacts buffer), for the
+table's rows (not for colliders attached with ``system.add_collider``), for 3-D particle groups (not
+tracers); a particle row's impulse includes particle-particle impulses of particles touching the row
+(the coupling's attribution). Rigid bodies do not collide with ``SDF`` colliders,
 and a ``Container``'s walls are infinite planes for them.
 """
 
@@ -133,6 +149,9 @@ class Group:
     body_entries: np.ndarray | None = None
     entry_body_all: np.ndarray | None = None
     entry_bound: np.ndarray | None = None
+    # True when the group's particle rows go into the world's Contacts buffer (3-D particles in a
+    # world with bodies)
+    records_contacts: bool = False
 
     @property
     def integrator(self) -> str:
@@ -206,6 +225,8 @@ class World:
         self.model = with_colliders(model, self.colliders) if (model is not None or colliders3) else None
         self.rigid = None
         self._body_shape_cache: dict = {}
+        self._sensors = None
+        self._no_slots = None
         self._rigid_options = dict(rigid_options or {})
         if self.model is not None and self._user_bodies > 0:
             from .rigid.world import RigidWorld
@@ -255,12 +276,15 @@ class World:
         return group
 
     def _attach_shape_table(self, group) -> None:
-        """Give a 3-D particle group the shape table's rows that are not particle colliders (the
-        builder's world geometry and every body's shapes), and couple it to the dynamic bodies."""
+        """Give a 3-D particle group the shape table's rows that are not particle colliders nor sensors
+        (the builder's world geometry and every body's shapes), couple it to the dynamic bodies, and
+        (with bodies) record its contacts with those rows and its overlaps with sensor rows in the
+        world's Contacts buffer."""
         system, model = group.system, self.model
         if model is None or system.dim != 3 or group.kind != "particles":
             return
-        rows = np.flatnonzero(model.shape_source < 0)
+        rows = np.flatnonzero((model.shape_source < 0) & ~model.shape_is_sensor)
+        group.records_contacts = self.rigid is not None
         if rows.size == 0:
             return
         from .collision.particle_stage import _data
@@ -275,12 +299,38 @@ class World:
         group.entry_bound = np.array([-1.0 if model.shape_type[data.colliders[i].shape] == _S.PLANE
                                       else float(model.body_bound_radius[data.colliders[i].body])
                                       for i in moving], np.float64)
-        if self.rigid is not None:
+        if self.rigid is not None and entries.size:
+            # with bodies the coupling also records every particle's contacts with table rows (static
+            # ones too) for the Contacts buffer, so it is set even when no row is on a dynamic body
             entry_body = data.entry_bodies(model)
-            if np.any(entry_body >= 0):
-                data.coupling = ParticleBodyCoupling(system, entry_body, self.rigid.state.body_q,
-                                                     self._impulse_linear, self._impulse_angular,
-                                                     data.distance_tolerance)
+            data.coupling = ParticleBodyCoupling(system, entry_body, self.rigid.state.body_q,
+                                                 self._impulse_linear, self._impulse_angular,
+                                                 data.distance_tolerance, data.entry_shapes())
+
+    def _sensor_rows(self):
+        """The shape table's sensor rows packed for the particle kernels (`SensorRows`), built once."""
+        if self._sensors is None:
+            from .collision.shapes import BodyShape
+            from .dynamics.particle_coupling import SensorRows
+            m = self.model
+            rows = [int(s) for s in np.flatnonzero(m.shape_is_sensor & (m.shape_source < 0))]
+            shapes = [BodyShape(m, s, None if m.shape_body[s] < 0 else self.rigid.state.body_q[m.shape_body[s]])
+                      for s in rows]
+            shapes = [(s, c) for s, c in zip(rows, shapes) if not getattr(c, "unsupported", False)]
+            q = len(shapes)
+            cint = np.zeros((q, 4), np.int64)
+            cfs, cis, off, ioff = [np.zeros(1)], [np.zeros(1, np.int64)], 1, 1
+            for j, (s, c) in enumerate(shapes):
+                ci = np.zeros(0, np.int64) if c._ci is None else np.asarray(c._ci, np.int64)
+                cint[j] = (c.kind, 1 if c.moving else 0, off, ioff)
+                cfs.append(np.asarray(c._cf, np.float64))
+                cis.append(ci)
+                off += cfs[-1].size
+                ioff += ci.size
+            self._sensors = SensorRows(cint, np.concatenate(cfs), np.concatenate(cis), np.zeros((q, 12)),
+                                       np.zeros((q, 3)), np.array([s for s, _ in shapes], np.int64),
+                                       np.array([int(m.shape_body[s]) for s, _ in shapes], np.int64))
+        return self._sensors
 
     def shape_collider(self, shape: int):
         """Row ``shape`` of the shape table as a collider object that follows its body (a bound
@@ -379,6 +429,10 @@ class World:
         if rigid is not None:
             self._impulse_linear[:] = 0.0
             self._impulse_angular[:] = 0.0
+            for g in self.groups:
+                coupling = getattr(getattr(g.system, "_collision", None), "coupling", None)
+                if coupling is not None:
+                    coupling.clear_slots()
         self._in_particle_stage = True
         try:
             for g in self.groups:
@@ -399,9 +453,91 @@ class World:
         if rigid is not None:
             from .dynamics.particle_coupling import apply_body_impulses
             apply_body_impulses(self.model, rigid.state, self._impulse_linear, self._impulse_angular)
+            self._fill_particle_contacts()
         self.profile["coupling"] += clock() - t4
         self.step_count += 1
         self.t = self.step_count * self.dt
+
+    def _fill_particle_contacts(self) -> None:
+        """Append the particle rows of this step to the rigid world's Contacts buffer, after the rigid
+        rows, group by group (count, grow the buffer, fill: `particle_coupling.fill_particle_contacts`)."""
+        from .dynamics.particle_coupling import (ContactSlots, PackedRows, SLOTS, fill_particle_contacts)
+        c = self.rigid.contacts
+        c.particle_start = c.count
+        c.particle_count = 0
+        sensors = None
+        for gi, g in enumerate(self.groups):
+            if not g.records_contacts:
+                continue
+            if sensors is None:
+                sensors = self._sensor_rows()
+                _sensor_poses(sensors.body, self.rigid.state.body_q, sensors.pose)
+            system = g.system
+            data = getattr(system, "_collision", None)
+            coupling = None if data is None else data.coupling
+            if coupling is not None:
+                slots = ContactSlots(coupling.slot_entry, coupling.slot_impulse)
+                rows = PackedRows(data.cint, data.cf, data.ci, data.pose1, data.ref, coupling.entry_body,
+                                  coupling.entry_shape)
+                rest_k = data.rest_k
+            else:
+                if sensors.shape.size == 0:
+                    continue
+                n = system.x.shape[0]
+                if self._no_slots is None or self._no_slots[0].entry.shape[0] != n:   # built once
+                    self._no_slots = (ContactSlots(np.full((n, SLOTS), -1, np.int64), np.zeros((n, SLOTS, 3))),
+                                      np.full(n, -1, np.int32),
+                                      PackedRows(np.zeros((1, 4), np.int64), np.zeros(1), np.zeros(1, np.int64),
+                                                 np.zeros((1, 12)), np.zeros((1, 3)), np.full(1, -1, np.int64),
+                                                 np.full(1, -1, np.int64)))
+                slots, rest_k, rows = self._no_slots
+            start = c.particle_start + c.particle_count
+            args = (system.x, system.radius, system.active, rest_k, slots, rows, self.model.shape_body,
+                    sensors, gi)
+            n_rows = fill_particle_contacts(*args, c.particle_arrays(), start, False)
+            c.reserve(start + n_rows)
+            fill_particle_contacts(*args, c.particle_arrays(), start, True)
+            c.particle_count += n_rows
+
+    def contact_events(self, *, touch_slop: float = 0.0) -> dict:
+        """Begin / persist / end events of the last step, for shape pairs and for particles.
+
+        Shape pairs: the keys of `inertia.rigid.RigidWorld.contact_events` (``begin``, ``persist``,
+        ``end`` as (K, 2) int32 shape-row pairs; ``begin_impulse``, ``persist_impulse`` N s).
+        Particles (rows of the Contacts buffer's particle range; a particle row exists while the
+        particle touches the shape, see `inertia.dynamics.contacts`): ``particle_begin``,
+        ``particle_persist``, ``particle_end`` as (K, 3) int32 ``(group index, particle index, shape
+        row)`` in buffer order, ``particle_begin_impulse`` and ``particle_persist_impulse`` (K,) the
+        normal impulse (N s) the shape gave the particle over the step (0 for sensors). Sensor rows
+        are included (a particle overlapping a sensor); ``touch_slop`` applies to shape pairs only.
+        Empty arrays in a world without bodies."""
+        empty3 = np.zeros((0, 3), np.int32)
+        if self.rigid is None:
+            e2 = np.zeros((0, 2), np.int32)
+            return {"begin": e2, "persist": e2, "end": e2, "begin_impulse": np.zeros(0),
+                    "persist_impulse": np.zeros(0), "particle_begin": empty3, "particle_persist": empty3,
+                    "particle_end": empty3, "particle_begin_impulse": np.zeros(0),
+                    "particle_persist_impulse": np.zeros(0)}
+        out = self.rigid.contact_events(touch_slop=touch_slop)
+        cur, prev = self.rigid.contacts, self.rigid._prev_contacts
+        span = max([g.particle_count for g in self.groups] + [1])
+
+        def keyed(c):
+            rows = c.particle_rows()
+            trip = np.empty((rows.size, 3), np.int32)
+            trip[:, :2] = c.contact_particle[rows]
+            trip[:, 2] = c.contact_shape[rows, 0]
+            key = ((trip[:, 0].astype(np.int64) * span + trip[:, 1]) * self.model.shape_count + trip[:, 2])
+            return rows, trip, key
+
+        rows, trip, key = keyed(cur)
+        prows, ptrip, pkey = keyed(prev)
+        new = ~np.isin(key, pkey)
+        gone = ~np.isin(pkey, key)
+        imp = cur.contact_total_normal_impulse[rows, 0]
+        out.update(particle_begin=trip[new], particle_persist=trip[~new], particle_end=ptrip[gone],
+                   particle_begin_impulse=imp[new], particle_persist_impulse=imp[~new])
+        return out
 
     def _kinematics(self, t: float) -> None:
         """Bodies of moving colliders: pose at t, velocity from the pose at t and t + dt."""
@@ -491,6 +627,7 @@ class World:
                 rigid[f"contacts/{name}"] = np.array(getattr(contacts, name))
             rigid["contacts_count"] = int(contacts.count)
             rigid["contacts_active_count"] = int(contacts.active_count)
+            rigid["contacts_particle_count"] = int(contacts.particle_count)
         fluids = {name: dict(f.save_state()) for name, f in self.fluids.items()}
         return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups], rigid, fluids)
 
@@ -513,8 +650,14 @@ class World:
             contacts = Contacts.__new__(Contacts)
             contacts.capacity = int(r["contacts/" + next(iter(_SPEC))].shape[0])
             contacts.count, contacts.active_count = int(r["contacts_count"]), int(r["contacts_active_count"])
+            contacts.particle_start = contacts.count
+            contacts.particle_count = int(r.get("contacts_particle_count", 0))
             for name in _SPEC:
-                setattr(contacts, name, np.asarray(r[f"contacts/{name}"]))
+                if f"contacts/{name}" in r:
+                    setattr(contacts, name, np.asarray(r[f"contacts/{name}"]))
+                else:         # a checkpoint from before the array existed
+                    shape, dtype = _SPEC[name]
+                    setattr(contacts, name, np.zeros((contacts.capacity,) + shape, dtype))
             self.rigid.restore({"state": saved_state, "contacts": contacts})
         for name, f in self.fluids.items():
             f.restore_state(state.fluids[name])
@@ -524,6 +667,21 @@ class World:
     def __repr__(self):
         groups = ", ".join(f"{g.name}: {g.particle_count} {g.kind} ({g.integrator})" for g in self.groups)
         return f"World({self.name!r}, dt={self.dt:g}, substeps={self.substeps}, t={self.t:g}, groups=[{groups}])"
+
+
+@njit(cache=True)
+def _sensor_poses(body, body_q, pose):
+    """pose rows [p, R row-major] of the sensor rows on bodies (``body >= 0``) from the bodies' poses."""
+    for k in range(body.shape[0]):
+        b = body[k]
+        if b < 0:
+            continue
+        for c in range(3):
+            pose[k, c] = body_q[b, c]
+        r = quat_to_mat3(body_q[b, 3:7])
+        for i in range(3):
+            for j in range(3):
+                pose[k, 3 + 3 * i + j] = r[i, j]
 
 
 @njit(cache=True)

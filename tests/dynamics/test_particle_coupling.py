@@ -157,3 +157,45 @@ def test_a_free_box_pushed_by_its_load_accelerates_at_the_total_force_over_the_t
     assert total == pytest.approx(-9 * m * g * t, rel=1e-12)
     counts = world["load"]._collision.coupling.counts
     assert counts["resting" if rest_speed > 1e-3 else "pass"] > 0
+
+
+def test_particle_rows_of_the_contacts_buffer_carry_the_impulses_the_body_received():
+    # gravity off, a stream hits a free cube off-centre while other particles slide on the static
+    # ground plane. Newton's third law per contact row: the impulses of the particle rows on the cube
+    # (shape 1) sum to minus the linear impulse the coupling gave the cube, and to its momentum change
+    # over the step (the rigid stage moves a free, untouched cube at constant momentum) -- 1e-12
+    # relative. Rows on the static plane (shape 0) are recorded too and push no body.
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    b.add_plane(offset=-0.5)
+    box = b.add_body(position=(0.0, 0.0, 0.0))
+    b.add_box(box, half_extents=(0.1, 0.1, 0.1), density=100.0, restitution=0.5, friction=0.3)
+    world = World(dt=1 / 240, model=b.finalize(), rigid_options={"substeps": 2, "enable_sleep": False})
+    n = 8
+    x = np.column_stack([-0.3 - 0.05 * np.arange(n), np.full(n, 0.06), 0.02 * np.sin(np.arange(n))])
+    x = np.vstack([x, [[0.3, 0.0, -0.49], [0.4, 0.0, -0.49]]])            # two on the plane
+    v = np.vstack([np.tile([3.0, 0.0, 0.0], (n, 1)), [[0.0, 0.5, -0.2], [0.0, -0.5, -0.2]]])
+    ps = ia.ParticleSystem(x, v, masses=0.05, radius=0.01)
+    world.add("stream", ps)
+    mass = world.model.body_mass[box]
+    box_rows_seen = plane_rows_seen = 0
+    for _ in range(60):
+        p_before = mass * world.rigid.state.body_qd[box, 3:].copy()
+        world.step()
+        c = world.rigid.contacts
+        rows = c.particle_rows()
+        assert c.particle_start == c.count
+        on_box = rows[c.contact_shape[rows, 0] == 1]
+        on_plane = rows[c.contact_shape[rows, 0] == 0]
+        box_rows_seen += on_box.size
+        plane_rows_seen += on_plane.size
+        assert np.all(c.contact_body[on_box, 0] == box) and np.all(c.contact_body[on_plane, 0] == -1)
+        assert np.all(c.contact_particle[rows, 0] == 0) and np.all(np.diff(c.contact_particle[rows, 1]) >= 0)
+        # the particle's impulse rebuilt from the row: normal and the two tangents
+        j = (c.contact_normal_impulse[on_box, 0, None] * c.contact_normal[on_box]
+             + np.einsum("rk,rkc->rc", c.contact_tangent_impulse[on_box, 0], c.contact_tangent[on_box]))
+        received = world._impulse_linear[box]
+        scale = max(np.linalg.norm(received), 1e-30)
+        assert np.linalg.norm(j.sum(axis=0) + received) <= 1e-12 * scale + 1e-300
+        dp = mass * world.rigid.state.body_qd[box, 3:] - p_before
+        assert np.linalg.norm(dp + j.sum(axis=0)) <= 1e-12 * max(np.linalg.norm(p_before), scale)
+    assert box_rows_seen >= n and plane_rows_seen >= 2 * 60 - 2   # every hit recorded; the sliders stay

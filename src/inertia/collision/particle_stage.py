@@ -241,6 +241,7 @@ class ParticleCollisionData:
         self.callables = [(i, c) for i, c in enumerate(self.colliders) if c.kind == _d.CALLABLE]
         if getattr(self, "coupling", None) is not None:     # rows added later: re-map them to bodies
             self.coupling.entry_body = self.entry_bodies(self._model)
+            self.coupling.entry_shape = self.entry_shapes()
         self.any_moving = any(c.moving for c in self.colliders)
         self.any_kernel = any(c.kind != _d.CALLABLE for c in self.colliders)
 
@@ -309,6 +310,14 @@ class ParticleCollisionData:
         for i, c in enumerate(self.colliders):
             if getattr(c, "from_body", False) and c.body >= 0 and int(model.body_type[c.body]) == 0:
                 out[i] = c.body
+        return out
+
+    def entry_shapes(self) -> np.ndarray:
+        """(K,) int64: the shape-table row of each packed collider row, -1 for the system's own colliders."""
+        out = np.full(self.cint.shape[0], -1, np.int64)
+        for i, c in enumerate(self.colliders):
+            if getattr(c, "from_body", False):
+                out[i] = c.shape
         return out
 
     # --- buffers -----------------------------------------------------------------------------

@@ -465,7 +465,8 @@ class BodyShape(Collider):
 
     Mapping: SPHERE, BOX, CAPSULE, CYLINDER, PLANE to the closed-form kinds; CONVEX_HULL (its outward
     triangulated hull) and TRIANGLE_MESH to a distance-grid ``Mesh`` (``inertia.collision.mesh``);
-    HEIGHTFIELD and SDF rows are not seen by particles (limitation).
+    HEIGHTFIELD to the ``Mesh`` of its triangles closed below (``collision.heightfield_distance``);
+    SDF rows are not seen by particles (limitation).
     """
 
     def __init__(self, model, shape: int, body_pose=None):
@@ -503,6 +504,14 @@ class BodyShape(Collider):
                 verts, inverse = np.unique(verts, axis=0, return_inverse=True)
                 faces = inverse.reshape(-1, 3).astype(np.int64)
             mesh = Mesh((p + verts @ r.T, faces), signed=_watertight(faces))
+            self.kind, cf, ci = _d.GRID, mesh._cf, mesh._ci
+        elif t == _S.HEIGHTFIELD:
+            # the rigid side's triangles closed below into a solid (collision/heightfield_distance.py)
+            from .heightfield_distance import heightfield_closed_mesh
+            from .mesh import Mesh
+            v0, nv = int(model.shape_vert_start[shape]), int(model.shape_vert_count[shape])
+            verts, faces = heightfield_closed_mesh(model.geom_vertices[v0:v0 + nv], int(par[0]), int(par[1]))
+            mesh = Mesh((p + verts @ r.T, faces), signed=True)
             self.kind, cf, ci = _d.GRID, mesh._cf, mesh._ci
         else:
             self.kind, cf = _d.CALLABLE, np.zeros(1)

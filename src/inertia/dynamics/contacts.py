@@ -29,9 +29,25 @@ Arrays (M = capacity >= number of candidate pairs; only the first ``count`` rows
 - ``contact_key (M,) int64``: ``shape_a * S + shape_b``, sorted ascending (warm-start merge).
 - ``active (M,) int32``, ``active_count``: indices of manifolds with points (scan).
 
+Particle rows (``World`` with particle groups; filled after the rigid rows, rows
+``particle_start : particle_start + particle_count``, ``particle_start == count``): one row per
+particle touching a shape-table row in the step, in group order, then particle order, then the order
+the particle met its rows. Endpoint A is the shape, endpoint B the particle (three degrees of freedom,
+no inertia): ``contact_shape[i] = (shape, -1)``, ``contact_body[i] = (body of the shape, -1)``,
+``contact_particle (M, 2) int32 = (group index, particle index)`` (meaningful in the particle range
+only), ``contact_point_count = 1``; ``contact_normal`` the shape's outward normal at the particle (from
+A to B); ``contact_point[i, 0]`` midway between the particle's surface and the shape's;
+``contact_separation[i, 0]`` the gap (distance to the shape minus the radius) at the end of the step;
+``contact_normal_impulse[i, 0]`` = ``contact_total_normal_impulse[i, 0]`` and
+``contact_tangent_impulse[i, 0]`` (along ``contact_tangent[i]``): the impulse the shape gave the
+particle over the whole step (N s; the body received minus it); ``contact_is_sensor``: a sensor row
+the particle overlaps (no response, zero impulse); ``contact_key = -1`` (particle rows are keyed by
+(group, particle, shape) in events). See ``inertia.world`` for what makes a particle row.
+
 References: Catto, E. (2024). Solver2D / Box2D v3 contact manifolds and feature ids; Gregorius, D.
 (2015). Robust contact creation for physics simulations (GDC).
-Limitations: four points per manifold; one manifold per shape pair.
+Limitations: four points per manifold; one manifold per shape pair; a particle row has one point
+(a particle meets at most two shape rows per step in the buffer, see ``inertia.world``).
 """
 
 from __future__ import annotations
@@ -40,7 +56,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Contacts", "ContactArrays"]
+__all__ = ["Contacts", "ContactArrays", "ParticleRowArrays"]
 
 
 class ContactArrays(NamedTuple):
@@ -66,6 +82,25 @@ class ContactArrays(NamedTuple):
     active: np.ndarray
 
 
+class ParticleRowArrays(NamedTuple):
+    """Kernel bundle: the arrays a particle row writes (``Contacts.particle_arrays``)."""
+    contact_shape: np.ndarray
+    contact_body: np.ndarray
+    contact_particle: np.ndarray
+    contact_point_count: np.ndarray
+    contact_is_sensor: np.ndarray
+    contact_key: np.ndarray
+    contact_normal: np.ndarray
+    contact_point: np.ndarray
+    contact_separation: np.ndarray
+    contact_tangent: np.ndarray
+    contact_normal_impulse: np.ndarray
+    contact_total_normal_impulse: np.ndarray
+    contact_max_normal_impulse: np.ndarray
+    contact_tangent_impulse: np.ndarray
+    contact_rolling_impulse: np.ndarray
+
+
 _SPEC = {
     "contact_shape": ((2,), np.int32), "contact_body": ((2,), np.int32),
     "contact_point_count": ((), np.int32), "contact_normal": ((3,), np.float64),
@@ -77,7 +112,7 @@ _SPEC = {
     "contact_rolling_impulse": ((3,), np.float64), "contact_max_normal_impulse": ((4,), np.float64),
     "contact_total_normal_impulse": ((4,), np.float64),
     "contact_relative_velocity": ((4,), np.float64), "contact_key": ((), np.int64),
-    "active": ((), np.int32),
+    "active": ((), np.int32), "contact_particle": ((2,), np.int32),
 }
 
 
@@ -92,6 +127,8 @@ class Contacts:
         self.capacity = 0
         self.count = 0
         self.active_count = 0
+        self.particle_start = 0
+        self.particle_count = 0
         self.reserve(max(int(capacity), 1))
 
     def reserve(self, capacity: int) -> None:
@@ -109,9 +146,13 @@ class Contacts:
     def arrays(self) -> ContactArrays:
         return ContactArrays(*(getattr(self, f) for f in ContactArrays._fields))
 
+    def particle_arrays(self) -> ParticleRowArrays:
+        return ParticleRowArrays(*(getattr(self, f) for f in ParticleRowArrays._fields))
+
     def copy(self) -> "Contacts":
         out = Contacts.__new__(Contacts)
         out.capacity, out.count, out.active_count = self.capacity, self.count, self.active_count
+        out.particle_start, out.particle_count = self.particle_start, self.particle_count
         for name in _SPEC:
             setattr(out, name, getattr(self, name).copy())
         return out
@@ -119,6 +160,8 @@ class Contacts:
     def assign(self, other: "Contacts") -> None:
         self.reserve(other.capacity)
         self.count, self.active_count = other.count, other.active_count
+        self.particle_start = getattr(other, "particle_start", other.count)
+        self.particle_count = getattr(other, "particle_count", 0)
         for name in _SPEC:
             getattr(self, name)[:other.capacity] = getattr(other, name)
 
@@ -126,6 +169,10 @@ class Contacts:
     def manifolds(self):
         """Indices of manifolds that have at least one point (a view; copy to keep)."""
         return self.active[:self.active_count]
+
+    def particle_rows(self) -> np.ndarray:
+        """Indices of the particle-shape rows of the last step (see the module docstring)."""
+        return np.arange(self.particle_start, self.particle_start + self.particle_count)
 
     def total_normal_impulse(self) -> np.ndarray:
         """Per active manifold, the sum of its points' normal impulses (N s)."""

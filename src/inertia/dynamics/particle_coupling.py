@@ -15,6 +15,12 @@ colliders). Whatever momentum a particle gains from a body's surface, the body l
   shape (normal load and friction), ``F = f_applied - f_filtered``, acts on the body at the particle's
   position over the substep: ``J = F h``, ``A = (x - c) x J``.
 
+Per contact (the rows of the world's ``Contacts`` buffer): both gathers also add the impulse each
+particle received to its contact slot of that row (`ContactSlots`, two per particle and world step;
+static rows, which push no body, included), and `fill_particle_contacts` turns the slots, the row a
+particle rests on at the end of the step and the sensor rows it overlaps into buffer rows. The slots'
+impulses on a body's rows sum to minus what the body received (the same numbers, summed in another order).
+
 Impulses are summed per body in particle order, group order and substep order (serial, fixed order:
 deterministic at any thread count), then applied once per world step by `apply_body_impulses`:
 ``dv = J / m``, ``dw = I_world^-1 A`` for dynamic bodies (zero for static and kinematic ones); a
@@ -34,6 +40,8 @@ Limitations
 - Attribution is geometric: a particle's change in the pass goes to the nearest shape; particle-particle
   impulses (``self_collisions``) of particles touching a body are attributed to that body.
 - 3-D only; particles need a finite mass (pinned particles push nothing).
+- Contact rows: at most two rows per particle and step (a third row's impulse is added to the second
+  slot); particle-particle impulses of a particle touching a row are part of that row's impulse.
 """
 
 from __future__ import annotations
@@ -49,7 +57,7 @@ from ..geometry import shapes as S
 from ..math import world_inertia_inv
 
 __all__ = ["apply_body_impulses", "ParticleBodyCoupling", "gather_pass_impulses", "gather_resting_impulses",
-           "PassParticles", "PackedRows", "BodyImpulses"]
+           "PassParticles", "PackedRows", "BodyImpulses", "ContactSlots", "SLOTS", "fill_particle_contacts"]
 
 
 @njit(cache=True)
@@ -131,13 +139,46 @@ class PassParticles(NamedTuple):
 
 class PackedRows(NamedTuple):
     """Kernel bundle: the particle stage's packed collider rows (``particle_kernels`` layout) at the
-    end of the (sub)step, and the dynamic body of each row (-1 none)."""
+    end of the (sub)step, the dynamic body of each row (-1 none) and its shape-table row (-1: a
+    collider of the system's own, not a table row)."""
     cint: np.ndarray
     cf: np.ndarray
     ci: np.ndarray
     pose: np.ndarray
     ref: np.ndarray
     entry_body: np.ndarray
+    entry_shape: np.ndarray
+
+
+class ContactSlots(NamedTuple):
+    """Kernel bundle: per particle, the packed rows it touched during the world step and the impulse
+    each gave it (the rows of the ``Contacts`` buffer are made from these, see ``inertia.world``).
+    A particle has ``SLOTS`` slots; a third row met in one step adds its impulse to the last slot."""
+    entry: np.ndarray      # (N, SLOTS) int64, packed row index, -1 empty
+    impulse: np.ndarray    # (N, SLOTS, 3) N s, impulse on the particle over the step
+
+
+#: contact slots per particle and world step (a particle in a corner touches two rows)
+SLOTS = 2
+
+
+@njit(cache=True)
+def _slot_add(entry, impulse, i, k, jx, jy, jz):
+    """Add the impulse (jx, jy, jz) on particle i from packed row k to i's slot of k."""
+    s = -1
+    for c in range(entry.shape[1]):
+        if entry[i, c] == k:
+            s = c
+            break
+        if entry[i, c] < 0:
+            entry[i, c] = k
+            s = c
+            break
+    if s < 0:
+        s = entry.shape[1] - 1
+    impulse[i, s, 0] += jx
+    impulse[i, s, 1] += jy
+    impulse[i, s, 2] += jz
 
 
 class BodyImpulses(NamedTuple):
@@ -148,12 +189,15 @@ class BodyImpulses(NamedTuple):
 
 
 @njit(cache=True)
-def gather_pass_impulses(P, R, out, tol):
+def gather_pass_impulses(P, R, out, slots, tol):
     """Add, per body, minus the momentum the collision pass gave the particles near its shapes
-    (see the module docstring). P: `PassParticles`; R: `PackedRows`; out: `BodyImpulses`
-    (accumulated serially, in particle order). Returns the number of particles attributed to a body."""
+    (see the module docstring), and to each such particle's contact slot (`ContactSlots`) of the
+    nearest table row -- static rows too -- the momentum it gained. P: `PassParticles`; R:
+    `PackedRows`; out: `BodyImpulses` (accumulated serially, in particle order). Returns the number
+    of particles attributed to a body."""
     x_pre, v_pre, x, v, inv_mass, active, radius = P.x_pre, P.v_pre, P.x, P.v, P.inv_mass, P.active, P.radius
     cint, cf, ci, pose1, ref, entry_body = R.cint, R.cf, R.ci, R.pose, R.ref, R.entry_body
+    entry_shape = R.entry_shape
     body_q, linear_out, angular_out = out.body_q, out.linear, out.angular
     n = x.shape[0]
     count = 0
@@ -177,13 +221,17 @@ def gather_pass_impulses(P, R, out, tol):
         if kbest < 0:
             continue
         b = entry_body[kbest]
-        if b < 0:
+        if b < 0 and entry_shape[kbest] < 0:
             continue
         reach = tol + math.sqrt(dxx * dxx + dxy * dxy + dxz * dxz) + 1e-9
         if best - radius[i] > reach:
             continue
         m = 1.0 / inv_mass[i]
         jx, jy, jz = -m * dvx, -m * dvy, -m * dvz
+        if entry_shape[kbest] >= 0:
+            _slot_add(slots.entry, slots.impulse, i, kbest, -jx, -jy, -jz)
+        if b < 0:
+            continue
         # angular momentum of the particle about the origin, before and after the pass
         l1x = m * (x[i, 1] * v[i, 2] - x[i, 2] * v[i, 1])
         l1y = m * (x[i, 2] * v[i, 0] - x[i, 0] * v[i, 2])
@@ -203,19 +251,24 @@ def gather_pass_impulses(P, R, out, tol):
 
 
 @njit(cache=True)
-def gather_resting_impulses(x, reaction, reaction_body, out, h):
+def gather_resting_impulses(x, reaction, reaction_body, reaction_entry, out, slots, h):
     """Add, per body, the force the resting-contact filter cancelled for particles resting on its
-    shapes, times the substep h, applied at the particles' positions x (N, 3). reaction (N, 3) N;
-    reaction_body (N,) int64 (-1 none); out: `BodyImpulses`. Returns the number of particles that
-    pushed a body."""
+    shapes, times the substep h, applied at the particles' positions x (N, 3); and minus that impulse
+    to the particle's contact slot of the row it rests on (`ContactSlots`). reaction (N, 3) N;
+    reaction_body (N,) int64 (-1 none); reaction_entry (N,) int64 (the packed table row rested on, -1
+    none); out: `BodyImpulses`. Returns the number of particles that pushed a body."""
     body_q, linear_out, angular_out = out.body_q, out.linear, out.angular
     count = 0
     for i in range(x.shape[0]):
+        k = reaction_entry[i]
+        if k < 0:
+            continue
+        jx, jy, jz = reaction[i, 0] * h, reaction[i, 1] * h, reaction[i, 2] * h
+        _slot_add(slots.entry, slots.impulse, i, k, -jx, -jy, -jz)
         b = reaction_body[i]
         if b < 0:
             continue
         count += 1
-        jx, jy, jz = reaction[i, 0] * h, reaction[i, 1] * h, reaction[i, 2] * h
         rx, ry, rz = x[i, 0] - body_q[b, 0], x[i, 1] - body_q[b, 1], x[i, 2] - body_q[b, 2]
         linear_out[b, 0] += jx
         linear_out[b, 1] += jy
@@ -227,15 +280,18 @@ def gather_resting_impulses(x, reaction, reaction_body, out, h):
 
 
 @njit(cache=True)
-def _filter_reaction(f_before, f_after, inv_mass, rest_k, entry_body, reaction, reaction_body):
+def _filter_reaction(f_before, f_after, inv_mass, rest_k, entry_body, entry_shape, reaction, reaction_body,
+                     reaction_entry):
     for i in range(f_after.shape[0]):
         k = rest_k[i]
         b = entry_body[k] if k >= 0 else -1
-        if b < 0 or inv_mass[i] == 0.0:
+        if (b < 0 and (k < 0 or entry_shape[k] < 0)) or inv_mass[i] == 0.0:
             reaction_body[i] = -1
+            reaction_entry[i] = -1
             reaction[i, 0] = reaction[i, 1] = reaction[i, 2] = 0.0
             continue
         reaction_body[i] = b
+        reaction_entry[i] = k
         for c in range(3):
             reaction[i, c] = f_before[i, c] - f_after[i, c]
 
@@ -248,17 +304,26 @@ class ParticleBodyCoupling:
     f_before (N, 3)        forces before the resting filter (each force evaluation)
     reaction (N, 3) N, reaction_body (N,) int64   the force the filter cancelled on a body shape and that
                            body (written by the last force evaluation of the substep)
+    reaction_entry (N,) int64   the packed table row of that force (static rows too; -1 none)
     entry_body (K,) int64  the dynamic body of each packed collider row
+    entry_shape (K,) int64 the shape-table row of each packed collider row (-1: the system's own)
+    slot_entry (N, SLOTS) int64, slot_impulse (N, SLOTS, 3)   the rows each particle touched in the
+                           world step and their impulses on it (`ContactSlots`; zeroed by the world)
     linear, angular (B, 3) the world's impulse accumulators (shared by every group; zeroed by the world)
     """
 
-    def __init__(self, system, entry_body, body_q, linear, angular, tol):
+    def __init__(self, system, entry_body, body_q, linear, angular, tol, entry_shape=None):
         n = system.x.shape[0]
         self.system = system
         self.x_pre, self.v_pre = np.zeros((n, 3)), np.zeros((n, 3))
         self.f_before = np.zeros((n, 3))
         self.reaction, self.reaction_body = np.zeros((n, 3)), np.full(n, -1, np.int64)
+        self.reaction_entry = np.full(n, -1, np.int64)
         self.entry_body = entry_body
+        self.entry_shape = (np.full(entry_body.shape[0], -1, np.int64) if entry_shape is None
+                            else np.asarray(entry_shape, np.int64))
+        self.slot_entry = np.full((n, SLOTS), -1, np.int64)
+        self.slot_impulse = np.zeros((n, SLOTS, 3))
         self.body_q = body_q
         self.linear, self.angular = linear, angular
         self.tol = tol
@@ -270,22 +335,148 @@ class ParticleBodyCoupling:
         self.f_before[:] = f
 
     def after_filter(self, x, f, data):
-        _filter_reaction(self.f_before, f, self.system.inv_mass, data.rest_k, self.entry_body, self.reaction,
-                         self.reaction_body)
+        _filter_reaction(self.f_before, f, self.system.inv_mass, data.rest_k, self.entry_body, self.entry_shape,
+                         self.reaction, self.reaction_body, self.reaction_entry)
         self.filter_ran = True
 
     def before_collisions(self, system):
         self.x_pre[:] = system.x
         self.v_pre[:] = system.v
 
+    def clear_slots(self):
+        """Forget the rows touched (the world calls it at the start of each world step)."""
+        self.slot_entry.fill(-1)
+        self.slot_impulse.fill(0.0)
+
     def after_collisions(self, system, data, h):
         out = BodyImpulses(self.body_q, self.linear, self.angular)
+        slots = ContactSlots(self.slot_entry, self.slot_impulse)
         if self.filter_ran:
             self.counts["resting"] += gather_resting_impulses(self.x_pre, self.reaction, self.reaction_body,
-                                                              out, h)
+                                                              self.reaction_entry, out, slots, h)
             self.filter_ran = False
         particles = PassParticles(self.x_pre, self.v_pre, system.x, system.v, system.inv_mass, system.active,
                                   system.radius)
-        rows = PackedRows(data.cint, data.cf, data.ci, data.pose1, data.ref, self.entry_body)
-        self.counts["pass"] += gather_pass_impulses(particles, rows, out,
+        rows = PackedRows(data.cint, data.cf, data.ci, data.pose1, data.ref, self.entry_body, self.entry_shape)
+        self.counts["pass"] += gather_pass_impulses(particles, rows, out, slots,
                                                     max(self.tol, data.distance_tolerance))
+
+
+class SensorRows(NamedTuple):
+    """Kernel bundle: the sensor rows of the shape table packed in the particle kernels' format at the
+    end of the step (``pose`` from the bodies' poses), their table rows and bodies (-1 world)."""
+    cint: np.ndarray       # (Q, 4) int64 kind, moving, cf offset, ci offset
+    cf: np.ndarray
+    ci: np.ndarray
+    pose: np.ndarray       # (Q, 12)
+    ref: np.ndarray        # (Q, 3)
+    shape: np.ndarray      # (Q,) int64
+    body: np.ndarray       # (Q,) int64
+
+
+@njit(cache=True)
+def _row_distance(cint, cf, ci, pose, ref, k, x, y, z):
+    """Signed distance and world-frame unit outward normal of packed row k at the world point."""
+    if cint[k, 1] & 1:
+        lx, ly, lz = _d.to_rest(pose[k], ref[k], x, y, z)
+    else:
+        lx, ly, lz = x, y, z
+    d, gx, gy, gz = _d.sdf(cint[k, 0], cf, cint[k, 2], ci, cint[k, 3], lx, ly, lz)
+    if cint[k, 1] & 1:
+        gx, gy, gz = _d.rotate(pose[k], gx, gy, gz)
+    return d, gx, gy, gz
+
+
+@njit(cache=True)
+def _write_row(ca, r, shape, body, g, i, x, y, z, radius, d, nx, ny, nz, jx, jy, jz, sensor):
+    ca.contact_shape[r, 0] = shape
+    ca.contact_shape[r, 1] = -1
+    ca.contact_body[r, 0] = body
+    ca.contact_body[r, 1] = -1
+    ca.contact_particle[r, 0] = g
+    ca.contact_particle[r, 1] = i
+    ca.contact_point_count[r] = 1
+    ca.contact_is_sensor[r] = sensor
+    ca.contact_key[r] = -1
+    ca.contact_normal[r, 0], ca.contact_normal[r, 1], ca.contact_normal[r, 2] = nx, ny, nz
+    mid = 0.5 * (d + radius)              # from the particle's centre back to midway between surfaces
+    ca.contact_point[r, 0, 0] = x - mid * nx
+    ca.contact_point[r, 0, 1] = y - mid * ny
+    ca.contact_point[r, 0, 2] = z - mid * nz
+    ca.contact_separation[r, 0] = d - radius
+    # tangents: t1 perpendicular to n (built from the axis least aligned with n), t2 = n x t1
+    if abs(nx) < 0.57735:
+        ax, ay, az = 1.0, 0.0, 0.0
+    elif abs(ny) < 0.57735:
+        ax, ay, az = 0.0, 1.0, 0.0
+    else:
+        ax, ay, az = 0.0, 0.0, 1.0
+    t1x, t1y, t1z = ay * nz - az * ny, az * nx - ax * nz, ax * ny - ay * nx
+    s = math.sqrt(t1x * t1x + t1y * t1y + t1z * t1z)
+    t1x, t1y, t1z = t1x / s, t1y / s, t1z / s
+    t2x, t2y, t2z = ny * t1z - nz * t1y, nz * t1x - nx * t1z, nx * t1y - ny * t1x
+    ca.contact_tangent[r, 0, 0], ca.contact_tangent[r, 0, 1], ca.contact_tangent[r, 0, 2] = t1x, t1y, t1z
+    ca.contact_tangent[r, 1, 0], ca.contact_tangent[r, 1, 1], ca.contact_tangent[r, 1, 2] = t2x, t2y, t2z
+    jn = jx * nx + jy * ny + jz * nz
+    ca.contact_normal_impulse[r, 0] = jn
+    ca.contact_total_normal_impulse[r, 0] = jn
+    ca.contact_max_normal_impulse[r, 0] = jn
+    ca.contact_tangent_impulse[r, 0, 0] = jx * t1x + jy * t1y + jz * t1z
+    ca.contact_tangent_impulse[r, 0, 1] = jx * t2x + jy * t2y + jz * t2z
+    for c in range(1, 4):
+        ca.contact_normal_impulse[r, c] = 0.0
+        ca.contact_total_normal_impulse[r, c] = 0.0
+        ca.contact_max_normal_impulse[r, c] = 0.0
+        ca.contact_tangent_impulse[r, c, 0] = 0.0
+        ca.contact_tangent_impulse[r, c, 1] = 0.0
+        ca.contact_separation[r, c] = 0.0
+    for c in range(3):
+        ca.contact_rolling_impulse[r, c] = 0.0
+
+
+@njit(cache=True)
+def fill_particle_contacts(x, radius, active, rest_k, slots, R, shape_body, Q, group, ca, start, write):
+    """The particle rows of one group (see ``inertia.dynamics.contacts``): per particle in order, its
+    contact slots (`ContactSlots`: rows touched in the step, with their impulses), then the table row
+    it rests on at the end of the step if no slot holds it (zero impulse), then the sensor rows
+    (`SensorRows` Q) it overlaps (distance minus radius <= 0). R: `PackedRows` at the end of the step.
+    Rows go to ``ca`` (`ContactArrays` plus ``contact_particle``) from ``start`` on when ``write``;
+    returns the number of rows either way (count with write=False, reserve, then write)."""
+    entry, impulse = slots.entry, slots.impulse
+    cint, cf, ci, pose, ref, entry_shape = R.cint, R.cf, R.ci, R.pose, R.ref, R.entry_shape
+    r = start
+    for i in range(x.shape[0]):
+        if not active[i]:
+            continue
+        px, py, pz = x[i, 0], x[i, 1], x[i, 2]
+        rk = rest_k[i]
+        if rk >= 0 and entry_shape[rk] < 0:
+            rk = -1
+        for s in range(entry.shape[1] + 1):
+            if s < entry.shape[1]:
+                k = entry[i, s]
+                if k < 0:
+                    continue
+                if k == rk:
+                    rk = -1
+                jx, jy, jz = impulse[i, s, 0], impulse[i, s, 1], impulse[i, s, 2]
+            else:
+                k = rk
+                if k < 0:
+                    continue
+                jx, jy, jz = 0.0, 0.0, 0.0
+            if write:
+                d, nx, ny, nz = _row_distance(cint, cf, ci, pose, ref, k, px, py, pz)
+                sh = entry_shape[k]
+                _write_row(ca, r, sh, shape_body[sh], group, i, px, py, pz, radius[i], d, nx, ny, nz,
+                           jx, jy, jz, False)
+            r += 1
+        for q in range(Q.cint.shape[0]):
+            d, nx, ny, nz = _row_distance(Q.cint, Q.cf, Q.ci, Q.pose, Q.ref, q, px, py, pz)
+            if d - radius[i] > 0.0:
+                continue
+            if write:
+                _write_row(ca, r, Q.shape[q], Q.body[q], group, i, px, py, pz, radius[i], d, nx, ny, nz,
+                           0.0, 0.0, 0.0, True)
+            r += 1
+    return r - start
