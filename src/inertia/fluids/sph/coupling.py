@@ -17,6 +17,14 @@ impulse sum_steps F dt (linear) and sum_steps T dt (angular, about the centre of
 ``body_qd`` (``inertia.dynamics.particle_coupling.apply_body_impulses``: dv = J / m, dw = I_world^-1 L;
 dynamic bodies only).
 
+The force on a boundary particle is the reaction of the fluid's pressure acceleration on it: the
+boundary pressure is the fluid particle's mirrored into the symmetric SPH sum, m (k_i + k_b) with
+k_b = k_i (Akinci et al. 2012), plus the wall's hydrostatic share k_b - k_i = g . (x_b - x_i) / rho_i
+(Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput. Phys. 231),
+``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``. With k_i alone (the earlier
+form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
+submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).
+
 Limitations
 - 3-D fluids only (the Model is 3-D); a 2-D scene is a thin 3-D fluid periodic across its depth.
 - Triangle meshes and heightfields are not sampled (``ValueError``); convex hulls use the maximum of
@@ -25,7 +33,10 @@ Limitations
   counts twice in the density near the joint).
 - Explicit coupling: the rigid step integrates the fluid impulse of the previous world step
   (first-order splitting; light bodies need the fluid's viscosity/XSPH to settle). During the fluid
-  sub-steps of one world step the bodies move with their velocity (poses extrapolated).
+  sub-steps of one world step the bodies move with their velocity (poses extrapolated). Light,
+  wide floating boxes can roll over although upright is stable (metacentric height > 0): the
+  added-mass instability of explicit (partitioned) coupling, worse with long world steps.
+- The wall's hydrostatic share uses gravity only, not the body's acceleration (Adami's g - a_w).
 """
 
 from __future__ import annotations

@@ -901,6 +901,7 @@ class SPHFluid:
         self._K.nonpressure_accel(F, nf, nb, B, self.grid, n, m, self.rest_density, self.h, explicit_nu,
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
+        self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3)  # the wall's hydrostatic pressure
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
         if self.xsph > 0:
@@ -922,6 +923,7 @@ class SPHFluid:
         if self._bodies:
             _k.body_wrench(F, nb, B, n, m, self.rest_density, self.h, self._body_x, self.body_force,
                            self.body_torque)
+            _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self.body_force, self.body_torque)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)

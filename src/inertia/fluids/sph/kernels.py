@@ -8,8 +8,9 @@ All kernels work in sorted space (see ``neighbours``) on the bundles ``FluidArra
 Notation: ``m`` fluid particle mass [kg], ``rho0`` rest density [kg/m^3], ``psi_b = rho0 V_b``
 the boundary particle's "mass" [kg] (Akinci et al. 2012), ``g_ij = grad_i W(x_i - x_j)``.
 The pressure is carried as ``k_i = p_i / rho_i^2`` [m^5/(kg s^2)]: the symmetric pressure
-acceleration is ``a_i = -sum_j m (k_i + k_j) g_ij - k_i sum_b psi_b g_ib`` (pressure mirrored
-onto the boundary, Akinci et al. 2012) for both WCSPH and DFSPH.
+acceleration is ``a_i = -sum_j m (k_i + k_j) g_ij - 2 k_i sum_b psi_b g_ib`` (pressure mirrored
+onto the boundary, k_b = k_i, Akinci et al. 2012; ``BOUNDARY_MIRROR``) for both WCSPH and DFSPH,
+plus the wall's hydrostatic share once per step (``boundary_hydrostatic_kick``, Adami et al. 2012).
 
 References: see the module docstring of ``inertia.fluids.sph.fluid``.
 """
@@ -57,6 +58,13 @@ class BoundaryArrays(NamedTuple):
 
 
 REDUCE_CHUNKS = 64
+
+# The boundary particle's pressure is the fluid particle's mirrored, p_b = p_i (Akinci et al.
+# 2012), entered in the symmetric pressure term: m (k_i + k_b) = 2 m k_i. With k_i alone (the
+# earlier form) a uniform pressure pushes every particle next to a wall into it (the fluid-fluid
+# sum gives 2 k_i, the wall 1 k_i), so the solver inflates k near walls and a held submerged box
+# felt 0.87 of rho0 g V. The hydrostatic part of the wall pressure is ``boundary_hydrostatic_kick``.
+BOUNDARY_MIRROR = 2.0
 
 
 @njit(cache=True, parallel=True)
@@ -183,7 +191,7 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
 
 @njit(cache=True, parallel=True)
 def apply_pressure(F, nf, nb, B, n, mass, dt, kappa, total, accumulate):
-    """v_i += dt a_i with a_i = -sum_j m (kappa_i + kappa_j) g_ij - kappa_i sum_b psi_b g_ib
+    """v_i += dt a_i with a_i = -sum_j m (kappa_i + kappa_j) g_ij - 2 kappa_i sum_b psi_b g_ib
     (the symmetric SPH pressure acceleration, kappa = p / rho^2; boundary pressure mirrored);
     with accumulate, total_i += kappa_i (row i only: the sums read kappa, never total)."""
     F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
@@ -202,7 +210,7 @@ def apply_pressure(F, nf, nb, B, n, mass, dt, kappa, total, accumulate):
                 az -= s * nf.g[k, 2]
         if ki != 0.0:
             for k in range(nb.start[i], nb.start[i + 1]):
-                s = ki * B.psi[nb.j[k]]
+                s = BOUNDARY_MIRROR * ki * B.psi[nb.j[k]]
                 ax -= s * nb.g[k, 0]
                 ay -= s * nb.g[k, 1]
                 if dim == 3:
@@ -384,8 +392,9 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
     """Force and torque of the fluid on each body (serial, fixed order: deterministic).
 
     The reaction of the pressure acceleration on fluid particle i from boundary particle b
-    (Akinci et al. 2012, eq. 10): f_b = m (k_dens_i + k_div_i) psi_b g_ib, plus the reaction of
-    the no-slip viscous term; torque about com[body]: (x_b - com) x f_b. force, torque (nbody, 3)."""
+    (Akinci et al. 2012, eq. 10, with the mirrored pressure k_b = k_i): f_b = 2 m (k_dens_i +
+    k_div_i) psi_b g_ib, plus the reaction of the no-slip viscous term (the wall's hydrostatic
+    share: ``body_hydrostatic_wrench``); torque about com[body]: (x_b - com) x f_b. force, torque (nbody, 3)."""
     dim = F.x.shape[1]
     force[:] = 0.0
     torque[:] = 0.0
@@ -399,7 +408,7 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
             body = B.body[b]
             if body < 0:
                 continue
-            s = mass * ki * B.psi[b]
+            s = BOUNDARY_MIRROR * mass * ki * B.psi[b]
             nu_b = B.noslip[b]
             if nu_b > 0.0:
                 rx = F.x[i, 0] - B.x[b, 0]
@@ -410,6 +419,71 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
                 vz = (F.v[i, 2] - B.v[b, 2]) if dim == 3 else 0.0
                 s -= 2.0 * mass * visc_scale * nu_b * B.psi[b] / rho0 * (vx * rx + vy * ry + vz * rz) / (
                     rx * rx + ry * ry + rz * rz + eps)
+            fx = s * nb.g[k, 0]
+            fy = s * nb.g[k, 1]
+            fz = s * nb.g[k, 2] if dim == 3 else 0.0
+            px = B.x[b, 0] - com[body, 0]
+            py = B.x[b, 1] - com[body, 1]
+            pz = (B.x[b, 2] - com[body, 2]) if dim == 3 else 0.0
+            force[body, 0] += fx
+            force[body, 1] += fy
+            force[body, 2] += fz
+            torque[body, 0] += py * fz - pz * fy
+            torque[body, 1] += pz * fx - px * fz
+            torque[body, 2] += px * fy - py * fx
+
+
+@njit(cache=True, parallel=True)
+def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity):
+    """The hydrostatic part of the boundary pressure (Adami, Hu & Adams 2012, "A generalized wall
+    boundary condition for smoothed particle hydrodynamics", J. Comput. Phys. 231: the wall
+    pressure extrapolated from the fluid with the body force; here taken pairwise, without the
+    wall's own acceleration): a boundary particle seen from fluid particle i carries
+    p_b = p_i + rho_i g . (x_b - x_i), i.e. k_b = k_i + g . (x_b - x_i) / rho_i. The k_i parts act
+    in the pressure solve (``apply_pressure``: k_i + k_b = 2 k_i, the mirror); this kernel adds the
+    rest once per step: v_i -= dt sum_b psi_b (g . (x_b - x_i) / rho_i) g_ib. Without it a
+    wall above the fluid (the underside of a submerged body) is pushed by the pressure at the
+    fluid particle's depth instead of its own (``body_hydrostatic_wrench`` adds the reaction)."""
+    F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
+    F_x = F.x
+    F_rho = F.rho
+    dim = F_x.shape[1]
+    for i in prange(n):
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            hyd = gravity[0] * (B.x[b, 0] - F_x[i, 0]) + gravity[1] * (B.x[b, 1] - F_x[i, 1])
+            if dim == 3:
+                hyd += gravity[2] * (B.x[b, 2] - F_x[i, 2])
+            s = B.psi[b] * hyd / F_rho[i]
+            ax -= s * nb.g[k, 0]
+            ay -= s * nb.g[k, 1]
+            if dim == 3:
+                az -= s * nb.g[k, 2]
+        F_v[i, 0] += dt * ax
+        F_v[i, 1] += dt * ay
+        if dim == 3:
+            F_v[i, 2] += dt * az
+
+
+@njit(cache=True)
+def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, force, torque):
+    """Adds to force, torque (nbody, 3) the reaction of ``boundary_hydrostatic_kick`` on the
+    bodies' particles: f_b = m psi_b (g . (x_b - x_i) / rho_i) g_ib, torque (x_b - com) x f_b
+    (serial, fixed order; the same positions and densities as the kick of this step)."""
+    dim = F.x.shape[1]
+    for i in range(n):
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            body = B.body[b]
+            if body < 0:
+                continue
+            hyd = gravity[0] * (B.x[b, 0] - F.x[i, 0]) + gravity[1] * (B.x[b, 1] - F.x[i, 1])
+            if dim == 3:
+                hyd += gravity[2] * (B.x[b, 2] - F.x[i, 2])
+            s = mass * B.psi[b] * hyd / F.rho[i]
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
             fz = s * nb.g[k, 2] if dim == 3 else 0.0
@@ -460,7 +534,7 @@ def move_boundary(local, body, rest_x, body_x, body_rot, body_v, body_omega, x, 
 # --------------------------------------------------------------------------- size dispatch
 _PARALLEL_KERNELS = ("chunk_sum_max", "speed_squared", "density_and_factor", "pressure_increment",
                      "apply_pressure", "tait_pressure", "surface_normals", "nonpressure_accel", "kick",
-                     "xsph", "advect", "move_boundary")
+                     "xsph", "advect", "move_boundary", "boundary_hydrostatic_kick")
 _SETS = {}
 
 
