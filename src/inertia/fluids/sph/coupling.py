@@ -9,7 +9,8 @@ boundary particles' positions and velocities.
 Here every row of the Model's shape table (``inertia.geometry.shapes``: sphere, box, capsule,
 cylinder, convex hull, plane) is sampled at build time: the fluid lattice's points inside the solid
 within one kernel support of its surface (a band, see ``SPHFluid``), from the shape's signed distance
-in its local frame. Shapes of dynamic and kinematic bodies are sampled on a lattice aligned with the
+in its local frame; boxes of moving bodies on a lattice fitted to their sides
+(``fitted_box_lattice``: every face half a cell outside the outer layer). Shapes of dynamic and kinematic bodies are sampled on a lattice aligned with the
 shape and stored in the body frame (centre of mass, principal axes); static shapes (body -1 or a
 static body) on the fluid's world lattice. ``SPHFluid.advance(dt, rigid)`` poses the bands from
 ``rigid.state.body_q/body_qd``, runs fluid steps that cover dt, and pushes the bodies back with the
@@ -45,7 +46,7 @@ import numpy as np
 
 from ...geometry import shapes as S
 
-__all__ = ["shape_signed_distance", "sample_model", "quat_to_matrices"]
+__all__ = ["shape_signed_distance", "sample_model", "quat_to_matrices", "fitted_box_lattice"]
 
 SAMPLED_TYPES = (S.SPHERE, S.BOX, S.CAPSULE, S.CYLINDER, S.CONVEX_HULL, S.PLANE)
 
@@ -122,6 +123,23 @@ def _local_bounds(shape_type, params, verts):
     return -r, r
 
 
+def fitted_box_lattice(half, spacing):
+    """Points of a box of half extents ``half`` (D,) on a lattice fitted to it: per axis
+    n = max(1, round(2 half / spacing)) cells of size 2 half / n (within half a spacing of
+    ``spacing``), points at the cell centres, so every face lies half a cell outside the outer
+    layer, as a wall on the fluid's lattice does. On the plain lattice a box whose sides are not
+    multiples of the spacing has its outer layer up to half a spacing off: the fluid then sees a
+    box up to one spacing taller or shorter (a box of 9.6 spacings sampled as 10 floated 0.2
+    spacings high)."""
+    half = np.asarray(half, float)
+    axes = []
+    for h in half:
+        n = max(1, int(round(2 * h / spacing)))
+        axes.append(-h + (np.arange(n) + 0.5) * (2 * h / n))
+    grids = np.meshgrid(*axes, indexing="ij")
+    return np.ascontiguousarray(np.stack([g.ravel() for g in grids], axis=1))
+
+
 def _transform(pose, p):
     """pose (7,) = position, quaternion (w, x, y, z): world = R p + t."""
     return p @ quat_to_matrices(pose[3:7])[0].T + pose[:3]
@@ -153,10 +171,13 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
         moving = body >= 0 and int(model.body_type[body]) != S.STATIC
         if moving:
             lo, hi = _local_bounds(st, params, verts)
-            # lattice symmetric about the shape's centre (a face at +-half keeps whole cells)
-            n_cells = np.round((hi - lo) / spacing)
-            origin = 0.5 * (lo + hi) - 0.5 * spacing * (n_cells % 2)
-            pts = lattice(lo - spacing, hi + spacing, spacing, origin)
+            if st == S.BOX:  # faces half a cell outside the outer layer
+                pts = fitted_box_lattice(params[:3], spacing)
+            else:
+                # lattice symmetric about the shape's centre (a face at +-half keeps whole cells)
+                n_cells = np.round((hi - lo) / spacing)
+                origin = 0.5 * (lo + hi) - 0.5 * spacing * (n_cells % 2)
+                pts = lattice(lo - spacing, hi + spacing, spacing, origin)
             sd = shape_signed_distance(st, params, pts, verts)
             keep = (sd < 0) & (sd >= -support)
             in_body = _transform(local_pose, pts[keep])

@@ -404,6 +404,7 @@ class SPHFluid:
         centred on the collider's centre) and return the body index. Move it with
         ``set_body_state``; read the fluid's ``body_force`` / ``body_torque`` after each step."""
         from ...collision.shapes import Box, Sphere
+        from .coupling import fitted_box_lattice
         if isinstance(collider, Box):
             half = np.asarray(collider.half_extents, float)
         elif isinstance(collider, Sphere):
@@ -414,8 +415,11 @@ class SPHFluid:
             raise ValueError(f"collider must be {self.dim}-D like the fluid; got {collider.dim}-D")
         p, rot = collider.pose(0.0)
         rot = rot[:self.dim, :self.dim]
-        local = _lattice(-half, half, self.spacing, origin=np.zeros(self.dim) - 0.5 * self.spacing *
-                         (np.round(2 * half / self.spacing) % 2))
+        if isinstance(collider, Box):  # faces half a cell outside the outer layer
+            local = fitted_box_lattice(half, self.spacing)
+        else:
+            local = _lattice(-half, half, self.spacing, origin=np.zeros(self.dim) - 0.5 * self.spacing *
+                             (np.round(2 * half / self.spacing) % 2))
         world = p[:self.dim] + local @ rot.T
         sd = collider.signed_distance(world)
         keep = (sd < 0) & (sd >= -self.support)
