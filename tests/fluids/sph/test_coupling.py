@@ -161,11 +161,14 @@ def test_tilted_half_submerged_box_buoyancy_moment():
 
 
 def _drop_box(relative_density, duration, heave_only):
-    # A box 0.4 x 0.24 m (16 x 9.6 spacings) released with its bottom on the surface of a slab
-    # tank 0.7 m wide filled to 0.35 m (2352 particles). Returns (time, draft) samples; the draft
-    # is the free surface far from the box (99th percentile of the particles' heights + dx/2)
-    # minus the box's bottom, and the bottom's height.
-    dx, width, depth, bw, bh = 0.025, 0.7, 0.35, 0.4, 0.24
+    # A box 0.4 x 0.3 m (16 x 12 spacings) released with its bottom on the surface of a slab
+    # tank 0.7 m wide filled to 0.35 m (2352 particles). Returns (time, draft, percentile draft,
+    # bottom) samples. The draft is the water level minus the box's bottom, the level from the
+    # water's volume (N dx^3 per unit depth, incompressible to 0.1 %) plus the volume the box
+    # displaces below it: level (width - bw) = N dx^2 - bw bottom (per unit depth). The
+    # percentile draft takes the level from the particles far from the box (99th percentile of
+    # their heights + dx/2), which depends on how the top layer sits (+-0.1 spacing).
+    dx, width, depth, bw, bh = 0.025, 0.7, 0.35, 0.4, 0.3
     x, period = _slab(width, depth, dx)
     fluid = SPHFluid(x, spacing=dx, domain=((0, 0, 0), (width, period, depth + 0.3)), periodic=(False, True, False),
                      viscosity=5e-3, xsph=0.05, max_iterations=200)
@@ -180,30 +183,37 @@ def _drop_box(relative_density, duration, heave_only):
         fluid.advance(rigid.dt, rigid)
         if heave_only:  # a vertical guide: the box keeps its orientation
             rigid.state.body_qd[body, 0:3] = 0.0
-        far = np.abs(fluid.x[:, 0] - width / 2) > bw / 2 + 0.05
-        level = np.percentile(fluid.x[far, 2], 99) + dx / 2
         bottom = rigid.state.body_q[body, 2] - bh / 2
-        samples.append((rigid.state.time, level - bottom, bottom))
+        level = (fluid.particle_count * dx ** 3 / period - bw * bottom) / (width - bw)
+        far = np.abs(fluid.x[:, 0] - width / 2) > bw / 2 + 0.05
+        surface = np.percentile(fluid.x[far, 2], 99) + dx / 2
+        samples.append((rigid.state.time, level - bottom, surface - bottom, bottom))
     return np.array(samples), bh, dx
 
 
 @pytest.mark.parametrize("relative_density", [0.5, 0.8])
 def test_floating_box_reaches_the_archimedes_draft(relative_density):
     # Archimedes: a box of density s rho0 and height h floats at the draft d = s h (the displaced
-    # water weighs what the box weighs). Drafts of 4.8 and 7.7 spacings, so 5 % is 0.24-0.38 of a
-    # spacing (the free surface, a percentile of the particles, is resolved to ~0.1 spacing).
-    # The box runs on a vertical guide (its rotation is held): free, this light wide box
-    # rolls over after ~2 s although upright is stable (metacentric height 5 cm), the added-mass
-    # instability of the explicit coupling (coupling.py, limitations; the roll torque itself is
-    # checked by test_tilted_half_submerged_box_buoyancy_moment). Mean draft over 2-4 s (past the
-    # first heave periods) within 5 % of s h.
-    samples, bh, _ = _drop_box(relative_density, 4.0, heave_only=True)
-    mean = samples[samples[:, 0] > 2.0, 1].mean()
-    assert abs(mean / (relative_density * bh) - 1.0) < 0.05, mean / (relative_density * bh)
+    # water weighs what the box weighs). Drafts of 6 and 9.6 spacings, so 5 % is 0.3-0.5 of a
+    # spacing: the boundary's offsets are a few tenths of a spacing (the fitted box lattice puts
+    # the faces where the fluid sees them; before it, this box floated 0.2 spacing high), so
+    # fewer spacings across would not resolve 5 %. The box runs on a vertical guide (its rotation
+    # is held): free, a light wide box rolls over after ~2 s although upright is stable
+    # (metacentric height > 0), the added-mass instability of the explicit coupling (coupling.py,
+    # limitations; the roll moment itself: test_tilted_half_submerged_box_buoyancy_moment).
+    # Mean over 1.5-3 s (past the first heave periods). Measured (script runs, 0.5 s windows):
+    # volume draft 0.975-0.980 of s h (s = 0.5), 0.988-1.002 (s = 0.8); percentile draft
+    # 0.955-0.961 and 0.973-0.989. Checked: volume draft within 5 % of s h, percentile within 7 %.
+    samples, bh, _ = _drop_box(relative_density, 3.0, heave_only=True)
+    late = samples[samples[:, 0] > 1.5]
+    ratio = late[:, 1].mean() / (relative_density * bh)
+    surface_ratio = late[:, 2].mean() / (relative_density * bh)
+    assert abs(ratio - 1.0) < 0.05, (ratio, surface_ratio)
+    assert abs(surface_ratio - 1.0) < 0.07, (ratio, surface_ratio)
 
 
 def test_dense_box_sinks_to_the_floor():
     # A box twice as dense as the water sinks and rests on the floor plane (rigid contact): its
-    # bottom within one spacing of z = 0 after 1.5 s (released 0.35 m above the floor).
+    # bottom within one spacing of z = 0 after 1.5 s (released 0.36 m above the floor), free to rotate.
     samples, bh, dx = _drop_box(2.0, 1.5, heave_only=False)
-    assert samples[-1, 2] < dx, samples[-1, 2]
+    assert samples[-1, 3] < dx, samples[-1, 3]
