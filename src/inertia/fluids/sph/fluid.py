@@ -732,6 +732,7 @@ class SPHFluid:
         self._b_tmp2 = np.empty((nbnd, d))
         self._b_tmp1 = np.empty(nbnd)
         self._b_tmpi = np.empty(nbnd, np.int64)
+        self._k_floor = np.zeros(self.capacity)  # k_i of the hydrostatic wall kick (kernels)
         self._bodies_moved = bool(self._bodies)
         self._sort_boundary()
 
@@ -905,7 +906,7 @@ class SPHFluid:
         self._K.nonpressure_accel(F, nf, nb, B, self.grid, n, m, self.rest_density, self.h, explicit_nu,
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
-        self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3)  # the wall's hydrostatic pressure
+        self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor)  # wall pressure, hydrostatic share
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
         if self.xsph > 0:
@@ -927,7 +928,8 @@ class SPHFluid:
         if self._bodies:
             _k.body_wrench(F, nb, B, n, m, self.rest_density, self.h, self._body_x, self.body_force,
                            self.body_torque)
-            _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self.body_force, self.body_torque)
+            _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
+                                       self.body_torque)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)

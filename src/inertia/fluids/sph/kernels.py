@@ -434,21 +434,29 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque):
 
 
 @njit(cache=True, parallel=True)
-def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity):
+def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
     """The hydrostatic part of the boundary pressure (Adami, Hu & Adams 2012, "A generalized wall
     boundary condition for smoothed particle hydrodynamics", J. Comput. Phys. 231: the wall
     pressure extrapolated from the fluid with the body force; here taken pairwise, without the
     wall's own acceleration): a boundary particle seen from fluid particle i carries
     p_b = p_i + rho_i g . (x_b - x_i), i.e. k_b = k_i + g . (x_b - x_i) / rho_i. The k_i parts act
     in the pressure solve (``apply_pressure``: k_i + k_b = 2 k_i, the mirror); this kernel adds the
-    rest once per step: v_i -= dt sum_b psi_b (g . (x_b - x_i) / rho_i) g_ib. Without it a
-    wall above the fluid (the underside of a submerged body) is pushed by the pressure at the
-    fluid particle's depth instead of its own (``body_hydrostatic_wrench`` adds the reaction)."""
+    rest once per step: v_i -= dt sum_b psi_b h_ib g_ib with h_ib = max(g . (x_b - x_i) / rho_i,
+    -k_i), so that the wall pressure k_b stays >= 0 (no suction: a wall above a fluid particle at
+    the free surface would otherwise pull it, and a dense box landing on the surface stuck to it).
+    k_i is the pressure at the time of the kick (k_dens of the last step + k_div of this one),
+    written to ``k_floor`` for ``body_hydrostatic_wrench``. Without this term a wall above the
+    fluid (the underside of a submerged body) is pushed by the pressure at the fluid particle's
+    depth instead of its own."""
     F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
     F_x = F.x
     F_rho = F.rho
+    F_k_dens = F.k_dens
+    F_k_div = F.k_div
     dim = F_x.shape[1]
     for i in prange(n):
+        ki = F_k_dens[i] + F_k_div[i]
+        k_floor[i] = ki
         ax = 0.0
         ay = 0.0
         az = 0.0
@@ -457,7 +465,7 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity):
             hyd = gravity[0] * (B.x[b, 0] - F_x[i, 0]) + gravity[1] * (B.x[b, 1] - F_x[i, 1])
             if dim == 3:
                 hyd += gravity[2] * (B.x[b, 2] - F_x[i, 2])
-            s = B.psi[b] * hyd / F_rho[i]
+            s = B.psi[b] * max(hyd / F_rho[i], -ki)
             ax -= s * nb.g[k, 0]
             ay -= s * nb.g[k, 1]
             if dim == 3:
@@ -469,10 +477,11 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity):
 
 
 @njit(cache=True)
-def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, force, torque):
+def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque):
     """Adds to force, torque (nbody, 3) the reaction of ``boundary_hydrostatic_kick`` on the
-    bodies' particles: f_b = m psi_b (g . (x_b - x_i) / rho_i) g_ib, torque (x_b - com) x f_b
-    (serial, fixed order; the same positions and densities as the kick of this step)."""
+    bodies' particles: f_b = m psi_b max(g . (x_b - x_i) / rho_i, -k_floor_i) g_ib, torque
+    (x_b - com) x f_b (serial, fixed order; the positions, densities and k_floor of the kick of
+    this step)."""
     dim = F.x.shape[1]
     for i in range(n):
         for k in range(nb.start[i], nb.start[i + 1]):
@@ -483,7 +492,7 @@ def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, force, torque):
             hyd = gravity[0] * (B.x[b, 0] - F.x[i, 0]) + gravity[1] * (B.x[b, 1] - F.x[i, 1])
             if dim == 3:
                 hyd += gravity[2] * (B.x[b, 2] - F.x[i, 2])
-            s = mass * B.psi[b] * hyd / F.rho[i]
+            s = mass * B.psi[b] * max(hyd / F.rho[i], -k_floor[i])
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
             fz = s * nb.g[k, 2] if dim == 3 else 0.0
