@@ -441,11 +441,13 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
     wall's own acceleration): a boundary particle seen from fluid particle i carries
     p_b = p_i + rho_i g . (x_b - x_i), i.e. k_b = k_i + g . (x_b - x_i) / rho_i. The k_i parts act
     in the pressure solve (``apply_pressure``: k_i + k_b = 2 k_i, the mirror); this kernel adds the
-    rest once per step: v_i -= dt sum_b psi_b h_ib g_ib with h_ib = max(g . (x_b - x_i) / rho_i,
-    -k_i), so that the wall pressure k_b stays >= 0 (no suction: a wall above a fluid particle at
-    the free surface would otherwise pull it, and a dense box landing on the surface stuck to it).
-    k_i is the pressure at the time of the kick (k_dens of the last step + k_div of this one),
-    written to ``k_floor`` for ``body_hydrostatic_wrench``. Without this term a wall above the
+    rest once per step: v_i -= dt sum_b psi_b h_ib g_ib with h_ib = g . (x_b - x_i) / rho_i, set
+    to 0 where it is negative and particle i carries no pressure (k_i <= 0: free surface, no
+    suction: a wall above an unpressurised particle would otherwise pull it, and a dense box
+    landing flat on the surface stuck to it). k_i is the pressure at the time of the kick
+    (k_dens of the last step + k_div of this one), written to ``k_floor`` for
+    ``body_hydrostatic_wrench``. (Clamping k_b >= 0 with this k_i instead cut the ceiling's
+    share at depth too: a held submerged box then felt 1.07 of rho0 g V.) Without this term a wall above the
     fluid (the underside of a submerged body) is pushed by the pressure at the fluid particle's
     depth instead of its own."""
     F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
@@ -465,7 +467,10 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
             hyd = gravity[0] * (B.x[b, 0] - F_x[i, 0]) + gravity[1] * (B.x[b, 1] - F_x[i, 1])
             if dim == 3:
                 hyd += gravity[2] * (B.x[b, 2] - F_x[i, 2])
-            s = B.psi[b] * max(hyd / F_rho[i], -ki)
+            h_ib = hyd / F_rho[i]
+            if ki <= 0.0 and h_ib < 0.0:
+                h_ib = 0.0
+            s = B.psi[b] * h_ib
             ax -= s * nb.g[k, 0]
             ay -= s * nb.g[k, 1]
             if dim == 3:
@@ -479,7 +484,7 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
 @njit(cache=True)
 def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque):
     """Adds to force, torque (nbody, 3) the reaction of ``boundary_hydrostatic_kick`` on the
-    bodies' particles: f_b = m psi_b max(g . (x_b - x_i) / rho_i, -k_floor_i) g_ib, torque
+    bodies' particles: f_b = m psi_b h_ib g_ib (h_ib as there, from k_floor), torque
     (x_b - com) x f_b (serial, fixed order; the positions, densities and k_floor of the kick of
     this step)."""
     dim = F.x.shape[1]
@@ -492,7 +497,10 @@ def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, tor
             hyd = gravity[0] * (B.x[b, 0] - F.x[i, 0]) + gravity[1] * (B.x[b, 1] - F.x[i, 1])
             if dim == 3:
                 hyd += gravity[2] * (B.x[b, 2] - F.x[i, 2])
-            s = mass * B.psi[b] * max(hyd / F.rho[i], -k_floor[i])
+            h_ib = hyd / F.rho[i]
+            if k_floor[i] <= 0.0 and h_ib < 0.0:
+                h_ib = 0.0
+            s = mass * B.psi[b] * h_ib
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
             fz = s * nb.g[k, 2] if dim == 3 else 0.0
