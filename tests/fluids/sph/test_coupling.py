@@ -96,8 +96,8 @@ def test_submerged_body_feels_archimedes_buoyancy():
     # The force is the difference of the bottom and top pressures (2450 and 1470 Pa), so the
     # boundary pressure must be consistent to a few per cent: mirrored (2 k_i) with the wall's
     # hydrostatic share (Adami et al. 2012; kernels.boundary_hydrostatic_kick). Measured 1.00
-    # (mean over 0.5-2 s; windows of 0.25 s ring between 0.8 and 1.26 with the column); before
-    # the mirror, 0.87. Checked: within 5 % of rho0 g V, the sideways force below 2 % of it.
+    # (mean over 0.5-2 s; windows of 0.25 s ring between 0.8 and 1.26 with the column; before
+    # the no-suction rule of the kick, which passes the same bound); before the mirror, 0.87. Checked: within 5 % of rho0 g V, the sideways force below 2 % of it.
     dx, width, depth, bw, bh, cz = 0.025, 0.4, 0.35, 0.15, 0.1, 0.15
     fluid, rigid, body, period = _held_box((width / 2, cz), (bw / 2, bh / 2), 0.0, width, depth, dx, 1e-2)
     forces = []
