@@ -11,6 +11,8 @@ floating boxes run on vertical guides (their rotation is held: free, these light
 after about 2 s, the added-mass instability of the explicit coupling; ``--free`` lets them).
 Writes ``sph_boxes_in_tank.png`` (side views at four times, water coloured by speed, boxes
 brown, the Archimedes waterline of each floating box as a white bar) and prints the drafts.
+Known problem (2026-11-25): a 4 s run stopped with SimulationDiverged in the rigid step at
+t = 2.85 s (all three bodies); the default duration is 2.5 s until that is understood.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ DENSITIES = (0.5, 0.8, 2.0)
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--out", default="out")
-    ap.add_argument("--duration", type=float, default=4.0)
+    ap.add_argument("--duration", type=float, default=2.5)
     ap.add_argument("--free", action="store_true", help="let the floating boxes rotate")
     a = ap.parse_args()
     dx, width, depth, bw, bh = 0.025, 1.8, 0.35, 0.4, 0.24
