@@ -48,14 +48,15 @@ def sph_particle_count(table: SPHTable) -> int:
 
 def sph_memory(table: SPHTable) -> tuple[int, float]:
     """(particles, bytes): state arrays plus neighbour lists (every neighbour inside the kernel's
-    support, 2 h, at rest spacing: index int32, weight and gradient float64, 25 % head-room)."""
+    support, 2 h, at rest spacing: index int32, weight and gradient float64, 25 % head-room) and the
+    search's fixed-stride scratch rows (1.5x the neighbours + 8 per particle, `SPHFluid._stride`)."""
     dim = len(table.domain[0])
     n = sph_particle_count(table)
     h = table.smoothing_length or (1.0 if table.kernel == "cubic_spline" else 1.2) * table.spacing
     ratio = 2.0 * h / table.spacing
     neighbours = (math.pi * ratio ** 2) if dim == 2 else (4.0 / 3.0 * math.pi * ratio ** 3)
     per_pair = 4 + 8 + 8 * dim
-    return n, n * (BYTES_PER_SPH_PARTICLE + 1.25 * neighbours * per_pair)
+    return n, n * (BYTES_PER_SPH_PARTICLE + (1.25 * neighbours + 1.5 * neighbours + 8) * per_pair)
 
 
 def add_sph_fluids(builder, world) -> None:

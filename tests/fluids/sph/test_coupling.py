@@ -1,8 +1,12 @@
 """SPH <-> RigidWorld coupling (inertia.fluids.sph.coupling): boundary bands sampled on the Model's
 shape rows, posed from body_q, fluid impulses written back into body_qd.
 
-Scenes are thin 3-D slabs (periodic across a depth of 6 spacings = 3 kernel supports) so that they
-stay small; the references are Archimedes' principle and the shape's signed distance.
+Scenes are thin 3-D slabs (periodic across a depth of 6 spacings = 3 kernel supports, the bodies
+spanning that depth: 2-D cross-sections) so that they stay small, at spacing 2.5 cm; the references
+are Archimedes' principle (force rho0 g V_submerged, draft (rho_b / rho0) h, moment of the buoyancy
+about the centre of mass from the submerged polygon's centroid) and the shapes' signed distances.
+Forces ring with the column (the fluid starts on the unloaded lattice), so they are time averages
+over whole seconds.
 """
 
 import numpy as np
@@ -67,58 +71,150 @@ def _tank(builder, width):
     builder.add_plane((-1, 0, 0), -width)
 
 
-def test_submerged_body_feels_archimedes_buoyancy():
-    # Archimedes: a held, fully submerged box of volume V feels F_z = rho0 g V and, by symmetry,
-    # no horizontal force. Kinematic box (6 x 6 x 4 spacings) in a 0.35 m column, dx = 2.5 cm.
-    # The force is a difference of the bottom and top pressures (2450 and 1470 Pa), so a few
-    # per cent of pressure error (DFSPH compression 1.7x its tolerance below the surface, the
-    # staircased band) is ~10 % of the net: measured 0.88 +- 0.05 over 0.5-1.5 s (time average;
-    # the instantaneous force rings with the column). Checked: within 20 % of rho0 g V, and
-    # the sideways force below 5 % of it.
-    dx, width, depth, bw, bh, cz = 0.025, 0.4, 0.35, 0.15, 0.1, 0.15
-    x, period = _slab(width, depth, dx, hole=((width / 2, cz), (bw / 2, bh / 2)))
-    fluid = SPHFluid(x, spacing=dx, domain=((0, 0, 0), (width, period, depth + 0.1)), periodic=(False, True, False),
-                     viscosity=1e-2, xsph=0.05, max_iterations=300)
+def _held_box(centre, half_xz, angle, width, depth, dx, viscosity):
+    """A slab tank filled to ``depth`` with a kinematic box (rotated by ``angle`` about y) held
+    at ``centre`` (x, z); the fluid lattice points inside the box are left out."""
+    period = 6 * dx
+    x = sample_block((0.0, 0.0, 0.0), (width, period, depth), dx)
+    c, s = np.cos(angle), np.sin(angle)
+    rel = x[:, [0, 2]] - centre
+    local_x, local_z = c * rel[:, 0] - s * rel[:, 1], s * rel[:, 0] + c * rel[:, 1]
+    x = x[~((np.abs(local_x) < half_xz[0]) & (np.abs(local_z) < half_xz[1]))]
+    fluid = SPHFluid(x, spacing=dx, domain=((0, 0, 0), (width, period, depth + 0.3)), periodic=(False, True, False),
+                     boundary_pressure="mirror", viscosity=viscosity, xsph=0.05, max_iterations=300)
     b = ModelBuilder(gravity=(0, 0, -G))
     _tank(b, width)
-    body = b.add_body(position=(width / 2, period / 2, cz), body_type="kinematic")
-    b.add_box(body, half_extents=(bw / 2, period / 2, bh / 2))
-    rigid = RigidWorld(b.finalize(), dt=1 / 200, substeps=1, enable_sleep=False)
+    body = b.add_body(position=(centre[0], period / 2, centre[1]), body_type="kinematic",
+                      orientation=(np.cos(angle / 2), 0.0, np.sin(angle / 2), 0.0))
+    b.add_box(body, half_extents=(half_xz[0], period / 2, half_xz[1]))
+    return fluid, RigidWorld(b.finalize(), dt=1 / 200, substeps=1, enable_sleep=False), body, period
+
+
+def test_submerged_body_feels_archimedes_buoyancy():
+    # Archimedes: a held, fully submerged box of volume V feels F_z = rho0 g V and, by symmetry,
+    # no horizontal force. Kinematic box 6 x 4 spacings (cross-section) in a 0.35 m column.
+    # The force is the difference of the bottom and top pressures (2450 and 1470 Pa), so the
+    # boundary pressure must be consistent to a few per cent: mirrored (2 k_i) with the wall's
+    # hydrostatic share (Adami et al. 2012; kernels.boundary_hydrostatic_kick). Measured 1.00
+    # (1.006 over 0.5-2 s; windows of 0.25 s ring between 0.8 and 1.26 with the column); before
+    # the mirror, 0.87. Checked: within 5 % of rho0 g V, the sideways force below 2 % of it.
+    dx, width, depth, bw, bh, cz = 0.025, 0.4, 0.35, 0.15, 0.1, 0.15
+    fluid, rigid, body, period = _held_box((width / 2, cz), (bw / 2, bh / 2), 0.0, width, depth, dx, 1e-2)
     forces = []
-    while rigid.state.time < 1.5:
+    while rigid.state.time < 2.0:
         rigid.step()
         fluid.advance(rigid.dt, rigid)
         if rigid.state.time > 0.5:
             forces.append(fluid.body_force[body].copy())
     mean = np.mean(forces, axis=0)
     archimedes = fluid.rest_density * G * bw * period * bh
-    assert abs(mean[2] / archimedes - 1.0) < 0.2, mean[2] / archimedes
-    assert abs(mean[0]) < 0.05 * archimedes, mean
+    assert abs(mean[2] / archimedes - 1.0) < 0.05, mean[2] / archimedes
+    assert abs(mean[0]) < 0.02 * archimedes, mean
     assert np.all(rigid.state.body_qd[body] == 0.0)  # kinematic: the fluid does not move it
 
 
-@pytest.mark.parametrize("relative_density", [0.5, 2.0])
-def test_light_box_floats_dense_box_sinks_in_rigid_world(relative_density):
-    # A RigidWorld box released with its bottom at the surface: density 2 sinks and rests on the
-    # floor plane (rigid contact; bottom within one spacing of z = 0 after 1.2 s, 0.3 m of fall);
-    # density 0.5 floats: after 1.2 s its bottom is still above mid-depth and its draft between
-    # a quarter and three quarters of its height (Archimedes: half).
-    dx, width, depth, bw, bh = 0.025, 0.6, 0.3, 0.2, 0.15
+def _submerged_polygon(corners, level):
+    """Area and centroid (x, z) of the convex polygon ``corners`` (K, 2) below z = level
+    (Sutherland-Hodgman clip, shoelace formulas)."""
+    out = []
+    for a, b in zip(corners, np.roll(corners, -1, axis=0)):
+        if a[1] <= level:
+            out.append(a)
+        if (a[1] <= level) != (b[1] <= level):
+            out.append(a + (level - a[1]) / (b[1] - a[1]) * (b - a))
+    p = np.array(out)
+    q = np.roll(p, -1, axis=0)
+    cross = p[:, 0] * q[:, 1] - q[:, 0] * p[:, 1]
+    area = cross.sum() / 2
+    return area, ((p + q) * cross[:, None]).sum(axis=0) / (6 * area)
+
+
+def test_tilted_half_submerged_box_buoyancy_moment():
+    # Buoyancy moment (Archimedes): a held box tilted by theta feels the force rho0 g A_sub L at the
+    # centroid of its submerged cross-section A_sub (the polygon below the free surface), so the
+    # torque about its centre is M_y = -(x_B - x_c) rho0 g A_sub L (righting: it turns the box back).
+    # Box 0.3 x 0.1 m (12 x 4 spacings) tilted 20 deg, centre on the surface: lever arm
+    # x_B - x_c = 3.4 cm = 1.4 spacings, M_y = -1.0 N m. Measured over 0.5-2 s: torque 0.963 of
+    # the closed form (0.87-0.95 in 0.5 s windows before the mirrored boundary pressure),
+    # vertical force 1.042 of rho0 g A_sub L. Checked: torque within 10 % (the lever arm is
+    # resolved to 0.14 spacings), force within 8 %.
+    dx, width, depth, bw, bh, angle = 0.025, 0.6, 0.3, 0.3, 0.1, np.radians(20.0)
+    fluid, rigid, body, period = _held_box((width / 2, depth), (bw / 2, bh / 2), angle, width, depth, dx, 5e-3)
+    samples = []
+    while rigid.state.time < 2.0:
+        rigid.step()
+        fluid.advance(rigid.dt, rigid)
+        if rigid.state.time > 0.5:
+            level = np.percentile(fluid.x[np.abs(fluid.x[:, 0] - width / 2) > bw / 2 + 0.05, 2], 99) + dx / 2
+            samples.append((fluid.body_force[body, 2], fluid.body_torque[body, 1], level))
+    force, torque, level = np.mean(samples, axis=0)
+    c, s = np.cos(angle), np.sin(angle)
+    corners = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]]) * [bw / 2, bh / 2]
+    # world (x, z) of the body-frame corners for a rotation by +angle about y
+    world = np.stack([c * corners[:, 0] + s * corners[:, 1], -s * corners[:, 0] + c * corners[:, 1]], axis=1)
+    area, centroid = _submerged_polygon(world + [width / 2, depth], level)
+    buoyancy = fluid.rest_density * G * area * period
+    moment = -(centroid[0] - width / 2) * buoyancy
+    assert moment < -0.5  # righting, and large enough to be resolved
+    assert abs(torque / moment - 1.0) < 0.10, (torque, moment)
+    assert abs(force / buoyancy - 1.0) < 0.08, (force, buoyancy)
+
+
+def _drop_box(relative_density, duration, heave_only):
+    # A box 0.4 x 0.4 m (16 x 16 spacings) released with its bottom on the surface of a slab
+    # tank 0.7 m wide filled to 0.35 m (2352 particles). Returns (time, draft, percentile draft,
+    # bottom) samples. The draft is the water level minus the box's bottom, the level from the
+    # water's volume (N dx^3 per unit depth, incompressible to 0.1 %) plus the volume the box
+    # displaces below it: level (width - bw) = N dx^2 - bw bottom (per unit depth). The
+    # percentile draft takes the level from the particles far from the box (99th percentile of
+    # their heights + dx/2), which depends on how the top layer sits (+-0.1 spacing).
+    dx, width, depth, bw, bh = 0.025, 0.7, 0.35, 0.4, 0.4
     x, period = _slab(width, depth, dx)
     fluid = SPHFluid(x, spacing=dx, domain=((0, 0, 0), (width, period, depth + 0.3)), periodic=(False, True, False),
-                     viscosity=5e-3, xsph=0.05, max_iterations=200)
+                     boundary_pressure="mirror", viscosity=5e-3, xsph=0.05, max_iterations=200)
     b = ModelBuilder(gravity=(0, 0, -G))
     _tank(b, width)
     body = b.add_body(position=(width / 2, period / 2, depth + bh / 2 + dx / 2))
     b.add_box(body, half_extents=(bw / 2, period / 2, bh / 2), density=relative_density * 1000.0)
     rigid = RigidWorld(b.finalize(), dt=1 / 200, substeps=4, enable_sleep=False)
-    while rigid.state.time < 1.2:
+    samples = []
+    while rigid.state.time < duration:
         rigid.step()
         fluid.advance(rigid.dt, rigid)
-    bottom = rigid.state.body_q[body, 2] - bh / 2
-    if relative_density > 1:
-        assert bottom < dx, bottom
-    else:
-        level = np.percentile(fluid.x[np.abs(fluid.x[:, 0] - width / 2) > bw / 2 + 0.05, 2], 99) + dx / 2
-        draft = level - bottom
-        assert bottom > depth / 2 and 0.25 * bh < draft < 0.75 * bh, (bottom, draft)
+        if heave_only:  # a vertical guide: the box keeps its orientation
+            rigid.state.body_qd[body, 0:3] = 0.0
+        bottom = rigid.state.body_q[body, 2] - bh / 2
+        level = (fluid.particle_count * dx ** 3 / period - bw * bottom) / (width - bw)
+        far = np.abs(fluid.x[:, 0] - width / 2) > bw / 2 + 0.05
+        surface = np.percentile(fluid.x[far, 2], 99) + dx / 2
+        samples.append((rigid.state.time, level - bottom, surface - bottom, bottom))
+    return np.array(samples), bh, dx
+
+
+@pytest.mark.parametrize("relative_density", [0.5, 0.8])
+def test_floating_box_reaches_the_archimedes_draft(relative_density):
+    # Archimedes: a box of density s rho0 and height h floats at the draft d = s h (the displaced
+    # water weighs what the box weighs). Drafts of 8 and 12.8 spacings: the boundary's offsets
+    # are a few tenths of a spacing (the box floats ~0.2 spacing high; the fitted box lattice
+    # removed another 0.2), so 5 % needs drafts of several spacings (at 4.8 spacings the draft was
+    # 0.93-0.95 of Archimedes). The box runs on a vertical guide (its rotation is held): free, a
+    # light wide box rolls over after ~2 s although upright is stable (metacentric height > 0),
+    # the added-mass instability of the explicit coupling (coupling.py, limitations; the roll
+    # moment itself: test_tilted_half_submerged_box_buoyancy_moment). Mean over 1.5-3 s (past the
+    # first heave periods). Measured: volume draft 0.976 of s h (s = 0.5), 0.985 (s = 0.8);
+    # percentile draft 0.961 and 0.978. Checked: volume draft within 5 % of s h, percentile
+    # within 7 %.
+    samples, bh, _ = _drop_box(relative_density, 3.0, heave_only=True)
+    late = samples[samples[:, 0] > 1.5]
+    ratio = late[:, 1].mean() / (relative_density * bh)
+    surface_ratio = late[:, 2].mean() / (relative_density * bh)
+    assert abs(ratio - 1.0) < 0.05, (ratio, surface_ratio)
+    assert abs(surface_ratio - 1.0) < 0.07, (ratio, surface_ratio)
+
+
+def test_dense_box_sinks_to_the_floor():
+    # A box twice as dense as the water sinks and rests on the floor plane (rigid contact): its
+    # bottom within one spacing of z = 0 after 1.5 s (released 0.36 m above the floor), free to
+    # rotate.
+    samples, bh, dx = _drop_box(2.0, 1.5, heave_only=False)
+    assert samples[-1, 3] < dx, samples[-1, 3]

@@ -9,13 +9,22 @@ boundary particles' positions and velocities.
 Here every row of the Model's shape table (``inertia.geometry.shapes``: sphere, box, capsule,
 cylinder, convex hull, plane) is sampled at build time: the fluid lattice's points inside the solid
 within one kernel support of its surface (a band, see ``SPHFluid``), from the shape's signed distance
-in its local frame. Shapes of dynamic and kinematic bodies are sampled on a lattice aligned with the
+in its local frame; boxes of moving bodies on a lattice fitted to their sides
+(``fitted_box_lattice``: every face half a cell outside the outer layer). Shapes of dynamic and kinematic bodies are sampled on a lattice aligned with the
 shape and stored in the body frame (centre of mass, principal axes); static shapes (body -1 or a
 static body) on the fluid's world lattice. ``SPHFluid.advance(dt, rigid)`` poses the bands from
 ``rigid.state.body_q/body_qd``, runs fluid steps that cover dt, and pushes the bodies back with the
 impulse sum_steps F dt (linear) and sum_steps T dt (angular, about the centre of mass) written into
 ``body_qd`` (``inertia.dynamics.particle_coupling.apply_body_impulses``: dv = J / m, dw = I_world^-1 L;
 dynamic bodies only).
+
+The force on a boundary particle is the reaction of the fluid's pressure acceleration on it: the
+boundary pressure is the fluid particle's mirrored into the symmetric SPH sum, m (k_i + k_b) with
+k_b = k_i (Akinci et al. 2012), plus the wall's hydrostatic share k_b - k_i = g . (x_b - x_i) / rho_i
+(Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput. Phys. 231),
+``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``. With k_i alone (the earlier
+form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
+submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).
 
 Limitations
 - 3-D fluids only (the Model is 3-D); a 2-D scene is a thin 3-D fluid periodic across its depth.
@@ -25,7 +34,10 @@ Limitations
   counts twice in the density near the joint).
 - Explicit coupling: the rigid step integrates the fluid impulse of the previous world step
   (first-order splitting; light bodies need the fluid's viscosity/XSPH to settle). During the fluid
-  sub-steps of one world step the bodies move with their velocity (poses extrapolated).
+  sub-steps of one world step the bodies move with their velocity (poses extrapolated). Light,
+  wide floating boxes can roll over although upright is stable (metacentric height > 0): the
+  added-mass instability of explicit (partitioned) coupling, worse with long world steps.
+- The wall's hydrostatic share uses gravity only, not the body's acceleration (Adami's g - a_w).
 """
 
 from __future__ import annotations
@@ -34,7 +46,7 @@ import numpy as np
 
 from ...geometry import shapes as S
 
-__all__ = ["shape_signed_distance", "sample_model", "quat_to_matrices"]
+__all__ = ["shape_signed_distance", "sample_model", "quat_to_matrices", "fitted_box_lattice"]
 
 SAMPLED_TYPES = (S.SPHERE, S.BOX, S.CAPSULE, S.CYLINDER, S.CONVEX_HULL, S.PLANE)
 
@@ -111,6 +123,23 @@ def _local_bounds(shape_type, params, verts):
     return -r, r
 
 
+def fitted_box_lattice(half, spacing):
+    """Points of a box of half extents ``half`` (D,) on a lattice fitted to it: per axis
+    n = max(1, round(2 half / spacing)) cells of size 2 half / n (within half a spacing of
+    ``spacing``), points at the cell centres, so every face lies half a cell outside the outer
+    layer, as a wall on the fluid's lattice does. On the plain lattice a box whose sides are not
+    multiples of the spacing has its outer layer up to half a spacing off: the fluid then sees a
+    box up to one spacing taller or shorter (a box of 9.6 spacings sampled as 10 floated 0.2
+    spacings high)."""
+    half = np.asarray(half, float)
+    axes = []
+    for h in half:
+        n = max(1, int(round(2 * h / spacing)))
+        axes.append(-h + (np.arange(n) + 0.5) * (2 * h / n))
+    grids = np.meshgrid(*axes, indexing="ij")
+    return np.ascontiguousarray(np.stack([g.ravel() for g in grids], axis=1))
+
+
 def _transform(pose, p):
     """pose (7,) = position, quaternion (w, x, y, z): world = R p + t."""
     return p @ quat_to_matrices(pose[3:7])[0].T + pose[:3]
@@ -142,10 +171,13 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
         moving = body >= 0 and int(model.body_type[body]) != S.STATIC
         if moving:
             lo, hi = _local_bounds(st, params, verts)
-            # lattice symmetric about the shape's centre (a face at +-half keeps whole cells)
-            n_cells = np.round((hi - lo) / spacing)
-            origin = 0.5 * (lo + hi) - 0.5 * spacing * (n_cells % 2)
-            pts = lattice(lo - spacing, hi + spacing, spacing, origin)
+            if st == S.BOX:  # faces half a cell outside the outer layer
+                pts = fitted_box_lattice(params[:3], spacing)
+            else:
+                # lattice symmetric about the shape's centre (a face at +-half keeps whole cells)
+                n_cells = np.round((hi - lo) / spacing)
+                origin = 0.5 * (lo + hi) - 0.5 * spacing * (n_cells % 2)
+                pts = lattice(lo - spacing, hi + spacing, spacing, origin)
             sd = shape_signed_distance(st, params, pts, verts)
             keep = (sd < 0) & (sd >= -support)
             in_body = _transform(local_pose, pts[keep])

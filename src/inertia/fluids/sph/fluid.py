@@ -472,6 +472,7 @@ class SPHFluid:
         centred on the collider's centre) and return the body index. Move it with
         ``set_body_state``; read the fluid's ``body_force`` / ``body_torque`` after each step."""
         from ...collision.shapes import Box, Sphere
+        from .coupling import fitted_box_lattice
         if isinstance(collider, Box):
             half = np.asarray(collider.half_extents, float)
         elif isinstance(collider, Sphere):
@@ -482,8 +483,11 @@ class SPHFluid:
             raise ValueError(f"collider must be {self.dim}-D like the fluid; got {collider.dim}-D")
         p, rot = collider.pose(0.0)
         rot = rot[:self.dim, :self.dim]
-        local = _lattice(-half, half, self.spacing, origin=np.zeros(self.dim) - 0.5 * self.spacing *
-                         (np.round(2 * half / self.spacing) % 2))
+        if isinstance(collider, Box):  # faces half a cell outside the outer layer
+            local = fitted_box_lattice(half, self.spacing)
+        else:
+            local = _lattice(-half, half, self.spacing, origin=np.zeros(self.dim) - 0.5 * self.spacing *
+                             (np.round(2 * half / self.spacing) % 2))
         world = p[:self.dim] + local @ rot.T
         sd = collider.signed_distance(world)
         keep = (sd < 0) & (sd >= -self.support)
@@ -798,6 +802,7 @@ class SPHFluid:
         self._b_tmp2 = np.empty((nbnd, d))
         self._b_tmp1 = np.empty(nbnd)
         self._b_tmpi = np.empty(nbnd, np.int64)
+        self._k_floor = np.zeros(self.capacity)  # k_i of the hydrostatic wall kick (kernels)
         self._bodies_moved = bool(self._bodies)
         self._sort_boundary()
 
@@ -1009,6 +1014,8 @@ class SPHFluid:
         self._K.nonpressure_accel(F, nf, nb, B, self.grid, n, m, self.rest_density, self.h, explicit_nu,
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
+        if self._mirror == 2.0:   # mirrored boundary pressure: the wall's hydrostatic share (Adami et al. 2012)
+            self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor)
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
         if self.xsph > 0:
@@ -1039,6 +1046,9 @@ class SPHFluid:
         if self._bodies:
             _k.body_wrench(F, nb, B, n, m, self.rest_density, self.h, self._body_x, self.body_force,
                            self.body_torque, self._mirror)
+            if self._mirror == 2.0:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
+                _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
+                                           self.body_torque)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)

@@ -59,6 +59,14 @@ class BoundaryArrays(NamedTuple):
 
 REDUCE_CHUNKS = 64
 
+# Boundary pressure (``bfac``, ``SPHFluid(boundary_pressure=...)``): "akinci" (bfac = 1) pushes with
+# k_i psi_b g_ib (Akinci et al. 2012, as SPlisHSPlasH); "mirror" (bfac = 2) enters the mirrored
+# pressure p_b = p_i in the symmetric term, m (k_i + k_b) = 2 m k_i. With k_i alone a uniform pressure
+# pushes every particle next to a wall into it (the fluid-fluid sum gives 2 k_i, the wall 1 k_i), so
+# the solver inflates k near walls and a held submerged box felt 0.87 of rho0 g V. In the mirrored
+# mode the wall's hydrostatic share is added once per step (``boundary_hydrostatic_kick``, Adami,
+# Hu & Adams 2012) and given back to bodies (``body_hydrostatic_wrench``).
+
 
 @njit(cache=True, parallel=True)
 def chunk_sum_max(values, n, partial, out):
@@ -435,6 +443,88 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque, bfac):
 
 
 @njit(cache=True, parallel=True)
+def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
+    """The hydrostatic part of the boundary pressure (Adami, Hu & Adams 2012, "A generalized wall
+    boundary condition for smoothed particle hydrodynamics", J. Comput. Phys. 231: the wall
+    pressure extrapolated from the fluid with the body force; here taken pairwise, without the
+    wall's own acceleration): a boundary particle seen from fluid particle i carries
+    p_b = p_i + rho_i g . (x_b - x_i), i.e. k_b = k_i + g . (x_b - x_i) / rho_i. The k_i parts act
+    in the pressure solve (``apply_pressure``: k_i + k_b = 2 k_i, the mirror); this kernel adds the
+    rest once per step: v_i -= dt sum_b psi_b h_ib g_ib with h_ib = g . (x_b - x_i) / rho_i, set
+    to 0 where it is negative and particle i carries no pressure (k_i <= 0: free surface, no
+    suction: a wall above an unpressurised particle would otherwise pull it, and a dense box
+    landing flat on the surface stuck to it). k_i is the pressure at the time of the kick
+    (k_dens of the last step + k_div of this one), written to ``k_floor`` for
+    ``body_hydrostatic_wrench``. (Clamping k_b >= 0 with this k_i instead cut the ceiling's
+    share at depth too: a held submerged box then felt 1.07 of rho0 g V.) Without this term a wall above the
+    fluid (the underside of a submerged body) is pushed by the pressure at the fluid particle's
+    depth instead of its own."""
+    F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
+    F_x = F.x
+    F_rho = F.rho
+    F_k_dens = F.k_dens
+    F_k_div = F.k_div
+    dim = F_x.shape[1]
+    for i in prange(n):
+        ki = F_k_dens[i] + F_k_div[i]
+        k_floor[i] = ki
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            hyd = gravity[0] * (B.x[b, 0] - F_x[i, 0]) + gravity[1] * (B.x[b, 1] - F_x[i, 1])
+            if dim == 3:
+                hyd += gravity[2] * (B.x[b, 2] - F_x[i, 2])
+            h_ib = hyd / F_rho[i]
+            if ki <= 0.0 and h_ib < 0.0:
+                h_ib = 0.0
+            s = B.psi[b] * h_ib
+            ax -= s * nb.g[k, 0]
+            ay -= s * nb.g[k, 1]
+            if dim == 3:
+                az -= s * nb.g[k, 2]
+        F_v[i, 0] += dt * ax
+        F_v[i, 1] += dt * ay
+        if dim == 3:
+            F_v[i, 2] += dt * az
+
+
+@njit(cache=True)
+def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque):
+    """Adds to force, torque (nbody, 3) the reaction of ``boundary_hydrostatic_kick`` on the
+    bodies' particles: f_b = m psi_b h_ib g_ib (h_ib as there, from k_floor), torque
+    (x_b - com) x f_b (serial, fixed order; the positions, densities and k_floor of the kick of
+    this step)."""
+    dim = F.x.shape[1]
+    for i in range(n):
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            body = B.body[b]
+            if body < 0:
+                continue
+            hyd = gravity[0] * (B.x[b, 0] - F.x[i, 0]) + gravity[1] * (B.x[b, 1] - F.x[i, 1])
+            if dim == 3:
+                hyd += gravity[2] * (B.x[b, 2] - F.x[i, 2])
+            h_ib = hyd / F.rho[i]
+            if k_floor[i] <= 0.0 and h_ib < 0.0:
+                h_ib = 0.0
+            s = mass * B.psi[b] * h_ib
+            fx = s * nb.g[k, 0]
+            fy = s * nb.g[k, 1]
+            fz = s * nb.g[k, 2] if dim == 3 else 0.0
+            px = B.x[b, 0] - com[body, 0]
+            py = B.x[b, 1] - com[body, 1]
+            pz = (B.x[b, 2] - com[body, 2]) if dim == 3 else 0.0
+            force[body, 0] += fx
+            force[body, 1] += fy
+            force[body, 2] += fz
+            torque[body, 0] += py * fz - pz * fy
+            torque[body, 1] += pz * fx - px * fz
+            torque[body, 2] += px * fy - py * fx
+
+
+@njit(cache=True, parallel=True)
 def move_boundary(local, body, rest_x, body_x, body_rot, body_v, body_omega, x, v):
     """Boundary particles of moving bodies: x_b = c + R r_b, v_b = v_c + omega x (x_b - c);
     static particles (body -1) keep rest_x and zero velocity. body_rot (nbody, 3, 3),
@@ -470,7 +560,7 @@ def move_boundary(local, body, rest_x, body_x, body_rot, body_v, body_omega, x, 
 # --------------------------------------------------------------------------- size dispatch
 _PARALLEL_KERNELS = ("chunk_sum_max", "speed_squared", "density_and_factor", "pressure_increment",
                      "apply_pressure", "tait_pressure", "surface_normals", "nonpressure_accel", "kick",
-                     "xsph", "advect", "move_boundary")
+                     "xsph", "advect", "move_boundary", "boundary_hydrostatic_kick")
 _SETS = {}
 
 
