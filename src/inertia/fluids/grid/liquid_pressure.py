@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 
 from . import pressure as P
+from .obstacles import face_cells
 from ...math import world_inertia_inv
 
 METHODS = ("mgpcg", "jacobi")
@@ -135,27 +136,13 @@ def body_gather(d, types, faces, open_frac, owner, dyn, axis, h, origin, body_q,
     G_f = (e_axis, (x_f - c_b) x e_axis) (linear part in out[b, :3], angular in out[b, 3:]).
     Faces on the domain sides and of non-dynamic bodies are skipped."""
     nx, ny, nz = d.shape
-    fy = ny + (1 if axis == 1 else 0)
-    fz = nz + (1 if axis == 2 else 0)
     for m in range(faces.shape[0]):
         b = owner[m]
         if b < 0 or not dyn[b]:
             continue
-        f = faces[m]
-        k = f % fz
-        j = (f // fz) % fy
-        i = f // (fz * fy)
-        idx = i if axis == 0 else (j if axis == 1 else k)
-        na = nx if axis == 0 else (ny if axis == 1 else nz)
-        if idx == 0 or idx == na:
+        i, j, k, il, jl, kl, interior = face_cells(faces[m], axis, nx, ny, nz)
+        if not interior:
             continue
-        il, jl, kl = i, j, k
-        if axis == 0:
-            il -= 1
-        elif axis == 1:
-            jl -= 1
-        else:
-            kl -= 1
         s = (1.0 - open_frac[m]) / h * (d[il, jl, kl] - d[i, j, k])
         x = origin[0] + (i + (0.0 if axis == 0 else 0.5)) * h - body_q[b, 0]
         y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
@@ -177,27 +164,13 @@ def body_scatter(y6, types, faces, open_frac, owner, dyn, axis, h, origin, body_
     """q += B y: each closed face adds (1 - A_f) / h G_f . y_b to its low-side cell and subtracts
     it from its high-side cell (liquid cells only)."""
     nx, ny, nz = q.shape
-    fy = ny + (1 if axis == 1 else 0)
-    fz = nz + (1 if axis == 2 else 0)
     for m in range(faces.shape[0]):
         b = owner[m]
         if b < 0 or not dyn[b]:
             continue
-        f = faces[m]
-        k = f % fz
-        j = (f // fz) % fy
-        i = f // (fz * fy)
-        idx = i if axis == 0 else (j if axis == 1 else k)
-        na = nx if axis == 0 else (ny if axis == 1 else nz)
-        if idx == 0 or idx == na:
+        i, j, k, il, jl, kl, interior = face_cells(faces[m], axis, nx, ny, nz)
+        if not interior:
             continue
-        il, jl, kl = i, j, k
-        if axis == 0:
-            il -= 1
-        elif axis == 1:
-            jl -= 1
-        else:
-            kl -= 1
         x = origin[0] + (i + (0.0 if axis == 0 else 0.5)) * h - body_q[b, 0]
         y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
         z = origin[2] + (k + (0.0 if axis == 2 else 0.5)) * h - body_q[b, 2]

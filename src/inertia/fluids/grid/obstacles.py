@@ -15,8 +15,31 @@ Limitations: features thinner than a cell are lost between vertices; fractions b
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 MIN_FRACTION = 1e-3
+
+
+@njit(cache=True, inline="always")
+def face_cells(f, axis, nx, ny, nz):
+    """The cells on either side of face ``f`` (flat index into the (nx+[axis==0], ny+[axis==1],
+    nz+[axis==2]) face array of ``axis``): (i, j, k) the high side, (il, jl, kl) the low side, and
+    whether the face is interior (not on the domain's side)."""
+    fy = ny + (1 if axis == 1 else 0)
+    fz = nz + (1 if axis == 2 else 0)
+    k = f % fz
+    j = (f // fz) % fy
+    i = f // (fz * fy)
+    idx = i if axis == 0 else (j if axis == 1 else k)
+    na = nx if axis == 0 else (ny if axis == 1 else nz)
+    il, jl, kl = i, j, k
+    if axis == 0:
+        il -= 1
+    elif axis == 1:
+        jl -= 1
+    else:
+        kl -= 1
+    return i, j, k, il, jl, kl, idx != 0 and idx != na
 
 
 def segment_fraction(a, b):
@@ -83,6 +106,47 @@ def face_fractions(vertex_sdf, dim):
 
 
 # ----------------------------------------------------------------------------- shared by fluids
+def obstacle_fractions(obstacles, vertex_pts, vertex_shape, dim, t):
+    """(sdf (V,), per-axis open fractions) of the faces from the union of the obstacles: the
+    smallest signed distance at the grid vertices (C order of `vertex_shape`), then
+    `face_fractions` (a 2-D grid is one cell thick: its vertex layer is doubled in z)."""
+    sdf = None
+    for o in obstacles:
+        d = np.asarray(o.signed_distance(vertex_pts, t), dtype=np.float64)
+        sdf = d if sdf is None else np.minimum(sdf, d)
+    vs = sdf.reshape(vertex_shape)
+    if dim == 2:
+        vs = np.concatenate([vs, vs], axis=2)
+    return sdf, face_fractions(vs, dim)
+
+
+def nearest_obstacle(obstacles, pts, t, axis):
+    """At (M, dim) points: the smallest signed distance over the obstacles, the `axis` velocity
+    component of the obstacle attaining it, and its index (one query per obstacle)."""
+    from ...collision.shapes import Collider
+    m = pts.shape[0]
+    best = np.full(m, np.inf)
+    vel = np.zeros(m)
+    owner = np.zeros(m, np.int64)
+    if m == 0:
+        return best, vel, owner
+    d = np.empty(m)
+    nrm = np.empty(pts.shape)
+    v = np.empty(pts.shape)
+    for i, o in enumerate(obstacles):
+        if isinstance(o, Collider):      # fills preallocated outputs: one query for both
+            o.query(pts, t, d, nrm, v)
+            di, vi = d, v[:, axis]
+        else:
+            di = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
+            vi = np.asarray(o.velocity(pts, t), dtype=np.float64)[:, axis]
+        take = di < best
+        best = np.where(take, di, best)
+        vel = np.where(take, vi, vel)
+        owner = np.where(take, i, owner)
+    return best, vel, owner
+
+
 def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, frac, solid):
     """Open fractions and solid velocities of every face from a list of obstacles (the
     obstacle part of `GridFluid`'s obstacles stage as a function, so `LiquidFluid` uses the
@@ -97,14 +161,7 @@ def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, f
         with the smallest signed distance at the face centre). In 2-D frac[2] is set to 0.
     Returns, per axis, (closed flat face indices, their open fractions, owner body per face),
     the faces whose pressure pushes a body. Domain sides are left to the caller."""
-    sdf = None
-    for o in obstacles:
-        d = np.asarray(o.signed_distance(vertex_pts, t), dtype=np.float64)
-        sdf = d if sdf is None else np.minimum(sdf, d)
-    vs = sdf.reshape(vertex_shape)
-    if dim == 2:
-        vs = np.concatenate([vs, vs], axis=2)
-    fr = face_fractions(vs, dim)
+    _, fr = obstacle_fractions(obstacles, vertex_pts, vertex_shape, dim, t)
     owners = np.asarray(owners, np.int64)
     cut = []
     for a in range(3):
@@ -116,20 +173,8 @@ def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, f
         closed = np.flatnonzero(frac[a].reshape(-1) < 1.0)
         owner = np.full(closed.size, -1, np.int64)
         if closed.size:
-            p = face_pts[a][closed]
-            best = None
-            vel = None
-            for i, o in enumerate(obstacles):
-                d = np.asarray(o.signed_distance(p, t))
-                vo = np.asarray(o.velocity(p, t))[:, a]
-                if best is None:
-                    best, vel = d, vo
-                    owner[:] = owners[i]
-                else:
-                    take = d < best
-                    best = np.where(take, d, best)
-                    vel = np.where(take, vo, vel)
-                    owner = np.where(take, owners[i], owner)
+            _, vel, nearest = nearest_obstacle(obstacles, face_pts[a][closed], t, a)
+            owner = owners[nearest]
             solid[a].reshape(-1)[closed] = vel
         cut.append((closed.astype(np.int64), frac[a].reshape(-1)[closed].copy(), owner))
     if dim == 2:

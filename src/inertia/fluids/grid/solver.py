@@ -79,7 +79,7 @@ from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
 from . import kernels as K
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
-from .obstacles import face_fractions
+from .obstacles import face_cells, face_fractions, nearest_obstacle, obstacle_fractions
 from .pressure import SOLVERS, PoissonSolver
 
 ADVECTION = ("semi-lagrangian", "maccormack")
@@ -390,17 +390,10 @@ class GridFluid:
         dim = self.dim
         obstacles = self.obstacles + self._rigid_obstacles
         if obstacles:
-            sdf = None
-            for o in obstacles:
-                d = np.asarray(o.signed_distance(self._vertex_pts, t), dtype=np.float64)
-                sdf = d if sdf is None else np.minimum(sdf, d)
+            vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
+            sdf, fr = obstacle_fractions(obstacles, self._vertex_pts, vshape, dim, t)
             if check_domain and np.all(sdf < 0):
                 raise ValueError("obstacles cover the whole domain")
-            vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
-            vs = sdf.reshape(vshape)
-            if dim == 2:
-                vs = np.concatenate([vs, vs], axis=2)
-            fr = face_fractions(vs, dim)
             if check_domain:
                 for i, o in enumerate(self.obstacles):
                     d = o.signed_distance(self._vertex_pts, t)
@@ -418,13 +411,13 @@ class GridFluid:
                 owner = np.zeros(closed.size, np.int64)
                 if visc:
                     # every face node's nearest obstacle (the viscous solve needs them all)
-                    best, vel, own = _nearest_obstacle(obstacles, pts, t, a)
+                    best, vel, own = nearest_obstacle(obstacles, pts, t, a)
                     self._viscous_nodes(a, best, vel, own, slip)
                     if closed.size:
                         owner = own[closed]
                         self._solid[a].reshape(-1)[closed] = vel[closed]
                 elif closed.size:
-                    best, vel, owner = _nearest_obstacle(obstacles, pts[closed], t, a)
+                    best, vel, owner = nearest_obstacle(obstacles, pts[closed], t, a)
                     self._solid[a].reshape(-1)[closed] = vel
                 body = (np.concatenate([np.full(len(self.obstacles), -1, np.int64), self._owner_body])[owner]
                         if closed.size else owner)
@@ -1045,32 +1038,6 @@ class GridFluid:
         return hsh.hexdigest()
 
 
-def _nearest_obstacle(obstacles, pts, t, axis):
-    """At (M, dim) points: the smallest signed distance over the obstacles, the `axis` velocity
-    component of the obstacle attaining it, and its index (one query per obstacle)."""
-    m = pts.shape[0]
-    best = np.full(m, np.inf)
-    vel = np.zeros(m)
-    owner = np.zeros(m, np.int64)
-    if m == 0:
-        return best, vel, owner
-    d = np.empty(m)
-    nrm = np.empty(pts.shape)
-    v = np.empty(pts.shape)
-    for i, o in enumerate(obstacles):
-        if hasattr(o, "query"):
-            o.query(pts, t, d, nrm, v)
-            di, vi = d, v[:, axis]
-        else:
-            di = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
-            vi = np.asarray(o.velocity(pts, t), dtype=np.float64)[:, axis]
-        take = di < best
-        best = np.where(take, di, best)
-        vel = np.where(take, vi, vel)
-        owner = np.where(take, i, owner)
-    return best, vel, owner
-
-
 @K.njit(cache=True)
 def _pressure_impulses(phi, faces, open_frac, body, axis, h, origin, rho, body_q, lin, ang):
     """Pressure impulse on the bodies owning closed faces: J_axis = -rho h^2 (1 - A) (phi_R - phi_L)
@@ -1080,27 +1047,13 @@ def _pressure_impulses(phi, faces, open_frac, body, axis, h, origin, rho, body_q
     their ends, so solid cells' phi drops out. Faces on the domain sides are walls (skipped).
     Serial, in face order: deterministic."""
     nx, ny, nz = phi.shape
-    fy = ny + (1 if axis == 1 else 0)
-    fz = nz + (1 if axis == 2 else 0)
     for m in range(faces.shape[0]):
         b = body[m]
         if b < 0:
             continue
-        f = faces[m]
-        k = f % fz
-        j = (f // fz) % fy
-        i = f // (fz * fy)
-        idx = i if axis == 0 else (j if axis == 1 else k)
-        na = nx if axis == 0 else (ny if axis == 1 else nz)
-        if idx == 0 or idx == na:
+        i, j, k, il, jl, kl, interior = face_cells(faces[m], axis, nx, ny, nz)
+        if not interior:
             continue
-        il, jl, kl = i, j, k
-        if axis == 0:
-            il -= 1
-        elif axis == 1:
-            jl -= 1
-        else:
-            kl -= 1
         J = -rho * h * h * (1.0 - open_frac[m]) * (phi[i, j, k] - phi[il, jl, kl])
         x = origin[0] + (i + (0.0 if axis == 0 else 0.5)) * h - body_q[b, 0]
         y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
