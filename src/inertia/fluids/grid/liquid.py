@@ -82,6 +82,7 @@ from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
 from .liquid_pressure import BodyCoupling, LiquidPressure, set_body_face_velocities
+from .obstacles import low_cell
 
 METHODS = ("apic", "flip", "pic")
 
@@ -263,13 +264,7 @@ def add_gravity_and_walls(vel, liquid, g, dt, dim):
                     if wall:
                         va[i, j, k] = 0.0
                         continue
-                    i1, j1, k1 = i, j, k
-                    if a == 0:
-                        i1 = i - 1
-                    elif a == 1:
-                        j1 = j - 1
-                    else:
-                        k1 = k - 1
+                    i1, j1, k1 = low_cell(a, i, j, k)
                     if liquid[i, j, k] or liquid[i1, j1, k1]:
                         va[i, j, k] += g[a] * dt
 
@@ -296,13 +291,7 @@ def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
                     A = fa[i, j, k]
                     if A <= 0.0:
                         continue
-                    i0, j0, k0 = i, j, k
-                    if a == 0:
-                        i0 = i - 1
-                    elif a == 1:
-                        j0 = j - 1
-                    else:
-                        k0 = k - 1
+                    i0, j0, k0 = low_cell(a, i, j, k)
                     if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
                         continue  # a domain side (closed walls have A = 0 anyway)
                     lo = liquid[i0, j0, k0]
@@ -374,13 +363,7 @@ def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim
                         va[i, j, k] = sa[i, j, k]
                         ok[i, j, k] = True
                         continue
-                    i0, j0, k0 = i, j, k   # cell on the low side
-                    if a == 0:
-                        i0 = i - 1
-                    elif a == 1:
-                        j0 = j - 1
-                    else:
-                        k0 = k - 1
+                    i0, j0, k0 = low_cell(a, i, j, k)
                     if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
                         continue
                     lo = liquid[i0, j0, k0]

@@ -21,6 +21,16 @@ MIN_FRACTION = 1e-3
 
 
 @njit(cache=True, inline="always")
+def low_cell(axis, i, j, k):
+    """The cell on the low side of face (i, j, k) of ``axis`` (the face's high-side cell is (i, j, k))."""
+    if axis == 0:
+        return i - 1, j, k
+    if axis == 1:
+        return i, j - 1, k
+    return i, j, k - 1
+
+
+@njit(cache=True, inline="always")
 def face_cells(f, axis, nx, ny, nz):
     """The cells on either side of face ``f`` (flat index into the (nx+[axis==0], ny+[axis==1],
     nz+[axis==2]) face array of ``axis``): (i, j, k) the high side, (il, jl, kl) the low side, and
@@ -32,13 +42,7 @@ def face_cells(f, axis, nx, ny, nz):
     i = f // (fz * fy)
     idx = i if axis == 0 else (j if axis == 1 else k)
     na = nx if axis == 0 else (ny if axis == 1 else nz)
-    il, jl, kl = i, j, k
-    if axis == 0:
-        il -= 1
-    elif axis == 1:
-        jl -= 1
-    else:
-        kl -= 1
+    il, jl, kl = low_cell(axis, i, j, k)
     return i, j, k, il, jl, kl, idx != 0 and idx != na
 
 
@@ -263,11 +267,10 @@ class PlaneSlice:
         return f"PlaneSlice({self.collider!r}, dim={self.dim})"
 
 
-def rigid_obstacles(rigid, dim):
-    """Obstacles for the shape rows of a rigid world (anything with ``.model`` and ``.state``):
-    one `BodyShape` per row the signed distance covers (heightfield and SDF rows are skipped),
-    bound to the live pose and velocity of its body when it moves, wrapped in a `PlaneSlice`
-    (serial queries; in 2-D its z = 0 cross-section). Returns (obstacles, owner body per obstacle (-1: static row))."""
+def rigid_shape_obstacles(rigid):
+    """The shape rows of a rigid world (anything with ``.model`` and ``.state``) as obstacles: one
+    `BodyShape` per row the signed distance covers (SDF rows are skipped), bound to the live pose and
+    velocity of its body when it moves. Returns (obstacles, owner body per obstacle (-1: static row))."""
     from ...collision.shapes import BodyShape
     model = rigid.model
     obst, owner = [], []
@@ -278,6 +281,13 @@ def rigid_obstacles(rigid, dim):
         if bs.moving:
             b = bs.body
             bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
-        obst.append(PlaneSlice(bs, dim))
+        obst.append(bs)
         owner.append(bs.body if bs.moving else -1)
     return obst, np.asarray(owner, np.int64)
+
+
+def rigid_obstacles(rigid, dim):
+    """`rigid_shape_obstacles` wrapped in `PlaneSlice` (serial queries; in 2-D the z = 0 cross-section):
+    the liquid's obstacles. Returns (obstacles, owner body per obstacle (-1: static row))."""
+    obst, owner = rigid_shape_obstacles(rigid)
+    return [PlaneSlice(o, dim) for o in obst], owner

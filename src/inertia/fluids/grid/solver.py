@@ -79,7 +79,7 @@ from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
 from . import kernels as K
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
-from .obstacles import face_cells, face_fractions, nearest_obstacle, obstacle_fractions
+from .obstacles import face_cells, face_fractions, nearest_obstacle, obstacle_fractions, rigid_shape_obstacles
 from .pressure import SOLVERS, PoissonSolver
 
 ADVECTION = ("semi-lagrangian", "maccormack")
@@ -870,32 +870,21 @@ class GridFluid:
         kinematic or dynamic body exists. After each projection the pressure on the cut faces of
         each body becomes an impulse dt F (and dt tau about its centre of mass), applied with
         `inertia.dynamics.particle_coupling.apply_body_impulses`. Rows the signed distance does not
-        cover (heightfield, SDF) are skipped. 3-D grids only.
+        cover (SDF) are skipped. 3-D grids only.
 
         With ``slip=False`` (default) and viscosity > 0 the shapes are no-slip walls of the implicit
         viscosity and the viscous stress on them (`K.wall_shear_impulses`) is added to each
         body's impulse; ``slip=True`` leaves only the pressure."""
-        from ...collision.shapes import BodyShape
         if self.dim != 3:
             raise ValueError(f"rigid bodies couple to 3-D grids only; this grid has dim {self.dim}")
-        model = rigid.model
-        obst, owner = [], []
-        for s in range(int(model.shape_count)):
-            bs = BodyShape(model, s)
-            if getattr(bs, "unsupported", False):
-                continue
-            if bs.moving:
-                b = bs.body
-                bs.bind(lambda t, b=b: rigid.state.body_q[b], lambda t, b=b: rigid.state.body_qd[b])
-            obst.append(bs)
-            owner.append(bs.body if bs.moving else -1)
+        obst, owner = rigid_shape_obstacles(rigid)
         if not isinstance(slip, (bool, np.bool_)):
             raise ValueError(f"slip must be True or False; got {slip!r}")
         self._rigid = rigid
         self._rigid_slip = bool(slip)
         self._rigid_obstacles = obst
         self._owner_body = np.asarray(owner, np.int64)
-        nb = int(model.body_count)
+        nb = int(rigid.model.body_count)
         self.body_force = np.zeros((nb, 3))
         self.body_torque = np.zeros((nb, 3))
         self._impulse = (np.zeros((nb, 3)), np.zeros((nb, 3)))
