@@ -332,6 +332,7 @@ class SPHFluid:
             raise ValueError(f"boundary_pressure must be one of {sorted(BOUNDARY_PRESSURE)}; got {boundary_pressure!r}")
         self.boundary_pressure = boundary_pressure
         self._mirror = BOUNDARY_PRESSURE[boundary_pressure]
+        self._hydrostatic_wall = boundary_pressure == "mirror"   # Adami et al.'s wall share comes with the mirror
         self.warm_start_divergence = bool(warm_start_divergence)
         self._dt_scale = 1.0  # adaptive-step factor of the DFSPH convergence control (saved in the state)
         self.fixed_dt = None
@@ -1014,7 +1015,7 @@ class SPHFluid:
         self._K.nonpressure_accel(F, nf, nb, B, self.grid, n, m, self.rest_density, self.h, explicit_nu,
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
-        if self._mirror == 2.0:   # mirrored boundary pressure: the wall's hydrostatic share (Adami et al. 2012)
+        if self._hydrostatic_wall:   # mirrored boundary pressure: the wall's hydrostatic share (Adami et al. 2012)
             self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor)
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
@@ -1046,7 +1047,7 @@ class SPHFluid:
         if self._bodies:
             _k.body_wrench(F, nb, B, n, m, self.rest_density, self.h, self._body_x, self.body_force,
                            self.body_torque, self._mirror)
-            if self._mirror == 2.0:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
+            if self._hydrostatic_wall:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
                 _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
                                            self.body_torque)
         t0 = self._tick("bodies", t0)
