@@ -53,7 +53,7 @@ import numpy as np
 from ..io.states import States
 
 __all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
-           "frame_grids", "paint_grids", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
+           "frame_grids", "paint_grids", "grid_scales", "grid_streaks", "STREAKS", "STREAK_LENGTH", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
            "liquid_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
 
 
@@ -192,22 +192,59 @@ def frame_grids(renderer, states) -> None:
     renderer.camera = Camera.plane_2d(0.5 * (lo + hi), height)
 
 
-def paint_grids(image, states, frame: int, renderer, scales: dict | None = None) -> np.ndarray:
-    """Paint every recorded 2-D grid fluid of ``frame`` into ``image`` (H, W, 3) uint8 in place
-    (nearest cell per pixel inside the grid's rectangle); ``scales``: name -> colour-map maximum
-    (default: the run's 99th percentile)."""
-    from .colormaps import colormap
-
-    if renderer.dim != 2 or renderer.camera is None:
-        return image
-    h, w = image.shape[:2]
+def grid_scales(states) -> dict:
+    """name -> colour-map maximum of each recorded 2-D grid: the run's 99th percentile of the mapped
+    quantity (over a sample of about 50 frames; 1 when it is not positive)."""
+    scales = {}
     for name, quantity in grid_fluids(states):
         data = np.asarray(states.fields[f"fluid/{name}/{quantity}"])
-        vmax = (scales or {}).get(name)
-        if vmax is None:
-            finite = data[:: max(1, data.shape[0] // 50)]
-            vmax = float(np.percentile(finite[np.isfinite(finite)], 99.0)) if np.isfinite(finite).any() else 1.0
-            vmax = vmax if vmax > 0 else 1.0
+        finite = data[:: max(1, data.shape[0] // 50)]
+        vmax = float(np.percentile(finite[np.isfinite(finite)], 99.0)) if np.isfinite(finite).any() else 1.0
+        scales[name] = vmax if vmax > 0 else 1.0
+    return scales
+
+
+#: Default number of tracer streaks per 2-D grid fluid in `inertia run` ([render] streaks).
+STREAKS = 400
+#: Default frames of history per streak ([render] streak_length).
+STREAK_LENGTH = 8
+
+
+def grid_streaks(states, render: dict | None = None) -> dict:
+    """name -> `inertia.render.fluid_grid.GridStreaks` for the recorded 2-D grids with a velocity
+    (``fluid/<name>/u``, ``v``), ``[render] streaks`` tracers each (0: none) over
+    ``streak_length`` frames; seeded by the fluid's position in the run (same streaks every run)."""
+    from .fluid_grid import GridStreaks
+
+    render = render or {}
+    count = STREAKS if render.get("streaks") is None else int(render["streaks"])
+    length = STREAK_LENGTH if render.get("streak_length") is None else int(render["streak_length"])
+    if count <= 0:
+        return {}
+    out = {}
+    for k, (name, _) in enumerate(grid_fluids(states)):
+        streaks = GridStreaks.from_states(states, name, count=count, length=length, seed=k)
+        if streaks is not None:
+            out[name] = streaks
+    return out
+
+
+def paint_grids(image, states, frame: int, renderer, scales: dict | None = None, streaks: dict | None = None):
+    """Paint every recorded 2-D grid fluid of ``frame`` into ``image`` (H, W, 3) uint8 in place:
+    its colour map (nearest cell per pixel inside the grid's rectangle, solid cells left as they
+    were so obstacles show), then its tracer streaks (``streaks``: name -> `GridStreaks`, see
+    `grid_streaks`). ``scales``: name -> colour-map maximum (default `grid_scales`). Returns the
+    (H, W) bool mask of the pixels painted (`Renderer.frame`'s ``underlay`` contract)."""
+    from .colormaps import colormap
+
+    h, w = image.shape[:2]
+    changed = np.zeros((h, w), np.bool_)
+    if renderer.dim != 2 or renderer.camera is None:
+        return changed
+    scales = grid_scales(states) if scales is None else scales
+    for name, quantity in grid_fluids(states):
+        data = states.fields[f"fluid/{name}/{quantity}"]
+        vmax = scales.get(name, 1.0)
         lo, hi = _extent(states, name)
         px, py, _ = renderer.camera.project(np.array([lo, hi]), w, h)
         x0, x1 = int(np.clip(np.ceil(min(px)), 0, w)), int(np.clip(np.floor(max(px)), 0, w))
@@ -217,10 +254,19 @@ def paint_grids(image, states, frame: int, renderer, scales: dict | None = None)
         nx, ny = data.shape[1:3]
         ci = np.clip(((np.arange(x0, x1) + 0.5 - min(px)) / (max(px) - min(px)) * nx).astype(int), 0, nx - 1)
         cj = np.clip(((max(py) - np.arange(y0, y1) - 0.5) / (max(py) - min(py)) * ny).astype(int), 0, ny - 1)
-        values = data[frame][ci[None, :], cj[:, None]]
+        values = np.asarray(data[frame])[ci[None, :], cj[:, None]]
         rgb = colormap("magma" if quantity == "density" else "speed", values, vmin=0.0, vmax=vmax)
-        image[y0:y1, x0:x1] = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
-    return image
+        rgb = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
+        solid = states.fields.get(f"fluid/{name}/solid")
+        fluid = np.ones(values.shape, bool) if solid is None else np.asarray(solid[frame])[ci[None, :], cj[:, None]] == 0
+        block = image[y0:y1, x0:x1]
+        block[fluid] = rgb[fluid]
+        changed[y0:y1, x0:x1] |= fluid
+        if streaks and name in streaks:
+            bx, by = (px[1] - px[0]) / (hi[0] - lo[0]), (py[1] - py[0]) / (hi[1] - lo[1])
+            streaks[name].paint(image, frame, (px[0] - bx * lo[0], bx, py[0] - by * lo[1], by),
+                                width_px=max(1.0, 1.5 * h / 540.0), changed=changed)
+    return changed
 
 
 # ----------------------------------------------------------------------------- 3-D smoke volumes
