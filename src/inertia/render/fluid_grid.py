@@ -29,8 +29,9 @@ Recorded runs (`GridStreaks`): a 2-D `GridFluid` records its cell-centre velocit
 in the fluid cells with a seeded RNG and carried from frame to frame by RK2 (midpoint) on the
 bilinear interpolation of the cell-centre field, linear in time between the two recorded frames,
 in substeps of at most one cell (CFL 1 on the larger of the two frames' maximum speeds, at most
-``MAX_SUBSTEPS``). A tracer that leaves the grid or enters a solid cell is re-seeded (a new
-uniform point in the fluid cells) and starts a fresh streak. The streak of frame f joins the
+``MAX_SUBSTEPS``). A tracer that leaves the grid, enters a solid cell or reaches its lifetime
+(4 K frames, initial ages staggered) is re-seeded (a new uniform point in the fluid cells) and
+starts a fresh streak. The streak of frame f joins the
 tracer's positions at frames f - K .. f (K = ``length``), so in a uniform flow U it is a straight
 segment of length U K dt.
 
@@ -41,7 +42,7 @@ streamlines of arbitrary density", 1997 (streak/streamline seeding for flow pict
 Limitations: 2-D grids only (3-D smoke is ray-marched by `inertia.render.fluid_volume`); the
 colour map is nearest-cell (not smoothed); tracers near a wall see the clamped (constant)
 extrapolation of the first cell centre's velocity over the last half cell; re-seeding keeps the
-tracer density uniform only on average (no Jobard-Lefer spacing control); the recorded field is
+tracer density even only on average (no Jobard-Lefer spacing control); the recorded field is
 the frame's, so flow features faster than a frame are not followed; streaks of `GridStreaks`
 need frames 0..f to be advected before frame f can be drawn (a jump back restarts from 0).
 """
@@ -307,13 +308,16 @@ class GridStreaks:
     origin : (2,) lower corner of the grid, m; cell_size : h, m.
     solid : (F, nx, ny) cells inside obstacles (nonzero) or None.
     count : number of tracers (>= 1); length : K, frames of history a streak spans (>= 1).
+    lifetime : frames a tracer lives before it is re-seeded (default 4 K; initial ages are
+        staggered uniformly), so tracer density stays even where the flow brings none in
+        (downstream of an inflow); 0: immortal.
     seed : seeds the RNG of seeding and re-seeding (same streaks every run).
 
     ``at(f)`` returns (history (K + 1, M, 2) world positions newest first, count (M,) valid rows)
     at frame f, advecting from the last frame asked for (or from frame 0 when f is earlier).
     """
 
-    def __init__(self, u, v, times, origin, cell_size, *, solid=None, count=400, length=8, seed=0):
+    def __init__(self, u, v, times, origin, cell_size, *, solid=None, count=400, length=8, lifetime=None, seed=0):
         self.u, self.v = u, v
         if np.ndim(u) != 3 or np.shape(u) != np.shape(v):
             raise ValueError(f"GridStreaks: u and v must be (F, nx, ny) arrays of one shape; got "
@@ -330,6 +334,9 @@ class GridStreaks:
         self.solid = solid
         self.shape = tuple(np.shape(u)[1:3])
         self.count, self.length, self.seed = int(count), int(length), int(seed)
+        self.lifetime = 4 * self.length if lifetime is None else int(lifetime)
+        if self.lifetime < 0:
+            raise ValueError(f"GridStreaks: lifetime must be >= 0 frames (0: immortal); got {lifetime!r}")
         self._reset()
 
     @classmethod
@@ -368,6 +375,8 @@ class GridStreaks:
         x = self._seed_points(self.count, self._solid(0))
         self.history = np.repeat(x[None], self.length + 1, axis=0)
         self.valid = np.ones(self.count, np.int64)
+        self.age = (self._rng.integers(0, self.lifetime, self.count) if self.lifetime > 0
+                    else np.zeros(self.count, np.int64))
 
     def substeps(self, f0, f1):
         """RK2 substeps from frame f0 to f1: CFL 1 (one cell) on the larger frame maximum speed."""
@@ -390,10 +399,14 @@ class GridStreaks:
         self.history[1:] = self.history[:-1]
         self.history[0] = x
         self.valid = np.minimum(self.valid + 1, self.length + 1)
+        self.age += 1
+        if self.lifetime > 0:
+            lost |= self.age >= self.lifetime
         if lost.any():  # re-seeded tracers start fresh streaks
             fresh = self._seed_points(int(lost.sum()), solid)
             self.history[:, lost] = fresh[None]
             self.valid[lost] = 1
+            self.age[lost] = 0
         self.frame = f1
 
     def at(self, frame):

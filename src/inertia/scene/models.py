@@ -649,6 +649,10 @@ class Render(_Model):
     draw_colliders: bool = True
     trails: Annotated[int, Field(ge=0, le=100)] = Field(
         0, description="3-D: draw each particle's path over this many previous frames (shows the flow)")
+    streaks: Annotated[int, Field(ge=0, le=100000)] = Field(
+        400, description="2-D grid fluids: tracer streaks drawn over the colour map (0: none)")
+    streak_length: Annotated[int, Field(ge=1, le=200)] = Field(
+        8, description="2-D grid fluids: frames of history each tracer streak spans")
 
 
 # ----------------------------------------------------------------------------------------------
