@@ -182,3 +182,63 @@ def test_3d_liquid_is_a_shaded_surface_mesh_instead_of_particles():
     assert top.shape[0] > 20 and np.allclose(top[:, 2], 0.5, atol=1e-6)
     (_, image), = list(render_frames(_liquid_states(3), {"width": 96, "height": 72}, frames=[1]))
     assert image.std() > 5                                     # something is drawn
+
+
+# ----------------------------------------------------------------------------- 2-D grids: streaks, particles over the map
+def test_cylinder_scene_run_draws_tracer_streaks_over_the_speed_map(tmp_path):
+    # examples/fluid_cylinder_2d.toml cut to a 32 x 8 grid and 0.3 s: the run records u, v and the
+    # cylinder's cells; the frames drawn with [render] streaks = 400 differ from those with 0 only
+    # by lighter pixels (white streaks laid over the map) inside the channel, and not on the cylinder.
+    import json
+    import tomllib
+    from pathlib import Path
+
+    from inertia.io import load_states
+    from inertia.render.fluid_particles import frame_grids
+    from inertia.scene import build, parse_scene
+    from inertia.world import Run
+
+    scene = Path(__file__).parents[2] / "examples" / "fluid_cylinder_2d.toml"
+    data = tomllib.loads(scene.read_text())
+    data["fluids"]["channel"].update(shape=[32, 8], cell_size=0.125)
+    data["simulation"]["duration"] = 0.3
+    assert data["render"]["streaks"] == 400
+    world = build(parse_scene(json.dumps(data), format="json", source="fluid_cylinder_2d (tiny)"))
+    states = load_states(Run(world, tmp_path, duration=0.3, fps=20.0, handle_sigint=False).execute().states_path)
+    assert states.fields["fluid/channel/u"].shape == (7, 32, 8)
+    assert states.fields["fluid/channel/solid"][0].sum() > 0                 # the cylinder's cells
+    render = dict(data["render"], width=320, height=100)
+    with_streaks = dict(render_frames(states, render, world.colliders))
+    without = dict(render_frames(states, dict(render, streaks=0), world.colliders))
+    again = dict(render_frames(states, render, world.colliders, frames=[6]))
+    assert np.array_equal(again[6], with_streaks[6])                          # same image, bit for bit
+    a, b = with_streaks[6].astype(int), without[6].astype(int)
+    changed = np.any(a != b, axis=2)
+    assert changed.sum() > 200
+    assert np.all(a[changed].sum(axis=1) >= b[changed].sum(axis=1))          # streaks only lighten
+    r = renderer_for(with_fluid_particles(states), render, world.colliders)
+    frame_grids(r, with_fluid_particles(states))
+    (x0, x1), (y1, y0), _ = r.camera.project(np.array([[0.0, 0.0], [4.0, 1.0]]), 320, 100)
+    ys, xs = np.nonzero(changed)
+    assert xs.min() >= np.floor(x0) and xs.max() <= np.ceil(x1) and ys.min() >= np.floor(y0) and ys.max() <= np.ceil(y1)
+    cx, cy, _ = r.camera.project(np.array([[0.8, 0.52]]), 320, 100)
+    assert not changed[int(cy[0]), int(cx[0])]                                # the cylinder is not painted
+    assert np.array_equal(with_streaks[0], without[0])                        # frame 0: fresh tracers, no streak yet
+
+
+def test_particles_of_the_frame_are_drawn_over_a_grid_map():
+    # A 2-D run with a 4 x 4 speed grid on [0, 1]^2 (all at the top of the map) and one particle
+    # group: the particle at the grid's centre keeps its own colour, the map shows around it.
+    speed = np.ones((1, 4, 4), np.float32)
+    pos = np.array([[[0.5, 0.5]]])
+    s = States(np.array([0.0]), pos, np.zeros_like(pos), fields={"fluid/lid/speed": speed},
+               static={"radius": np.array([0.1])}, metadata={"dim": 2, "groups": ["ball"]},
+               model={"fluid/lid/origin": np.zeros(2), "fluid/lid/cell_size": np.array(0.25)})
+    render = {"width": 200, "height": 200, "color_by": "uniform", "camera": {"target": [0.5, 0.5], "height": 1.2}}
+    (_, image), = list(render_frames(s, render, frames=[0]))
+    r = renderer_for(with_fluid_particles(s), render)
+    px, py, _ = r.camera.project(np.array([[0.5, 0.5], [0.9, 0.9]]), 200, 200)
+    centre, corner = (image[int(py[k]), int(px[k])].astype(float) for k in (0, 1))
+    top = np.asarray(colormap(DEFAULT_SPEED_MAP, np.array([1.0]), vmin=0.0, vmax=1.0))[0, :3] * 255
+    assert np.abs(corner - top).max() <= 1                                    # the map around the particle
+    assert np.abs(centre - top).max() > 40                                    # the particle over it

@@ -389,7 +389,7 @@ class GridStreaks:
 
     def _step(self):
         f0, f1 = self.frame, self.frame + 1
-        x = np.ascontiguousarray(self.history[0])
+        x = self.history[0].copy()  # advected apart from the history, then shifted in
         lost = np.zeros(self.count, np.bool_)
         solid = self._solid(f1)
         u0, v0 = (np.ascontiguousarray(a[f0], dtype=np.float64) for a in (self.u, self.v))
