@@ -17,9 +17,13 @@ draws them unchanged:
 `inertia.render.legend.overlay`.
 
 Recorded 2-D grid fluids (``fluid/<name>/speed`` (F, nx, ny) with ``origin``, ``cell_size`` in
-``States.model``) are painted as colour maps under the particles: ``density`` in "magma" when
-recorded (smoke), else ``speed`` in the speed map, each on one scale for the whole run (the maps of
-`inertia.render.fluid_grid`); ``frame_grids`` frames the camera on them when there is no particle.
+``States.model``) are painted as colour maps under the particles (`Renderer.frame`'s ``underlay``):
+``density`` in "magma" when recorded (smoke), else ``speed`` in the speed map, each on one scale for
+the whole run (``grid_scales``; the maps of `inertia.render.fluid_grid`), solid cells left
+unpainted so obstacles show; over the map, tracer streaks advected through the recorded
+cell-centre velocity ``u``, ``v`` (``grid_streaks``: `inertia.render.fluid_grid.GridStreaks`,
+``[render] streaks`` tracers, 400 default, 0 none, over ``streak_length`` frames, 8 default);
+``frame_grids`` frames the camera on them when there is no particle.
 
 Recorded 3-D smoke (``fluid/<name>/density`` (F, nx, ny, nz) with ``origin``, ``cell_size``) is
 ray-marched over each finished frame by `inertia.render.fluid_volume` (``paint_volumes``): lit by a
@@ -35,9 +39,10 @@ marching cubes (scikit-image, the ``surface`` extra) as a shaded mesh among the 
 (lit, shadowed and z-tested with the bodies); in 2-D the region phi < 0 filled in
 ``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line.
 
-Limitations: grid colour maps are pasted over the frame's background (nearest cell per pixel,
-2-D orthographic cameras only) before nothing else is drawn: particles of the same frame are not
-drawn over them (a fluid-only scene shows the grid alone); a 3-D grid without a ``density`` scalar
+Limitations: grid colour maps are nearest cell per pixel, 2-D orthographic cameras only, and
+cover the background's grid lines and 2-D colliders other than the fluid's obstacle cells (cells
+whose centre is inside; the map's edge around an obstacle is a staircase of cells); runs recorded
+before ``u``/``v`` were recorded get no streaks; a 3-D grid without a ``density`` scalar
 (viscous flow only) is not drawn. When the groups and the fluid differ in dimension (a 3-D group
 with a 2-D fluid) the fluid is not drawn; SPH fluids are spheres/discs (their surface,
 `inertia.fluids.sph.surface`, is not wired into `inertia run`); without scikit-image a 3-D liquid
