@@ -106,7 +106,8 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
     smoke = smoke_styles(states)
     scales = grid_scales(states)  # 2-D grids: one colour scale for the run, tracer streaks ([render] streaks)
     streaks = grid_streaks(states, render)
-    liquids = LiquidSurfaces(states)  # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D)
+    # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D); SPH too with [render] fluid_surface
+    liquids = LiquidSurfaces(states, sph=bool((render or {}).get("fluid_surface")))
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:

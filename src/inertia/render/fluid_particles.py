@@ -59,7 +59,7 @@ from ..io.states import States
 
 __all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
            "frame_grids", "paint_grids", "grid_scales", "grid_streaks", "STREAKS", "STREAK_LENGTH", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
-           "liquid_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
+           "liquid_fluids", "sph_surface_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
 
 
 def particle_fluids(states) -> list[str]:
@@ -154,7 +154,8 @@ def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | N
 
     if not particle_fluids(states) or states.velocities is None or renderer.speed_max is None:
         return None
-    if set(particle_fluids(states)) <= set(liquid_fluids(states)) and LiquidSurfaces(states).draws_surfaces:
+    surfaces = LiquidSurfaces(states, sph=bool((render or {}).get("fluid_surface")))
+    if set(particle_fluids(states)) <= set(surfaces.names) and surfaces.draws_surfaces:
         return None  # every fluid is drawn as a surface: no speed colours to explain
     if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) != "speed":
         return None
@@ -429,8 +430,23 @@ def _surface_mesh_3d(phi, origin, h):
     return verts + (np.asarray(origin, np.float64)[:3] - 0.5 * h), faces.astype(np.int64)
 
 
+def sph_surface_fluids(states) -> list[str]:
+    """Names of the recorded particle fluids without a level set but with a ``spacing`` (SPH): the
+    ones ``[render] fluid_surface`` draws as smoothed-particle surfaces."""
+    liquids = set(liquid_fluids(states))
+    return [name for name in particle_fluids(states)
+            if name not in liquids and f"fluid/{name}/spacing" in states.model]
+
+
 class LiquidSurfaces:
     """Liquid surfaces of a run's particle liquids (`liquid_fluids`) in place of their particles.
+
+    With ``sph=True`` (``[render] fluid_surface = true``) SPH fluids (`sph_surface_fluids`) too:
+    their level set is built per frame from the active particles, the colour field of
+    `inertia.fluids.sph.surface` (Mueller, Charypar and Gross 2003: c = sum_j V_j W(x - x_j, h),
+    V_j = spacing^D, cubic spline at the recorded ``smoothing_length``, on a grid of spacing / 2)
+    turned into phi = (1/2 - c) / |grad c| (`inertia.fluids.sph.surface.level_set`), then drawn
+    as the liquids' are.
 
     3-D: the recorded level set's phi = 0 surface (marching cubes, the ``surface`` extra's
     scikit-image) as a shaded `TriangleMesh` among the frame's meshes (lit, shadowed, z-tested
@@ -440,10 +456,11 @@ class LiquidSurfaces:
     ``merged`` is the `States` from `with_fluid_particles` (groups' particles, then each fluid's).
     """
 
-    def __init__(self, merged, *, color=LIQUID_COLOR):
+    def __init__(self, merged, *, color=LIQUID_COLOR, sph=False):
         self.states = merged
         self.color = np.asarray(color, np.float32)
-        self.names = liquid_fluids(merged)
+        self.sph_names = sph_surface_fluids(merged) if sph else []
+        self.names = liquid_fluids(merged) + self.sph_names
         self.mesh_ok = True
         if self.names and merged.dim == 3:
             try:
@@ -472,6 +489,26 @@ class LiquidSurfaces:
         m = self.states.model
         return np.asarray(m[f"fluid/{name}/origin"], np.float64).ravel(), float(np.ravel(m[f"fluid/{name}/cell_size"])[0])
 
+    def level_set(self, name, f: int):
+        """(phi (nx, ny[, nz]) cell-centred, negative inside, origin (D,) of the grid's corner, cell
+        size) of fluid ``name`` at frame ``f``; None when an SPH fluid has no live particle."""
+        if name not in self.sph_names:
+            origin, h = self._grid(name)
+            return np.asarray(self.states.fields[f"fluid/{name}/phi"][f], np.float64), origin, h
+        from ..fluids.sph.surface import colour_field, level_set
+
+        fields, m = self.states.fields, self.states.model
+        x = np.asarray(fields[f"fluid/{name}/x"][f], np.float64)
+        alive = fields.get(f"fluid/{name}/active")
+        keep = np.all(np.isfinite(x), axis=1) if alive is None else np.asarray(alive[f], bool) & np.all(np.isfinite(x), axis=1)
+        if not keep.any():
+            return None
+        spacing = float(np.ravel(m[f"fluid/{name}/spacing"])[0])
+        h = m.get(f"fluid/{name}/smoothing_length")
+        field, lo, cell = colour_field(x[keep], spacing, smoothing_length=None if h is None else float(np.ravel(h)[0]))
+        # node i of the colour field sits at lo + i cell: the centre of cell i of a grid whose corner is lo - cell / 2
+        return level_set(field, cell), lo - 0.5 * cell, cell
+
     def apply(self, options: dict, f: int) -> dict:
         """Add the surfaces of frame ``f`` to `Renderer.frame` keyword ``options`` (meshes, 3-D) and
         switch the liquids' particles off (``active``); returns ``options``."""
@@ -487,8 +524,8 @@ class LiquidSurfaces:
             a, b = self.rows[name]
             active[a:b] = False
             if self.states.dim == 3:
-                origin, h = self._grid(name)
-                mesh = _surface_mesh_3d(self.states.fields[f"fluid/{name}/phi"][f], origin, h)
+                grid = self.level_set(name, f)
+                mesh = None if grid is None else _surface_mesh_3d(grid[0], grid[1], grid[2])
                 if mesh is not None:
                     meshes.append(TriangleMesh(mesh[0], None, mesh[1], self.color))
         options = dict(options, active=active, meshes=meshes)
@@ -507,8 +544,10 @@ class LiquidSurfaces:
         fill = np.round(self.color * 255.0)
         edge = np.round(np.minimum(self.color * 1.6 + 0.15, 1.0) * 255.0)
         for name in self.names:
-            origin, h = self._grid(name)
-            phi = np.asarray(self.states.fields[f"fluid/{name}/phi"][f], np.float64)
+            grid = self.level_set(name, f)
+            if grid is None:
+                continue
+            phi, origin, h = grid
             nx, ny = phi.shape
             gx = (xs - origin[0]) / h - 0.5
             gy = (ys - origin[1]) / h - 0.5
