@@ -401,7 +401,8 @@ def paint_volumes(image, states, frame: int, renderer, styles: dict | None = Non
         composite_smoke(image, camera, density, origin=lo,
                         cell_size=float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
                         light_direction=light, style=styles.get(name), depth=depth,
-                        solid=_solid_cells(states, name, colliders, float(states.times[frame])))
+                        solid=_solid_cells(states, name, colliders, float(states.times[frame])),
+                        shadow_strength=renderer.shadow_strength if renderer.shadows else 0.0)
     return image
 
 
