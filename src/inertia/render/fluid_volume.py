@@ -35,7 +35,9 @@ Stages (each a Numba kernel):
 Before the march, ``shadow_surfaces`` (with ``shadow_strength`` s > 0 and a depth buffer) darkens
 every opaque surface the smoke shades from the light: the surface point p of a pixel (from its
 view depth), the point q where the ray from p towards the light enters the smoke's box (p itself
-inside it), T_light(q) trilinear from the transmittance grid, colour *= 1 - s (1 - T_light).
+inside it), T_light(q) trilinear from the transmittance grid, colour *= 1 - s (1 - T_light). With
+obstacles (``solid``) that grid is marched a second time without them (the renderer already
+shades surfaces the obstacles hide from the light), doubling stage 2's cost.
 
 Optional emission (fire-like plumes): ``E(temp) = emission * ramp((temp - t0) / (t1 - t0))``,
 a black-body-like ramp dark red -> orange -> pale yellow.
@@ -453,8 +455,15 @@ def render_smoke_linear(color, camera, density, *, origin, cell_size, light_dire
     hi = o + float(cell_size) * box[1::2]
     cam = camera.params(w_px, h_px)
     if depth is not None and shadow_strength > 0.0:
+        # the smoke's own transmittance: obstacles shade the surfaces already (the renderer's
+        # shading and mesh shadows), so their cells must not darken them a second time
+        smoke_only = transmit
+        if solid is not None:
+            smoke_only = np.empty_like(rho)
+            (light_transmittance.parallel if cells >= _PARALLEL_CELLS else light_transmittance.serial)(
+                rho, np.zeros((1, 1, 1), np.uint8), box, float(cell_size), light, style.sigma_t, smoke_only)
         (shadow_surfaces.parallel if w_px * h_px >= _PARALLEL_PIXELS else shadow_surfaces.serial)(
-            cam, w_px, h_px, np.ascontiguousarray(depth, dtype=np.float32), transmit, o, float(cell_size), box, light,
+            cam, w_px, h_px, np.ascontiguousarray(depth, dtype=np.float32), smoke_only, o, float(cell_size), box, light,
             float(shadow_strength), color, touched)
     if depth is None:
         depth = np.full((h_px, w_px), np.float32(3.0e38), np.float32)
