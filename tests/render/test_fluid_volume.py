@@ -231,5 +231,15 @@ def test_a_mesh_behind_a_dense_slab_is_darker_by_the_light_transmittance():
     assert np.exp(-sigma_t * rho * 0.5) < 0.3                           # a dense slab: a visible shadow
     assert np.abs(length - 0.5).max() < 0.6 * h, (length.min(), length.max())
     assert np.array_equal(images[r.shadow_strength][:, clear], images[0.0][:, clear])
+    # An obstacle row of cells inside the slab, across the light rays of the pixels at x ~ 0.14-0.24:
+    # the renderer shades surfaces hidden by obstacles itself, so the smoke shadow is unchanged
+    # (bit for bit; the obstacle-blocked grid of the smoke's own lighting would make it black).
+    solid = np.zeros((n, n, n), bool)
+    solid[10, :, 11] = True
+    color = np.ascontiguousarray(_srgb8_to_linear_table()[base])
+    render_smoke_linear(color, cam, density, origin=(0, 0, 0), cell_size=h, light_direction=light,
+                        style=SmokeStyle(sigma_t=sigma_t, **DARK), depth=depth, shadow_strength=r.shadow_strength,
+                        solid=solid)
+    assert np.array_equal(color, images[r.shadow_strength])
     with pytest.raises(ValueError, match="shadow_strength"):
         render_smoke_linear(color, cam, density, origin=(0, 0, 0), cell_size=h, light_direction=light, shadow_strength=2.0)
