@@ -37,16 +37,22 @@ Particle liquids with a recorded level set (``fluid/<name>/phi``, `LiquidFluid`)
 their surface instead of their particles (``LiquidSurfaces``): in 3-D the phi = 0 surface by
 marching cubes (scikit-image, the ``surface`` extra) as a shaded mesh among the frame's meshes
 (lit, shadowed and z-tested with the bodies); in 2-D the region phi < 0 filled in
-``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line.
+``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line. With ``[render]
+fluid_surface = true`` SPH fluids are drawn the same way from their smoothed-particle surface
+(the colour field's 1/2 level, `inertia.fluids.sph.surface`, built per frame from the particles).
+
+3-D smoke also shades the opaque surfaces from the key light (``paint_volumes`` passes the
+renderer's shadow strength to `inertia.render.fluid_volume`).
 
 Limitations: grid colour maps are nearest cell per pixel, 2-D orthographic cameras only, and
 cover the background's grid lines and 2-D colliders other than the fluid's obstacle cells (cells
 whose centre is inside; the map's edge around an obstacle is a staircase of cells); runs recorded
 before ``u``/``v`` were recorded get no streaks; a 3-D grid without a ``density`` scalar
 (viscous flow only) is not drawn. When the groups and the fluid differ in dimension (a 3-D group
-with a 2-D fluid) the fluid is not drawn; SPH fluids are spheres/discs (their surface,
-`inertia.fluids.sph.surface`, is not wired into `inertia run`); without scikit-image a 3-D liquid
-falls back to its particles (one warning); the 2-D liquid fill is painted over the finished frame
+with a 2-D fluid) the fluid is not drawn; SPH surfaces use the cubic spline at the recorded
+smoothing length whatever the fluid's kernel, and cost a splat and (3-D) marching cubes per frame
+(a 256^3 node cap, `colour_field`); without scikit-image a 3-D liquid or SPH surface falls back to
+its particles (one warning); the 2-D liquid fill is painted over the finished frame
 (particles of other groups inside the liquid are covered). Grid fluids (no ``x``) are left to
 `inertia.render.fluid_grid`.
 """

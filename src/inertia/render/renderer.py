@@ -11,7 +11,8 @@ The camera frames the scene on the first `frame` call unless given (`camera=`) o
 whole run first (`Renderer.fit`, which `render_states` calls with every frame).
 
 Stages per frame (see `inertia.render.kernels` for what each reads and writes):
-background (cached while camera and colliders are still) -> contact shadows -> project ->
+background (cached while camera and colliders are still) -> ``underlay`` (2-D grid fluids'
+colour maps and streaks, painted under the particles) -> contact shadows -> project ->
 sort back to front -> splat spheres band by band (parallel over row bands) -> sRGB bytes.
 
 Colours
