@@ -50,7 +50,8 @@ whose centre is inside; the map's edge around an obstacle is a staircase of cell
 before ``u``/``v`` were recorded get no streaks; a 3-D grid without a ``density`` scalar
 (viscous flow only) is not drawn. When the groups and the fluid differ in dimension (a 3-D group
 with a 2-D fluid) the fluid is not drawn; SPH surfaces use the cubic spline at the recorded
-smoothing length whatever the fluid's kernel, and cost a splat and (3-D) marching cubes per frame
+smoothing length whatever the fluid's kernel, leave boundary particles out (the colour field
+thins next to walls: the surface can pull off a wall by up to a smoothing length), and cost a splat and (3-D) marching cubes per frame
 (a 256^3 node cap, `colour_field`); without scikit-image a 3-D liquid or SPH surface falls back to
 its particles (one warning); the 2-D liquid fill is painted over the finished frame
 (particles of other groups inside the liquid are covered). Grid fluids (no ``x``) are left to
