@@ -182,3 +182,133 @@ def test_3d_liquid_is_a_shaded_surface_mesh_instead_of_particles():
     assert top.shape[0] > 20 and np.allclose(top[:, 2], 0.5, atol=1e-6)
     (_, image), = list(render_frames(_liquid_states(3), {"width": 96, "height": 72}, frames=[1]))
     assert image.std() > 5                                     # something is drawn
+
+
+# ----------------------------------------------------------------------------- 2-D grids: streaks, particles over the map
+def test_cylinder_scene_run_draws_tracer_streaks_over_the_speed_map(tmp_path):
+    # examples/fluid_cylinder_2d.toml cut to a 32 x 8 grid and 0.3 s: the run records u, v and the
+    # cylinder's cells; the frames drawn with [render] streaks = 400 differ from those with 0 only
+    # by lighter pixels (white streaks laid over the map) inside the channel, and not on the cylinder.
+    import json
+    import tomllib
+    from pathlib import Path
+
+    from inertia.io import load_states
+    from inertia.render.fluid_particles import frame_grids
+    from inertia.scene import build, parse_scene
+    from inertia.world import Run
+
+    scene = Path(__file__).parents[2] / "examples" / "fluid_cylinder_2d.toml"
+    data = tomllib.loads(scene.read_text())
+    data["fluids"]["channel"].update(shape=[32, 8], cell_size=0.125)
+    data["simulation"]["duration"] = 0.3
+    assert data["render"]["streaks"] == 400
+    world = build(parse_scene(json.dumps(data), format="json", source="fluid_cylinder_2d (tiny)"))
+    states = load_states(Run(world, tmp_path, duration=0.3, fps=20.0, handle_sigint=False).execute().states_path)
+    assert states.fields["fluid/channel/u"].shape == (7, 32, 8)
+    assert states.fields["fluid/channel/solid"][0].sum() > 0                 # the cylinder's cells
+    render = dict(data["render"], width=320, height=100)
+    with_streaks = dict(render_frames(states, render, world.colliders))
+    without = dict(render_frames(states, dict(render, streaks=0), world.colliders))
+    again = dict(render_frames(states, render, world.colliders, frames=[6]))
+    assert np.array_equal(again[6], with_streaks[6])                          # same image, bit for bit
+    a, b = with_streaks[6].astype(int), without[6].astype(int)
+    changed = np.any(a != b, axis=2)
+    assert changed.sum() > 200
+    assert np.all(a[changed].sum(axis=1) >= b[changed].sum(axis=1))          # streaks only lighten
+    r = renderer_for(with_fluid_particles(states), render, world.colliders)
+    frame_grids(r, with_fluid_particles(states))
+    (x0, x1), (y1, y0), _ = r.camera.project(np.array([[0.0, 0.0], [4.0, 1.0]]), 320, 100)
+    ys, xs = np.nonzero(changed)
+    assert xs.min() >= np.floor(x0) and xs.max() <= np.ceil(x1) and ys.min() >= np.floor(y0) and ys.max() <= np.ceil(y1)
+    cx, cy, _ = r.camera.project(np.array([[0.8, 0.52]]), 320, 100)
+    assert not changed[int(cy[0]), int(cx[0])]                                # the cylinder is not painted
+    assert np.array_equal(with_streaks[0], without[0])                        # frame 0: fresh tracers, no streak yet
+
+
+def test_particles_of_the_frame_are_drawn_over_a_grid_map():
+    # A 2-D run with a 4 x 4 speed grid on [0, 1]^2 (all at the top of the map) and one particle
+    # group: the particle at the grid's centre keeps its own colour, the map shows around it.
+    speed = np.ones((1, 4, 4), np.float32)
+    pos = np.array([[[0.5, 0.5]]])
+    s = States(np.array([0.0]), pos, np.zeros_like(pos), fields={"fluid/lid/speed": speed},
+               static={"radius": np.array([0.1])}, metadata={"dim": 2, "groups": ["ball"]},
+               model={"fluid/lid/origin": np.zeros(2), "fluid/lid/cell_size": np.array(0.25)})
+    render = {"width": 200, "height": 200, "color_by": "uniform", "camera": {"target": [0.5, 0.5], "height": 1.2}}
+    (_, image), = list(render_frames(s, render, frames=[0]))
+    r = renderer_for(with_fluid_particles(s), render)
+    px, py, _ = r.camera.project(np.array([[0.5, 0.5], [0.9, 0.9]]), 200, 200)
+    centre, corner = (image[int(py[k]), int(px[k])].astype(float) for k in (0, 1))
+    top = np.asarray(colormap(DEFAULT_SPEED_MAP, np.array([1.0]), vmin=0.0, vmax=1.0))[0, :3] * 255
+    assert np.abs(corner - top).max() <= 1                                    # the map around the particle
+    assert np.abs(centre - top).max() > 40                                    # the particle over it
+
+
+# ----------------------------------------------------------------------------- SPH surfaces ([render] fluid_surface)
+def _sph_block_states(dim, n=10, dx=0.02):
+    # An SPH fluid recorded as fluid/water/x (a lattice block of n^dim particles, one spare dead row)
+    # with its spacing and smoothing length (SPHFluid.static_arrays).
+    g = (np.arange(n) + 0.5) * dx + 0.1
+    pts = np.stack(np.meshgrid(*([g] * dim), indexing="ij"), -1).reshape(-1, dim)
+    x = np.concatenate([pts, np.full((1, dim), np.nan)]).astype(np.float32)[None]
+    alive = np.concatenate([np.ones(len(pts), bool), [False]])[None]
+    return States(np.array([0.0]), np.zeros((1, 0, dim)),
+                  fields={"fluid/water/x": x, "fluid/water/v": np.zeros_like(x), "fluid/water/active": alive},
+                  model={"fluid/water/spacing": np.array([dx]), "fluid/water/smoothing_length": np.array([dx])},
+                  metadata={"dim": dim})
+
+
+def test_sph_surface_option_round_trips_from_a_scene_file(tmp_path):
+    from inertia.scene import read_scene
+
+    path = tmp_path / "dam.toml"
+    path.write_text('format_version = 1\n[simulation]\ndim = 2\n[sph.water]\nspacing = 0.02\n'
+                    'domain = [[0, 0], [0.8, 0.6]]\nfluid = [{ box = [[0, 0], [0.2, 0.4]] }]\n'
+                    '[render]\nfluid_surface = true\nstreaks = 50\nstreak_length = 4\n')
+    render = read_scene(path).model.render
+    assert render.fluid_surface is True and render.streaks == 50 and render.streak_length == 4
+    dumped = render.model_dump(mode="json")
+    assert dumped["fluid_surface"] is True
+    path.write_text(path.read_text().replace("fluid_surface = true", "fluid_surface = 1"))
+    with pytest.raises(Exception, match="fluid_surface"):
+        read_scene(path)
+
+
+def test_2d_sph_fluid_is_filled_as_its_smoothed_surface_when_asked():
+    from inertia.render.fluid_particles import LIQUID_COLOR
+
+    s = _sph_block_states(2)
+    render = {"width": 200, "height": 200, "color_by": "uniform", "camera": {"target": [0.2, 0.2], "height": 0.4}}
+    (_, plain), = list(render_frames(s, render, frames=[0]))
+    (_, filled), = list(render_frames(s, dict(render, fluid_surface=True), frames=[0]))
+    r = renderer_for(with_fluid_particles(s), render)
+    fill = np.round(np.array(LIQUID_COLOR) * 255)
+    # the gap between four particles (x = 0.1 + 3 dx) is background without the option, liquid with it
+    gx, gy, _ = r.camera.project(np.array([[0.16, 0.16], [0.2, 0.2]]), 200, 200)
+    assert np.abs(filled[int(gy[0]), int(gx[0])].astype(int) - fill).max() <= 1
+    assert np.abs(plain[int(gy[0]), int(gx[0])].astype(int) - fill).max() > 20
+    # the filled region is the block [0.1, 0.3]^2 (its c = 1/2 line) to within two pixels (1 px = 2 mm)
+    px, _, _ = r.camera.project(np.array([[0.1, 0.2], [0.3, 0.2]]), 200, 200)
+    row = np.abs(filled[int(gy[1])].astype(int) - fill).max(axis=1) <= 1
+    cols = np.flatnonzero(row)
+    assert abs(cols.min() - px[0]) <= 2 and abs(cols.max() + 1 - px[1]) <= 2
+
+
+def test_3d_sph_fluid_is_a_surface_mesh_enclosing_the_block_when_asked():
+    pytest.importorskip("skimage")
+    from inertia.render.fluid_particles import LiquidSurfaces
+
+    s = with_fluid_particles(_sph_block_states(3))
+    assert LiquidSurfaces(s).names == []                                     # not asked: particles
+    liquids = LiquidSurfaces(s, sph=True)
+    options = liquids.apply({"meshes": [], "lines": [], "active": None}, 0)
+    assert not options["active"].any()
+    (mesh,) = options["meshes"]
+    v, t = np.asarray(mesh.vertices), np.asarray(mesh.triangles)
+    a, b, c = (v[t[:, k]] for k in range(3))
+    volume = abs(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+    L, h = 0.2, 0.02
+    # the block's volume less its rounded edges, within the smoothing bound of tests/fluids/sph/test_surface.py
+    assert 0 < L**3 - volume < 12 * L * (1 - np.pi / 4) * (2 * h) ** 2
+    (_, image), = list(render_frames(_sph_block_states(3), {"width": 96, "height": 72, "fluid_surface": True}, frames=[0]))
+    assert image.std() > 5

@@ -95,15 +95,19 @@ def _group_colors(states, renderer):
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
     from inertia.render.drawables import ModelDrawables, frame_options
-    from inertia.render.fluid_particles import (LiquidSurfaces, fluid_legend, frame_grids, frame_volumes, paint_grids,
-                                                paint_volumes, smoke_styles, with_fluid_particles)
+    from inertia.render.fluid_particles import (LiquidSurfaces, fluid_legend, frame_grids, frame_volumes, grid_scales,
+                                                grid_streaks, grid_fluids, paint_grids, paint_volumes, smoke_styles,
+                                                with_fluid_particles)
 
     states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
     frame_grids(renderer, states)  # 2-D grid fluids: framed when there is no particle, painted below
     frame_volumes(renderer, states, colliders, render)  # 3-D smoke: framed on its grid box, ray-marched below
     smoke = smoke_styles(states)
-    liquids = LiquidSurfaces(states)  # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D)
+    scales = grid_scales(states)  # 2-D grids: one colour scale for the run, tracer streaks ([render] streaks)
+    streaks = grid_streaks(states, render)
+    # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D); SPH too with [render] fluid_surface
+    liquids = LiquidSurfaces(states, sph=bool((render or {}).get("fluid_surface")))
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:
@@ -114,13 +118,15 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
     legend = _legend(states, renderer, render)
     legend = fluid_legend(states, renderer, render) if legend is None else legend
     indices = range(states.frame_count) if frames is None else frames
+    grids = bool(grid_fluids(states)) and renderer.dim == 2
     for f in indices:
         options = frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0)))
+        underlay = (lambda img, f=f: paint_grids(img, states, f, renderer, scales, streaks)) if grids else None
         image = renderer.frame(
             states.positions[f], radius=radius,
             velocities=None if states.velocities is None else states.velocities[f],
-            colors=colors, groups=groups, colliders=draw, t=float(states.times[f]), **liquids.apply(options, f))
-        paint_grids(image, states, f, renderer)
+            colors=colors, groups=groups, colliders=draw, t=float(states.times[f]), underlay=underlay,
+            **liquids.apply(options, f))
         liquids.paint(image, f, renderer)
         paint_volumes(image, states, f, renderer, smoke, colliders)
         if legend is not None:

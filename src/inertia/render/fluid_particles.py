@@ -17,9 +17,13 @@ draws them unchanged:
 `inertia.render.legend.overlay`.
 
 Recorded 2-D grid fluids (``fluid/<name>/speed`` (F, nx, ny) with ``origin``, ``cell_size`` in
-``States.model``) are painted as colour maps under the particles: ``density`` in "magma" when
-recorded (smoke), else ``speed`` in the speed map, each on one scale for the whole run (the maps of
-`inertia.render.fluid_grid`); ``frame_grids`` frames the camera on them when there is no particle.
+``States.model``) are painted as colour maps under the particles (`Renderer.frame`'s ``underlay``):
+``density`` in "magma" when recorded (smoke), else ``speed`` in the speed map, each on one scale for
+the whole run (``grid_scales``; the maps of `inertia.render.fluid_grid`), solid cells left
+unpainted so obstacles show; over the map, tracer streaks advected through the recorded
+cell-centre velocity ``u``, ``v`` (``grid_streaks``: `inertia.render.fluid_grid.GridStreaks`,
+``[render] streaks`` tracers, 400 default, 0 none, over ``streak_length`` frames, 8 default);
+``frame_grids`` frames the camera on them when there is no particle.
 
 Recorded 3-D smoke (``fluid/<name>/density`` (F, nx, ny, nz) with ``origin``, ``cell_size``) is
 ray-marched over each finished frame by `inertia.render.fluid_volume` (``paint_volumes``): lit by a
@@ -33,15 +37,23 @@ Particle liquids with a recorded level set (``fluid/<name>/phi``, `LiquidFluid`)
 their surface instead of their particles (``LiquidSurfaces``): in 3-D the phi = 0 surface by
 marching cubes (scikit-image, the ``surface`` extra) as a shaded mesh among the frame's meshes
 (lit, shadowed and z-tested with the bodies); in 2-D the region phi < 0 filled in
-``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line.
+``LIQUID_COLOR`` with an anti-aliased edge and a lighter surface line. With ``[render]
+fluid_surface = true`` SPH fluids are drawn the same way from their smoothed-particle surface
+(the colour field's 1/2 level, `inertia.fluids.sph.surface`, built per frame from the particles).
 
-Limitations: grid colour maps are pasted over the frame's background (nearest cell per pixel,
-2-D orthographic cameras only) before nothing else is drawn: particles of the same frame are not
-drawn over them (a fluid-only scene shows the grid alone); a 3-D grid without a ``density`` scalar
+3-D smoke also shades the opaque surfaces from the key light (``paint_volumes`` passes the
+renderer's shadow strength to `inertia.render.fluid_volume`).
+
+Limitations: grid colour maps are nearest cell per pixel, 2-D orthographic cameras only, and
+cover the background's grid lines and 2-D colliders other than the fluid's obstacle cells (cells
+whose centre is inside; the map's edge around an obstacle is a staircase of cells); runs recorded
+before ``u``/``v`` were recorded get no streaks; a 3-D grid without a ``density`` scalar
 (viscous flow only) is not drawn. When the groups and the fluid differ in dimension (a 3-D group
-with a 2-D fluid) the fluid is not drawn; SPH fluids are spheres/discs (their surface,
-`inertia.fluids.sph.surface`, is not wired into `inertia run`); without scikit-image a 3-D liquid
-falls back to its particles (one warning); the 2-D liquid fill is painted over the finished frame
+with a 2-D fluid) the fluid is not drawn; SPH surfaces use the cubic spline at the recorded
+smoothing length whatever the fluid's kernel, leave boundary particles out (the colour field
+thins next to walls: the surface can pull off a wall by up to a smoothing length), and cost a splat and (3-D) marching cubes per frame
+(a 256^3 node cap, `colour_field`); without scikit-image a 3-D liquid or SPH surface falls back to
+its particles (one warning); the 2-D liquid fill is painted over the finished frame
 (particles of other groups inside the liquid are covered). Grid fluids (no ``x``) are left to
 `inertia.render.fluid_grid`.
 """
@@ -53,8 +65,8 @@ import numpy as np
 from ..io.states import States
 
 __all__ = ["particle_fluids", "with_fluid_particles", "speed_colorbar", "fluid_legend", "grid_fluids",
-           "frame_grids", "paint_grids", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
-           "liquid_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
+           "frame_grids", "paint_grids", "grid_scales", "grid_streaks", "STREAKS", "STREAK_LENGTH", "volume_fluids", "frame_volumes", "smoke_styles", "paint_volumes",
+           "liquid_fluids", "sph_surface_fluids", "LiquidSurfaces", "LIQUID_COLOR"]
 
 
 def particle_fluids(states) -> list[str]:
@@ -149,7 +161,8 @@ def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | N
 
     if not particle_fluids(states) or states.velocities is None or renderer.speed_max is None:
         return None
-    if set(particle_fluids(states)) <= set(liquid_fluids(states)) and LiquidSurfaces(states).draws_surfaces:
+    surfaces = LiquidSurfaces(states, sph=bool((render or {}).get("fluid_surface")))
+    if set(particle_fluids(states)) <= set(surfaces.names) and surfaces.draws_surfaces:
         return None  # every fluid is drawn as a surface: no speed colours to explain
     if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) != "speed":
         return None
@@ -192,22 +205,59 @@ def frame_grids(renderer, states) -> None:
     renderer.camera = Camera.plane_2d(0.5 * (lo + hi), height)
 
 
-def paint_grids(image, states, frame: int, renderer, scales: dict | None = None) -> np.ndarray:
-    """Paint every recorded 2-D grid fluid of ``frame`` into ``image`` (H, W, 3) uint8 in place
-    (nearest cell per pixel inside the grid's rectangle); ``scales``: name -> colour-map maximum
-    (default: the run's 99th percentile)."""
-    from .colormaps import colormap
-
-    if renderer.dim != 2 or renderer.camera is None:
-        return image
-    h, w = image.shape[:2]
+def grid_scales(states) -> dict:
+    """name -> colour-map maximum of each recorded 2-D grid: the run's 99th percentile of the mapped
+    quantity (over a sample of about 50 frames; 1 when it is not positive)."""
+    scales = {}
     for name, quantity in grid_fluids(states):
         data = np.asarray(states.fields[f"fluid/{name}/{quantity}"])
-        vmax = (scales or {}).get(name)
-        if vmax is None:
-            finite = data[:: max(1, data.shape[0] // 50)]
-            vmax = float(np.percentile(finite[np.isfinite(finite)], 99.0)) if np.isfinite(finite).any() else 1.0
-            vmax = vmax if vmax > 0 else 1.0
+        finite = data[:: max(1, data.shape[0] // 50)]
+        vmax = float(np.percentile(finite[np.isfinite(finite)], 99.0)) if np.isfinite(finite).any() else 1.0
+        scales[name] = vmax if vmax > 0 else 1.0
+    return scales
+
+
+#: Default number of tracer streaks per 2-D grid fluid in `inertia run` ([render] streaks).
+STREAKS = 400
+#: Default frames of history per streak ([render] streak_length).
+STREAK_LENGTH = 8
+
+
+def grid_streaks(states, render: dict | None = None) -> dict:
+    """name -> `inertia.render.fluid_grid.GridStreaks` for the recorded 2-D grids with a velocity
+    (``fluid/<name>/u``, ``v``), ``[render] streaks`` tracers each (0: none) over
+    ``streak_length`` frames; seeded by the fluid's position in the run (same streaks every run)."""
+    from .fluid_grid import GridStreaks
+
+    render = render or {}
+    count = STREAKS if render.get("streaks") is None else int(render["streaks"])
+    length = STREAK_LENGTH if render.get("streak_length") is None else int(render["streak_length"])
+    if count <= 0:
+        return {}
+    out = {}
+    for k, (name, _) in enumerate(grid_fluids(states)):
+        streaks = GridStreaks.from_states(states, name, count=count, length=length, seed=k)
+        if streaks is not None:
+            out[name] = streaks
+    return out
+
+
+def paint_grids(image, states, frame: int, renderer, scales: dict | None = None, streaks: dict | None = None):
+    """Paint every recorded 2-D grid fluid of ``frame`` into ``image`` (H, W, 3) uint8 in place:
+    its colour map (nearest cell per pixel inside the grid's rectangle, solid cells left as they
+    were so obstacles show), then its tracer streaks (``streaks``: name -> `GridStreaks`, see
+    `grid_streaks`). ``scales``: name -> colour-map maximum (default `grid_scales`). Returns the
+    (H, W) bool mask of the pixels painted (`Renderer.frame`'s ``underlay`` contract)."""
+    from .colormaps import colormap
+
+    h, w = image.shape[:2]
+    changed = np.zeros((h, w), np.bool_)
+    if renderer.dim != 2 or renderer.camera is None:
+        return changed
+    scales = grid_scales(states) if scales is None else scales
+    for name, quantity in grid_fluids(states):
+        data = states.fields[f"fluid/{name}/{quantity}"]
+        vmax = scales.get(name, 1.0)
         lo, hi = _extent(states, name)
         px, py, _ = renderer.camera.project(np.array([lo, hi]), w, h)
         x0, x1 = int(np.clip(np.ceil(min(px)), 0, w)), int(np.clip(np.floor(max(px)), 0, w))
@@ -217,10 +267,19 @@ def paint_grids(image, states, frame: int, renderer, scales: dict | None = None)
         nx, ny = data.shape[1:3]
         ci = np.clip(((np.arange(x0, x1) + 0.5 - min(px)) / (max(px) - min(px)) * nx).astype(int), 0, nx - 1)
         cj = np.clip(((max(py) - np.arange(y0, y1) - 0.5) / (max(py) - min(py)) * ny).astype(int), 0, ny - 1)
-        values = data[frame][ci[None, :], cj[:, None]]
+        values = np.asarray(data[frame])[ci[None, :], cj[:, None]]
         rgb = colormap("magma" if quantity == "density" else "speed", values, vmin=0.0, vmax=vmax)
-        image[y0:y1, x0:x1] = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
-    return image
+        rgb = np.clip(np.round(np.asarray(rgb)[..., :3] * 255.0), 0, 255).astype(np.uint8)
+        solid = states.fields.get(f"fluid/{name}/solid")
+        fluid = np.ones(values.shape, bool) if solid is None else np.asarray(solid[frame])[ci[None, :], cj[:, None]] == 0
+        block = image[y0:y1, x0:x1]
+        block[fluid] = rgb[fluid]
+        changed[y0:y1, x0:x1] |= fluid
+        if streaks and name in streaks:
+            bx, by = (px[1] - px[0]) / (hi[0] - lo[0]), (py[1] - py[0]) / (hi[1] - lo[1])
+            streaks[name].paint(image, frame, (px[0] - bx * lo[0], bx, py[0] - by * lo[1], by),
+                                width_px=max(1.0, 1.5 * h / 540.0), changed=changed)
+    return changed
 
 
 # ----------------------------------------------------------------------------- 3-D smoke volumes
@@ -349,7 +408,8 @@ def paint_volumes(image, states, frame: int, renderer, styles: dict | None = Non
         composite_smoke(image, camera, density, origin=lo,
                         cell_size=float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
                         light_direction=light, style=styles.get(name), depth=depth,
-                        solid=_solid_cells(states, name, colliders, float(states.times[frame])))
+                        solid=_solid_cells(states, name, colliders, float(states.times[frame])),
+                        shadow_strength=renderer.shadow_strength if renderer.shadows else 0.0)
     return image
 
 
@@ -378,8 +438,23 @@ def _surface_mesh_3d(phi, origin, h):
     return verts + (np.asarray(origin, np.float64)[:3] - 0.5 * h), faces.astype(np.int64)
 
 
+def sph_surface_fluids(states) -> list[str]:
+    """Names of the recorded particle fluids without a level set but with a ``spacing`` (SPH): the
+    ones ``[render] fluid_surface`` draws as smoothed-particle surfaces."""
+    liquids = set(liquid_fluids(states))
+    return [name for name in particle_fluids(states)
+            if name not in liquids and f"fluid/{name}/spacing" in states.model]
+
+
 class LiquidSurfaces:
     """Liquid surfaces of a run's particle liquids (`liquid_fluids`) in place of their particles.
+
+    With ``sph=True`` (``[render] fluid_surface = true``) SPH fluids (`sph_surface_fluids`) too:
+    their level set is built per frame from the active particles, the colour field of
+    `inertia.fluids.sph.surface` (Mueller, Charypar and Gross 2003: c = sum_j V_j W(x - x_j, h),
+    V_j = spacing^D, cubic spline at the recorded ``smoothing_length``, on a grid of spacing / 2)
+    turned into phi = (1/2 - c) / |grad c| (`inertia.fluids.sph.surface.level_set`), then drawn
+    as the liquids' are.
 
     3-D: the recorded level set's phi = 0 surface (marching cubes, the ``surface`` extra's
     scikit-image) as a shaded `TriangleMesh` among the frame's meshes (lit, shadowed, z-tested
@@ -389,10 +464,11 @@ class LiquidSurfaces:
     ``merged`` is the `States` from `with_fluid_particles` (groups' particles, then each fluid's).
     """
 
-    def __init__(self, merged, *, color=LIQUID_COLOR):
+    def __init__(self, merged, *, color=LIQUID_COLOR, sph=False):
         self.states = merged
         self.color = np.asarray(color, np.float32)
-        self.names = liquid_fluids(merged)
+        self.sph_names = sph_surface_fluids(merged) if sph else []
+        self.names = liquid_fluids(merged) + self.sph_names
         self.mesh_ok = True
         if self.names and merged.dim == 3:
             try:
@@ -421,6 +497,26 @@ class LiquidSurfaces:
         m = self.states.model
         return np.asarray(m[f"fluid/{name}/origin"], np.float64).ravel(), float(np.ravel(m[f"fluid/{name}/cell_size"])[0])
 
+    def level_set(self, name, f: int):
+        """(phi (nx, ny[, nz]) cell-centred, negative inside, origin (D,) of the grid's corner, cell
+        size) of fluid ``name`` at frame ``f``; None when an SPH fluid has no live particle."""
+        if name not in self.sph_names:
+            origin, h = self._grid(name)
+            return np.asarray(self.states.fields[f"fluid/{name}/phi"][f], np.float64), origin, h
+        from ..fluids.sph.surface import colour_field, level_set
+
+        fields, m = self.states.fields, self.states.model
+        x = np.asarray(fields[f"fluid/{name}/x"][f], np.float64)
+        alive = fields.get(f"fluid/{name}/active")
+        keep = np.all(np.isfinite(x), axis=1) if alive is None else np.asarray(alive[f], bool) & np.all(np.isfinite(x), axis=1)
+        if not keep.any():
+            return None
+        spacing = float(np.ravel(m[f"fluid/{name}/spacing"])[0])
+        h = m.get(f"fluid/{name}/smoothing_length")
+        field, lo, cell = colour_field(x[keep], spacing, smoothing_length=None if h is None else float(np.ravel(h)[0]))
+        # node i of the colour field sits at lo + i cell: the centre of cell i of a grid whose corner is lo - cell / 2
+        return level_set(field, cell), lo - 0.5 * cell, cell
+
     def apply(self, options: dict, f: int) -> dict:
         """Add the surfaces of frame ``f`` to `Renderer.frame` keyword ``options`` (meshes, 3-D) and
         switch the liquids' particles off (``active``); returns ``options``."""
@@ -436,8 +532,8 @@ class LiquidSurfaces:
             a, b = self.rows[name]
             active[a:b] = False
             if self.states.dim == 3:
-                origin, h = self._grid(name)
-                mesh = _surface_mesh_3d(self.states.fields[f"fluid/{name}/phi"][f], origin, h)
+                grid = self.level_set(name, f)
+                mesh = None if grid is None else _surface_mesh_3d(grid[0], grid[1], grid[2])
                 if mesh is not None:
                     meshes.append(TriangleMesh(mesh[0], None, mesh[1], self.color))
         options = dict(options, active=active, meshes=meshes)
@@ -456,8 +552,10 @@ class LiquidSurfaces:
         fill = np.round(self.color * 255.0)
         edge = np.round(np.minimum(self.color * 1.6 + 0.15, 1.0) * 255.0)
         for name in self.names:
-            origin, h = self._grid(name)
-            phi = np.asarray(self.states.fields[f"fluid/{name}/phi"][f], np.float64)
+            grid = self.level_set(name, f)
+            if grid is None:
+                continue
+            phi, origin, h = grid
             nx, ny = phi.shape
             gx = (xs - origin[0]) / h - 0.5
             gy = (ys - origin[1]) / h - 0.5

@@ -32,6 +32,13 @@ Stages (each a Numba kernel):
    ``C += T a S``, ``T *= 1 - a``. The march stops when the opacity reaches ``1 - min_transmittance``
    (0.99 default). Only pixels the march touched are rewritten.
 
+Before the march, ``shadow_surfaces`` (with ``shadow_strength`` s > 0 and a depth buffer) darkens
+every opaque surface the smoke shades from the light: the surface point p of a pixel (from its
+view depth), the point q where the ray from p towards the light enters the smoke's box (p itself
+inside it), T_light(q) trilinear from the transmittance grid, colour *= 1 - s (1 - T_light). With
+obstacles (``solid``) that grid is marched a second time without them (the renderer already
+shades surfaces the obstacles hide from the light), doubling stage 2's cost.
+
 Optional emission (fire-like plumes): ``E(temp) = emission * ramp((temp - t0) / (t1 - t0))``,
 a black-body-like ramp dark red -> orange -> pale yellow.
 
@@ -47,7 +54,12 @@ Limitations
 -----------
 - Single scattering from one directional light plus a constant ambient term; no multiple
   scattering, isotropic phase function.
-- Smoke does not cast shadows on meshes or the ground. Opaque obstacles shadow the smoke only
+- Smoke shadows on opaque surfaces (``shadow_strength`` > 0; `paint_volumes` passes the
+  renderer's) darken the whole finished pixel by 1 - s (1 - T_light), s the renderer's shadow
+  strength, as its mesh shadows do: the frame's shading is not split into direct and ambient
+  parts, and T_light at a surface point outside the smoke's box is the box's value where the
+  light ray enters it, clamped to the box's cell centres (shadow edges land within about a cell).
+  Opaque obstacles shadow the smoke only
   through a cell mask (``solid``: cells whose centre is inside a collider), so their shadows
   are staircased at the cell size and ignore obstacles outside the smoke's box.
 - Fixed step along each ray (no jitter): a step of 0.5 cell shows faint banding at grazing
@@ -66,8 +78,8 @@ from numba import njit, prange
 from .._jit import parallel_kernel
 from .kernels import _primary_ray
 
-__all__ = ["SmokeStyle", "occupied_box", "light_transmittance", "march_smoke", "render_smoke_linear",
-           "composite_smoke", "emission_color"]
+__all__ = ["SmokeStyle", "occupied_box", "light_transmittance", "march_smoke", "shadow_surfaces",
+           "render_smoke_linear", "composite_smoke", "emission_color"]
 
 # Layout of the float64 style vector the march kernel reads.
 _P_SIGMA, _P_STEP, _P_MIN_T = 0, 1, 2
@@ -242,6 +254,47 @@ def light_transmittance(density, solid, box, cell_size, light_dir, sigma_t, out)
                 out[i, j, k] = 0.0 if blocked else math.exp(-sigma_t * tau)
 
 
+@parallel_kernel
+def shadow_surfaces(cam, width, height, depth, transmit, origin, cell_size, box, light_dir, strength, color, touched):
+    """Darken the opaque surfaces the smoke shades from the light (see the module docstring):
+    ``color`` (H, W, 3) float32 linear *= 1 - strength (1 - T_light) where ``depth`` (H, W) holds
+    a surface (below 1e37); T_light trilinear from ``transmit`` (the `light_transmittance` grid)
+    at the surface point, or where its ray to the light enters the cell box ``box`` (6,) (clamped
+    to the box's cell centres). ``touched`` (H, W) uint8 set where a pixel changed. Parallel over
+    rows; each pixel written once."""
+    h = cell_size
+    lo = np.array([origin[0] + box[0] * h, origin[1] + box[2] * h, origin[2] + box[4] * h])
+    hi = np.array([origin[0] + box[1] * h, origin[1] + box[3] * h, origin[2] + box[5] * h])
+    lx, ly, lz = light_dir[0], light_dir[1], light_dir[2]
+    fx, fy, fz = cam[9], cam[10], cam[11]
+    for py in prange(height):
+        for px in range(width):
+            d = depth[py, px]
+            if not d < 1e37:
+                continue
+            ox, oy, oz, dx, dy, dz = _primary_ray(cam, px, py)
+            along = dx * fx + dy * fy + dz * fz
+            if along <= 1e-12:
+                continue
+            t = d / along
+            sx, sy, sz = ox + t * dx, oy + t * dy, oz + t * dz
+            t0, t1 = _clip_box(sx, sy, sz, lx, ly, lz, lo, hi)
+            t0 = max(t0, 0.0)
+            if t1 < t0:
+                continue
+            qx, qy, qz = sx + t0 * lx, sy + t0 * ly, sz + t0 * lz
+            gx = min(max((qx - origin[0]) / h - 0.5, box[0]), box[1] - 1.0)
+            gy = min(max((qy - origin[1]) / h - 0.5, box[2]), box[3] - 1.0)
+            gz = min(max((qz - origin[2]) / h - 0.5, box[4]), box[5] - 1.0)
+            tl = _trilinear(transmit, gx, gy, gz)
+            if tl >= 1.0:
+                continue
+            f = 1.0 - strength * (1.0 - tl)
+            for c in range(3):
+                color[py, px, c] *= f
+            touched[py, px] = 1
+
+
 @njit(cache=True)
 def brick_max(density, out):
     """``out[b]``: the largest density over brick b (``BRICK``^3 cells) grown by one cell on every
@@ -366,15 +419,19 @@ def _check_grid(density, origin, cell_size):
 
 
 def render_smoke_linear(color, camera, density, *, origin, cell_size, light_direction, style=None,
-                        depth=None, temperature=None, solid=None):
+                        depth=None, temperature=None, solid=None, shadow_strength=0.0):
     """Composite smoke over ``color`` (H, W, 3) float32 linear RGB in place; returns the (H, W)
     uint8 mask of the pixels changed (all zero for an empty grid: nothing is written).
 
     density (nx, ny, nz) at cell centres ``origin + (i + 1/2) h``; ``light_direction`` (3,): unit
     vector towards the light; ``depth`` (H, W) view depth of opaque surfaces (None: none);
     ``temperature`` like density, for the glow when ``style.emission > 0``; ``solid`` (nx, ny, nz)
-    bool: opaque cells (obstacles) that shadow the smoke behind them from the light."""
+    bool: opaque cells (obstacles) that shadow the smoke behind them from the light;
+    ``shadow_strength`` in [0, 1]: with a ``depth`` buffer, the smoke shades the opaque surfaces
+    from the light by that strength (`shadow_surfaces`; 0: no smoke shadows)."""
     style = SmokeStyle() if style is None else style
+    if not 0.0 <= shadow_strength <= 1.0:
+        raise ValueError(f"shadow_strength must be in [0, 1]; got {shadow_strength!r}")
     rho, o = _check_grid(density, origin, cell_size)
     h_px, w_px = color.shape[:2]
     if color.dtype != np.float32 or color.ndim != 3 or color.shape[2] != 3 or not color.flags.c_contiguous:
@@ -396,13 +453,24 @@ def render_smoke_linear(color, camera, density, *, origin, cell_size, light_dire
         rho, solid_cells, box, float(cell_size), light, style.sigma_t, transmit)
     lo = o + float(cell_size) * box[0::2]
     hi = o + float(cell_size) * box[1::2]
+    cam = camera.params(w_px, h_px)
+    if depth is not None and shadow_strength > 0.0:
+        # the smoke's own transmittance: obstacles shade the surfaces already (the renderer's
+        # shading and mesh shadows), so their cells must not darken them a second time
+        smoke_only = transmit
+        if solid is not None:
+            smoke_only = np.empty_like(rho)
+            (light_transmittance.parallel if cells >= _PARALLEL_CELLS else light_transmittance.serial)(
+                rho, np.zeros((1, 1, 1), np.uint8), box, float(cell_size), light, style.sigma_t, smoke_only)
+        (shadow_surfaces.parallel if w_px * h_px >= _PARALLEL_PIXELS else shadow_surfaces.serial)(
+            cam, w_px, h_px, np.ascontiguousarray(depth, dtype=np.float32), smoke_only, o, float(cell_size), box, light,
+            float(shadow_strength), color, touched)
     if depth is None:
         depth = np.full((h_px, w_px), np.float32(3.0e38), np.float32)
     has_temp = temperature is not None
     temp = (np.ascontiguousarray(temperature, dtype=np.float32) if has_temp else np.zeros((1, 1, 1), np.float32))
     if has_temp and temp.shape != rho.shape:
         raise ValueError(f"temperature must have the density's shape {rho.shape}; got {temp.shape}")
-    cam = camera.params(w_px, h_px)
     kernel = march_smoke.parallel if w_px * h_px >= _PARALLEL_PIXELS else march_smoke.serial
     bricks = np.empty(tuple(-(-np.array(rho.shape) // BRICK)), np.float32)
     brick_max(rho, bricks)
@@ -423,7 +491,7 @@ def _srgb8_to_linear_table() -> np.ndarray:
 
 
 def composite_smoke(image, camera, density, *, origin, cell_size, light_direction, style=None, depth=None,
-                    temperature=None, solid=None):
+                    temperature=None, solid=None, shadow_strength=0.0):
     """Composite smoke over ``image`` (H, W, 3) uint8 sRGB in place (see `render_smoke_linear`);
     pixels no ray of smoke touched keep their bytes. Returns ``image``."""
     from .renderer import _LUT
@@ -431,7 +499,7 @@ def composite_smoke(image, camera, density, *, origin, cell_size, light_directio
     color = _srgb8_to_linear_table()[image]
     touched = render_smoke_linear(color, camera, density, origin=origin, cell_size=cell_size,
                                   light_direction=light_direction, style=style, depth=depth, temperature=temperature,
-                                  solid=solid)
+                                  solid=solid, shadow_strength=shadow_strength)
     if touched.any():
         _bytes_of_touched(color, touched, _LUT, image)
     return image

@@ -11,7 +11,8 @@ The camera frames the scene on the first `frame` call unless given (`camera=`) o
 whole run first (`Renderer.fit`, which `render_states` calls with every frame).
 
 Stages per frame (see `inertia.render.kernels` for what each reads and writes):
-background (cached while camera and colliders are still) -> contact shadows -> project ->
+background (cached while camera and colliders are still) -> ``underlay`` (2-D grid fluids'
+colour maps and streaks, painted under the particles) -> contact shadows -> project ->
 sort back to front -> splat spheres band by band (parallel over row bands) -> sRGB bytes.
 
 Colours
@@ -573,6 +574,7 @@ class Renderer:
         out: np.ndarray | None = None,
         meshes: Sequence = (),
         lines: Sequence = (),
+        underlay=None,
     ) -> np.ndarray:
         """Render one frame; returns (height, width, 3) uint8 sRGB (``out`` if given).
 
@@ -580,13 +582,17 @@ class Renderer:
         for speed colours; colors (N, 3) or one colour; groups (N,) int; active (N,) bool (False
         slots are not drawn); colliders as in `inertia.colliders`, drawn at time ``t``;
         meshes: `inertia.render.meshes.TriangleMesh` s in world space (shaded, casting shadows,
-        3-D only); lines: `inertia.render.meshes.LineSet` s (springs).
+        3-D only); lines: `inertia.render.meshes.LineSet` s (springs); underlay: a callable
+        ``paint(image)`` that paints the (H, W, 3) uint8 sRGB background in place and returns the
+        (H, W) bool mask of the pixels it changed (or None): drawn under the particles (2-D grid
+        fluids' colour maps and streaks).
         """
         with self._lock:
             return self._frame(positions, radius, velocities, colors, groups, active, colliders, t, out,
-                               meshes, lines)
+                               meshes, lines, underlay)
 
-    def _frame(self, positions, radius, velocities, colors, groups, active, colliders, t, out, meshes=(), lines=()):
+    def _frame(self, positions, radius, velocities, colors, groups, active, colliders, t, out, meshes=(), lines=(),
+               underlay=None):
         pos = np.asarray(positions, dtype=np.float64)
         if pos.ndim != 2 or pos.shape[1] != self.dim:
             raise ValueError(f"Renderer.frame: positions must be (N, {self.dim}), got shape {pos.shape}")
@@ -660,6 +666,10 @@ class Renderer:
             ground = self._draw_meshes(camera, meshes, lines, ground, out)
         else:
             np.copyto(out, bg_bytes)
+        if underlay is not None:
+            changed = underlay(out)
+            if changed is not None and changed.any():  # the particles blend over the painted pixels
+                self._color[changed] = _LIN_LUT[(out[changed].astype(np.int64) * 4095 + 127) // 255]
         parallel = w * h >= _PARALLEL_PIXELS or m >= _PARALLEL_PARTICLES
         (K.render_bands.parallel if parallel else K.render_bands.serial)(ground, self._shadow, shadow_box, packed, packed_colors, row_range, band_start, items, table,
              self.band, self._stride, _LUT, self._color, self._depth, out)

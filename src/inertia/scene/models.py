@@ -649,6 +649,13 @@ class Render(_Model):
     draw_colliders: bool = True
     trails: Annotated[int, Field(ge=0, le=100)] = Field(
         0, description="3-D: draw each particle's path over this many previous frames (shows the flow)")
+    streaks: Annotated[int, Field(ge=0, le=100000)] = Field(
+        400, description="2-D grid fluids: tracer streaks drawn over the colour map (0: none)")
+    streak_length: Annotated[int, Field(ge=1, le=200)] = Field(
+        8, description="2-D grid fluids: frames of history each tracer streak spans")
+    fluid_surface: bool = Field(
+        False, description="SPH fluids: draw the smoothed-particle liquid surface (a shaded mesh in 3-D, needs the "
+                           "'surface' extra; a filled region in 2-D) instead of the particles")
 
 
 # ----------------------------------------------------------------------------------------------

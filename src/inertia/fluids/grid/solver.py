@@ -230,6 +230,10 @@ class GridFluid:
         names = tuple(scalars)
         if len(set(names)) != len(names) or not all(isinstance(s, str) for s in names):
             raise ValueError(f"scalars must be distinct names; got {scalars!r}")
+        reserved = sorted(set(names) & {"speed", "u", "v", "solid"})
+        if reserved:  # the keys frame_arrays records beside the scalars
+            raise ValueError(f"scalars must not be named {reserved}: 'speed', 'u', 'v' and 'solid' are recorded "
+                             f"velocity keys; got {scalars!r}")
         self.scalar_names = names
         self.dissipation = {}
         for key, rate in (dissipation or {}).items():
@@ -1000,13 +1004,21 @@ class GridFluid:
 
     def frame_arrays(self):
         """Per-frame arrays for a recorded run (fixed shapes): every scalar and ``speed`` (|u|
-        at cell centres, m/s) as float32 (nx, ny[, nz])."""
+        at cell centres, m/s) as float32 (nx, ny[, nz]). 2-D grids also record the cell-centre
+        velocity components ``u``, ``v`` (float32, m/s, the average of the two faces) and
+        ``solid`` (uint8, 1 where the cell centre is inside an obstacle): the renderer's tracer
+        streaks (`inertia.render.fluid_grid.GridStreaks`) advect through them; 9 bytes a cell."""
         u, v, w = self._vel
-        s2 = (0.5 * (u[1:] + u[:-1])) ** 2 + (0.5 * (v[:, 1:] + v[:, :-1])) ** 2
+        uc, vc = 0.5 * (u[1:] + u[:-1]), 0.5 * (v[:, 1:] + v[:, :-1])
+        s2 = uc ** 2 + vc ** 2
         if self.dim == 3:
             s2 += (0.5 * (w[:, :, 1:] + w[:, :, :-1])) ** 2
         out = {name: self._view(a).astype(np.float32) for name, a in zip(self.scalar_names, self._scal)}
         out["speed"] = self._view(np.sqrt(s2)).astype(np.float32)
+        if self.dim == 2:
+            out["u"] = self._view(uc).astype(np.float32)
+            out["v"] = self._view(vc).astype(np.float32)
+            out["solid"] = self._view(self._cell_solid).astype(np.uint8)
         return out
 
     def static_arrays(self):

@@ -17,7 +17,10 @@ Limitations
   O(h^2 / R) on a drop of radius R.
 - The splat is serial (deterministic) with a dense grid over the particles' bounds plus a margin:
   ~(extent / cell)^3 nodes, so it is a frame-export tool, not a per-step one.
-- 3-D only (a 2-D field could use ``skimage.measure.find_contours``).
+- ``reconstruct`` (marching cubes) is 3-D; ``colour_field`` also splats 2-D particles, whose
+  region c > 1/2 `inertia run` fills (``[render] fluid_surface``, `inertia.render.fluid_particles`).
+- ``level_set`` turns c into phi = (1/2 - c) / |grad c| with one gradient for the frame (the median
+  over the nodes near the surface): the zero level is exactly c = 1/2, the distance is first order.
 """
 
 from __future__ import annotations
@@ -30,7 +33,7 @@ from numba import njit
 
 from .smoothing import kernel_id, kernel_norm, w_and_dwdr
 
-__all__ = ["colour_field", "reconstruct", "write_obj", "write_ply_mesh", "write_mesh_sequence"]
+__all__ = ["colour_field", "level_set", "reconstruct", "write_obj", "write_ply_mesh", "write_mesh_sequence"]
 
 
 @njit(cache=True)
@@ -55,20 +58,41 @@ def _splat(x, volume, lo, cell, shape, kernel, h, sigma, out):
                         out[a, b, c] += volume * w_and_dwdr(kernel, r, h, sigma)[0]
 
 
+@njit(cache=True)
+def _splat_2d(x, volume, lo, cell, shape, kernel, h, sigma, out):
+    """The 2-D ``_splat``: out[grid] += volume W(g - x_j) (serial, deterministic)."""
+    reach = 2.0 * h
+    for j in range(x.shape[0]):
+        i0 = max(0, int(np.floor((x[j, 0] - reach - lo[0]) / cell)))
+        i1 = min(shape[0] - 1, int(np.ceil((x[j, 0] + reach - lo[0]) / cell)))
+        j0 = max(0, int(np.floor((x[j, 1] - reach - lo[1]) / cell)))
+        j1 = min(shape[1] - 1, int(np.ceil((x[j, 1] + reach - lo[1]) / cell)))
+        for a in range(i0, i1 + 1):
+            dx = lo[0] + a * cell - x[j, 0]
+            for b in range(j0, j1 + 1):
+                dy = lo[1] + b * cell - x[j, 1]
+                r = np.sqrt(dx * dx + dy * dy)
+                if r < reach:
+                    out[a, b] += volume * w_and_dwdr(kernel, r, h, sigma)[0]
+
+
 def colour_field(x, spacing, *, smoothing_length=None, cell=None, kernel="cubic_spline", volume=None):
-    """The colour field on a grid: returns (field (nx, ny, nz) float64, origin (3,) [m], cell [m]).
-    Defaults: h = spacing (cubic spline), cell = spacing / 2, V_j = spacing^3; the grid covers the
-    particles' bounds plus one support and one cell."""
+    """The colour field on a grid: returns (field (nx, ny[, nz]) float64, origin (D,) [m] of node 0,
+    cell [m]). x: (N, 3) or (N, 2) positions. Defaults: h = spacing (cubic spline), cell = spacing / 2,
+    V_j = spacing^D; the grid covers the particles' bounds plus one support and one cell."""
     x = np.ascontiguousarray(np.asarray(x, float))
-    if x.ndim != 2 or x.shape[1] != 3:
-        raise ValueError(f"x must be (N, 3) particle positions (3-D only); got shape {x.shape}")
+    if x.ndim != 2 or x.shape[1] not in (2, 3):
+        raise ValueError(f"x must be (N, 3) or (N, 2) particle positions; got shape {x.shape}")
+    if x.shape[0] == 0:
+        raise ValueError("x must hold at least one particle")
+    dim = x.shape[1]
     if not spacing > 0:
         raise ValueError(f"spacing must be > 0; got {spacing!r}")
     h = float(spacing if smoothing_length is None else smoothing_length)
     cell = float(spacing / 2 if cell is None else cell)
     if not (h > 0 and cell > 0):
         raise ValueError("smoothing_length and cell must be > 0")
-    volume = float(spacing ** 3 if volume is None else volume)
+    volume = float(spacing ** dim if volume is None else volume)
     k = kernel_id(kernel)
     margin = 2 * h + cell
     lo = x.min(axis=0) - margin
@@ -77,8 +101,22 @@ def colour_field(x, spacing, *, smoothing_length=None, cell=None, kernel="cubic_
         raise ValueError(f"the surface grid would have {int(np.prod(shape))} nodes (> 256^3); raise cell "
                          f"(now {cell:g} m)")
     field = np.zeros(tuple(int(s) for s in shape))
-    _splat(x, volume, lo, cell, shape, k, h, kernel_norm(k, 3, h), field)
+    (_splat if dim == 3 else _splat_2d)(x, volume, lo, cell, shape, k, h, kernel_norm(k, dim, h), field)
     return field, lo, cell
+
+
+def level_set(field, cell, level=0.5):
+    """phi = (level - c) / g, negative inside the liquid: g is the median |grad c| over the nodes
+    with |c - level| < 0.2 (one number for the field, so phi's zero set is c's level set exactly and
+    phi is about the distance near it, in m). Returns phi (same shape, float64)."""
+    c = np.asarray(field, np.float64)
+    grads = np.gradient(c, float(cell))
+    g2 = sum(gr * gr for gr in grads)
+    near = np.abs(c - level) < 0.2
+    g = float(np.sqrt(np.median(g2[near]))) if near.any() else 0.0
+    if not g > 0:
+        g = 1.0 / float(cell)
+    return (level - c) / g
 
 
 def reconstruct(x, spacing, *, level=0.5, smoothing_length=None, cell=None, kernel="cubic_spline"):
