@@ -95,10 +95,11 @@ def test_no_slip_obstacle_has_zero_tangential_velocity_on_its_face():
     # The shear mode of the first test between the top wall and the face y0 = 0.27 of a plate
     # obstacle (off the grid lines: the first u node lies 0.18 h above it, the ghost-fluid
     # Dirichlet value sits at the cut point). (a) The mode decays as exp(-nu k^2 t) with
-    # k = 2 pi / (1 - y0) within the first-order bound: only true if u = 0 on the plate's face.
-    # (b) The grid's u extrapolated linearly from the first two liquid nodes to the face is below
-    # 1 % of the mode's amplitude there (measured 0.2 %, second order: the profile's curvature);
-    # (c) a slip plate keeps 4 x more (its nodes see a zero-shear plate: measured 26 %).
+    # k = 2 pi / (1 - y0) within the first-order bound: only true if u = 0 on the plate's face
+    # (measured +7.6 %, bound 8.9 %: k h = 0.54 here). (b) The grid's u extrapolated linearly from
+    # the first two liquid nodes to the face is below 1 % of the mode's amplitude (measured
+    # 0.46 %); (c) a slip plate (zero shear, only the normal velocity imposed) keeps 134 % there
+    # (bound: > 25 %).
     nu, dt, T, ny = 0.05, 0.01, 0.5, 16
     h = 1.0 / ny
     f0, a0, k, y0 = _shear_amplitude(0.0, dt, T, ny, plate=0.27)
@@ -112,12 +113,11 @@ def test_no_slip_obstacle_has_zero_tangential_velocity_on_its_face():
         j = int(np.flatnonzero(y > y0)[0])
         u = f.vel[0][24:40, :, 0].mean(axis=0)
         at_face = u[j] - (u[j + 1] - u[j]) * (y[j] - y0) / h
-        peak = amp * 0.1 * k * h       # U amp sin(k h): the mode one node spacing from the face
-        return abs(at_face) / peak
+        return abs(at_face) / (0.1 * amp)    # of the mode's amplitude U amp
 
     assert wall_velocity(f1, a1) < 0.01
     fs, as_, _, _ = _shear_amplitude(nu, dt, T, ny, plate=0.27, slip=True)
-    assert wall_velocity(fs, as_) > 4 * max(wall_velocity(f1, a1), 0.01)
+    assert wall_velocity(fs, as_) > 0.25
 
 
 def test_honey_like_viscosity_is_stable_at_the_cfl_step():
