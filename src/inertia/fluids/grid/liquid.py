@@ -76,9 +76,12 @@ Limitations
   cell next to them: along an axis the body's surface is placed to within h/2 (exact for
   surfaces through cell centres; a floating body's equilibrium draft is within +-h/2). 2-D: the
   bodies' z = 0 cross-sections in a slab ``depth`` thick; they should move in the x-y plane.
-  The world's rigid stage moves bodies before the liquid acts, so `advance` re-places each
-  coupled dynamic body at q_prev + dt (v, w) after its impulse (symplectic Euler). The bodies'
-  cut cells are rebuilt once per step at their current pose.
+  The world advances the liquid before its rigid stage (``advance_before_rigid``): the liquid
+  sees the bodies at their start-of-step poses with gravity's g dt added to their velocities
+  (removed again after the step; the rigid stage adds it), its impulses change the velocities,
+  and the rigid stage then integrates the positions (symplectic Euler). The bodies' cut cells
+  are rebuilt once per substep at the start-of-step pose. Called outside a world, `advance`
+  expects the caller's rigid step to follow it (it leaves gravity to the rigid world).
 - Momentum between liquid and bodies is exchanged on the grid (face masses rho h^d); at a
   struck free surface the particles carry less than that (measured: 5.7 % of the momentum lost
   in a body's impact step, tests/fluids/grid/test_liquid_coupling.py).
@@ -591,6 +594,9 @@ def advect_particles(x, vel, origin, h, dim, dt, lo, hi):
 class LiquidFluid:
     """A particle liquid (PIC/FLIP/APIC) on a MAC grid in a closed box (see the module docstring).
 
+    World protocol: ``advance_before_rigid = True`` (the world advances it before its rigid stage,
+    so the liquid's impulses reach the bodies' velocities before their positions are integrated).
+
     Parameters
     ----------
     shape : (nx, ny) or (nx, ny, nz) cells, each >= 4.
@@ -620,6 +626,8 @@ class LiquidFluid:
     obstacle_slip : False (default: no-slip), True, or one bool per obstacle; rigid shape rows
         take `bind_rigid(rigid, slip=)` (default no-slip). Only matters with viscosity > 0.
     """
+
+    advance_before_rigid = True
 
     def __init__(self, shape, cell_size, *, origin=None, gravity=None, method="apic",
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
@@ -758,7 +766,6 @@ class LiquidFluid:
         self.obstacle_viscous_torque = np.zeros((len(self.obstacles), 3))   # N m about its reference
         self._visc_impulse = (np.zeros((len(self.obstacles), 3)), np.zeros((len(self.obstacles), 3)))
         self._rigid = None
-        self._pose_end = None   # dynamic bodies' poses after the last coupled advance
         self._dynamic = np.zeros(0, dtype=np.bool_)
         self._rigid_obstacles = []
         self._owners = np.full(len(self.obstacles), -1, np.int64)
@@ -931,6 +938,9 @@ class LiquidFluid:
         """Advance by dt seconds (one step)."""
         dt = positive_scalar(dt, "dt")
         h = self.cell_size
+        coupled = self._rigid is not None and bool(np.any(self._dynamic))
+        if coupled:
+            self._predict_gravity(dt, 1.0)
         if self._moving:
             self._update_solids(self.time + dt)
         m = {"apic": 0, "flip": 1, "pic": 2}[self.method]
@@ -968,6 +978,8 @@ class LiquidFluid:
                                                  self._dynamic, a, h, origin, st.body_q, st.body_qd)
         if self.viscosity > 0.0:
             self._diffuse(dt)
+        if coupled:
+            self._predict_gravity(dt, -1.0)
         if m == 1:
             # FLIP: the grid's velocity change, extrapolated like the velocity
             for a in range(self.dim):
@@ -1096,11 +1108,13 @@ class LiquidFluid:
     def advance(self, frame_dt, rigid=None):
         """Advance by frame_dt seconds in CFL substeps; returns the substep count. `rigid` (World
         protocol: the world's RigidWorld) couples the liquid to its bodies (`bind_rigid`) when it
-        has shape rows; its dynamic bodies are then placed by `_place_bodies`."""
+        has shape rows. The world advances a liquid before its rigid stage
+        (``advance_before_rigid``): the bodies are at their start-of-step poses, the liquid's
+        impulses change their velocities, and the rigid stage then adds gravity and contacts and
+        moves them (symplectic Euler)."""
         frame_dt = positive_scalar(frame_dt, "frame_dt")
         if rigid is not None and rigid is not self._rigid and int(rigid.model.shape_count):
             self.bind_rigid(rigid)
-        coupled = rigid is not None and rigid is self._rigid and bool(np.any(self._dynamic))
         done = 0.0
         n = 0
         while done < frame_dt * (1 - 1e-12):
@@ -1108,25 +1122,17 @@ class LiquidFluid:
             self.step(dt)
             done += dt
             n += 1
-        if coupled:
-            self._place_bodies(frame_dt)
         return n
 
-    def _place_bodies(self, frame_dt):
-        """Impulse-then-drift for the dynamic bodies: the world's rigid stage has already moved
-        them with their velocity before the liquid's impulse (a body floating at rest would sink
-        by about g dt^2 / 2 per step); put each at q_prev + frame_dt (v, w) with its velocity after
-        the liquid step (symplectic Euler), q_prev its pose after the previous `advance`. The
-        first coupled frame keeps the rigid stage's pose."""
-        from ...math import quat_integrate
+    def _predict_gravity(self, dt, sign):
+        """Add (sign +1) or remove (-1) g dt on the velocities of the awake dynamic bodies: the
+        pressure solve sees each body with the velocity gravity gives it over the step (as the
+        liquid's own faces get g dt), so a body lighter than the liquid floats stably; the rigid
+        stage, which runs after the liquid, adds the same g dt itself."""
         st = self._rigid.state
-        prev = self._pose_end
-        if prev is not None and prev.shape == st.body_q.shape:
-            for b in np.flatnonzero(self._dynamic):
-                st.body_q[b, :3] = prev[b, :3] + frame_dt * st.body_qd[b, 3:]
-                st.body_q[b, 3:] = quat_integrate(np.ascontiguousarray(prev[b, 3:]),
-                                                  np.ascontiguousarray(st.body_qd[b, :3]), frame_dt)
-        self._pose_end = st.body_q.copy()
+        g = np.asarray(self._rigid.model.gravity, dtype=np.float64).reshape(3)
+        moving = self._dynamic & np.asarray(st.body_awake, dtype=np.bool_)
+        st.body_qd[moving, 3:6] += (sign * dt) * g
 
     # ------------------------------------------------------------------------ rigid coupling
     def bind_rigid(self, rigid, slip=False):
@@ -1259,8 +1265,6 @@ class LiquidFluid:
     def save_state(self):
         st = {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
               "time": np.array(self.time), "step_index": np.array(self.step_index)}
-        if self._pose_end is not None:
-            st["pose_end"] = self._pose_end.copy()
         return st
 
     def restore_state(self, state):
@@ -1269,6 +1273,5 @@ class LiquidFluid:
         self.c = np.ascontiguousarray(state["c"], dtype=np.float64).copy()
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
-        self._pose_end = np.array(state["pose_end"], dtype=np.float64) if "pose_end" in state else None
         if self._moving:
             self._update_solids(self.time)
