@@ -367,7 +367,8 @@ class World:
     def add_fluid(self, name: str, fluid) -> Any:
         """Add a fluid (an object with ``advance(dt, rigid)``, ``save_state()``, ``restore_state(d)``,
         ``frame_arrays()``, ``static_arrays()``; see the contract in the module docstring). The fluids
-        stage calls ``fluid.advance(dt, world.rigid)`` after the rigid stage, before the particle groups."""
+        stage calls ``fluid.advance(dt, world.rigid)`` after the rigid stage, before the particle groups;
+        a fluid whose ``advance_before_rigid`` is True is advanced before the rigid stage instead."""
         if not isinstance(name, str) or not name or "/" in name:
             raise ValueError(f"fluid name must be a non-empty string without '/'; got {name!r}")
         if name in self.fluids or any(g.name == name for g in self.groups) or name in STAGES:
