@@ -17,7 +17,11 @@ One `World.step` runs these stages in order, each timed in ``world.profile`` (se
 2. ``rigid``      -- ``RigidWorld.step`` (its own stages broad phase, narrow phase, islands,
                      solve, finalize are also timed as ``rigid/<stage>``);
 3. ``fluids``     -- ``fluid.advance(dt, world.rigid)`` per fluid, in insertion order (each also
-                     timed as ``fluid/<name>``); fluids read the moved bodies and push them back;
+                     timed as ``fluid/<name>``); fluids read the moved bodies and push them back.
+                     A fluid with ``advance_before_rigid = True`` (the particle liquid, whose
+                     pressure solve has the bodies' velocities as unknowns) advances instead
+                     between stages 1 and 2, so its impulses reach the bodies' velocities before
+                     the rigid stage integrates their positions (also timed under ``fluids``);
 4. groups         -- per group (timed under its name), ``substeps`` calls of ``Simulation.step``
                      (begin -> integrate -> end -> check, see `inertia.simulation`). 3-D particle
                      groups collide with the shape table's body and world rows
@@ -363,7 +367,8 @@ class World:
     def add_fluid(self, name: str, fluid) -> Any:
         """Add a fluid (an object with ``advance(dt, rigid)``, ``save_state()``, ``restore_state(d)``,
         ``frame_arrays()``, ``static_arrays()``; see the contract in the module docstring). The fluids
-        stage calls ``fluid.advance(dt, world.rigid)`` after the rigid stage, before the particle groups."""
+        stage calls ``fluid.advance(dt, world.rigid)`` after the rigid stage, before the particle groups;
+        a fluid whose ``advance_before_rigid`` is True is advanced before the rigid stage instead."""
         if not isinstance(name, str) or not name or "/" in name:
             raise ValueError(f"fluid name must be a non-empty string without '/'; got {name!r}")
         if name in self.fluids or any(g.name == name for g in self.groups) or name in STAGES:
@@ -410,6 +415,14 @@ class World:
             self._q_start[:] = rigid.state.body_q
         t1 = clock()
         self.profile["kinematics"] += t1 - t0
+        for name, fluid in self.fluids.items():   # fluids that push bodies before they move
+            if getattr(fluid, "advance_before_rigid", False):
+                tf = clock()
+                fluid.advance(self.dt, rigid)
+                self.profile[f"fluid/{name}"] += clock() - tf
+        early = clock() - t1
+        self.profile["fluids"] += early
+        t1 += early
         if rigid is not None:
             before = dict(rigid.profile)
             rigid.step()
@@ -421,6 +434,8 @@ class World:
         t2 = clock()
         self.profile["rigid"] += t2 - t1
         for name, fluid in self.fluids.items():
+            if getattr(fluid, "advance_before_rigid", False):
+                continue
             tf = clock()
             fluid.advance(self.dt, rigid)
             self.profile[f"fluid/{name}"] += clock() - tf

@@ -141,6 +141,9 @@ def nearest_obstacle(obstacles, pts, t, axis):
         if isinstance(o, Collider):      # fills preallocated outputs: one query for both
             o.query(pts, t, d, nrm, v)
             di, vi = d, v[:, axis]
+        elif isinstance(o, PlaneSlice):  # one serial query for both
+            di, _, vv = o.query(pts, t)
+            vi = vv[:, axis]
         else:
             di = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
             vi = np.asarray(o.velocity(pts, t), dtype=np.float64)[:, axis]

@@ -16,20 +16,35 @@
     density_rate = 5.0
     temperature_rate = 5.0
 
+    [fluids.tank]
+    kind = "liquid"
+    shape = [64, 32]
+    cell_size = 0.015625
+    viscosity = 0.01                     # m^2/s (honey-like); 0: inviscid
+    obstacles = ["rock", "post"]
+    obstacle_slip = [false, true]        # or one bool for all (default false: no-slip)
+    [fluids.tank.boundaries]
+    "y-" = { type = "no-slip" }          # a liquid's sides are walls: "slip" (default) or "no-slip"
+    [[fluids.tank.blocks]]
+    lower = [0.0, 0.0]
+    upper = [0.25, 0.5]
+
 ``build(table, world=None, colliders=None)`` returns a `GridFluid` or `LiquidFluid`. Every
 error is a ``ValueError`` whose message starts with the key path (``fluids.plume.shape``) and
 names the allowed values. The lead wires the model into ``scene/models.py`` and the builder
 into ``scene/builder.py`` (``world.add_fluid(name, fluid)``).
 
-Limitations: liquids take only ``blocks`` (boxes of particles) and a closed slip box; rigid
-bodies of the world are not coupled (``world`` is accepted for the protocol and unused).
+Limitations: a liquid's domain is closed (its sides are slip or no-slip walls; no inflow,
+outflow or periodic sides); rigid bodies of the world are coupled by the world step itself
+(``World.add_fluid``), not here (``world`` is accepted for the protocol and unused); their
+slip flag is the liquid's ``bind_rigid`` default (no-slip).
 """
 
 from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from .boundaries import Inflow, Outflow, Periodic, Wall
 from .liquid import LiquidFluid
@@ -86,12 +101,40 @@ class GridFluidTable(_Strict):
     cfl: float = Field(1.0, gt=0, le=5)
     sources: list[SourceTable] = Field(default_factory=list)
     obstacles: list[str] = Field(default_factory=list, description="names of scene colliders")
+    obstacle_slip: bool | list[bool] = Field(
+        False, description="false (no-slip, default), true (slip), or one bool per obstacle; "
+                           "matters with viscosity > 0")
     # liquid
     method: Literal["apic", "flip", "pic"] = "apic"
     flip_ratio: float = Field(0.95, ge=0, le=1)
     gravity: list[float] | None = None
     density: float = Field(1000.0, gt=0)
     blocks: list[BlockTable] = Field(default_factory=list)
+
+
+    @field_validator("obstacle_slip", mode="before")
+    @classmethod
+    def _slip_values(cls, v):
+        if isinstance(v, bool) or (isinstance(v, list) and all(isinstance(x, bool) for x in v)):
+            return v
+        raise ValueError(f"must be true, false or a list of one bool per obstacle; got {v!r}")
+
+
+LIQUID_WALLS = {"slip": "slip", "no-slip": "no-slip", "wall": "no-slip"}
+
+
+def _liquid_walls(boundaries):
+    """A liquid's side -> "slip" / "no-slip" from its boundaries table (closed walls only)."""
+    walls = {}
+    for side, b in boundaries.items():
+        if b.type not in LIQUID_WALLS:
+            raise ValueError(f"boundaries.{side}: a liquid's sides are closed walls, one of "
+                             f"{sorted(LIQUID_WALLS)}; got {b.type!r}")
+        if b.velocity is not None:
+            raise ValueError(f"boundaries.{side}.velocity: a liquid's walls do not move "
+                             f"(leave velocity out)")
+        walls[side] = LIQUID_WALLS[b.type]
+    return walls
 
 
 def _boundary(b: BoundaryTable):
@@ -121,22 +164,27 @@ def build(table, world=None, colliders=None, name="fluid"):
             raise ValueError(f"{prefix}.{key}: {err['msg']}") from None
     t = table
     try:
-        if t.kind == "liquid":
-            fluid = LiquidFluid(t.shape, t.cell_size, origin=t.origin, gravity=t.gravity,
-                                method=t.method, flip_ratio=t.flip_ratio, density=t.density,
-                                cfl=t.cfl)
-            for i, b in enumerate(t.blocks):
-                try:
-                    fluid.add_block(b.lower, b.upper, velocity=b.velocity)
-                except ValueError as e:
-                    raise ValueError(f"blocks[{i}]: {e}") from None
-            return fluid
         obstacles = []
         for i, o in enumerate(t.obstacles):
             if colliders is None or o not in colliders:
                 known = sorted(colliders) if colliders else []
                 raise ValueError(f"obstacles[{i}]: unknown collider {o!r}; the scene's colliders are {known}")
             obstacles.append(colliders[o])
+        if isinstance(t.obstacle_slip, list) and len(t.obstacle_slip) != len(obstacles):
+            raise ValueError(f"obstacle_slip: must be true, false or {len(obstacles)} bools (one per "
+                             f"obstacle); got {len(t.obstacle_slip)}")
+        slip = t.obstacle_slip if isinstance(t.obstacle_slip, bool) else list(t.obstacle_slip)
+        if t.kind == "liquid":
+            fluid = LiquidFluid(t.shape, t.cell_size, origin=t.origin, gravity=t.gravity,
+                                method=t.method, flip_ratio=t.flip_ratio, density=t.density,
+                                cfl=t.cfl, viscosity=t.viscosity, obstacles=obstacles,
+                                obstacle_slip=slip, walls=_liquid_walls(t.boundaries))
+            for i, b in enumerate(t.blocks):
+                try:
+                    fluid.add_block(b.lower, b.upper, velocity=b.velocity)
+                except ValueError as e:
+                    raise ValueError(f"blocks[{i}]: {e}") from None
+            return fluid
         sides = {}
         for side, b in t.boundaries.items():
             try:
@@ -149,7 +197,7 @@ def build(table, world=None, colliders=None, name="fluid"):
                           scalars=tuple(t.scalars), ambient_temperature=t.ambient_temperature,
                           buoyancy=tuple(t.buoyancy), body_acceleration=t.body_acceleration,
                           dissipation=t.dissipation, vorticity_confinement=t.vorticity_confinement,
-                          cfl=t.cfl, obstacles=obstacles)
+                          cfl=t.cfl, obstacles=obstacles, obstacle_slip=slip)
         for i, s in enumerate(t.sources):
             try:
                 fluid.add_source(s.lower, s.upper, density_rate=s.density_rate,

@@ -78,6 +78,7 @@ import numpy as np
 from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
 from . import kernels as K
+from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
 from .obstacles import face_cells, face_fractions, nearest_obstacle, obstacle_fractions, rigid_shape_obstacles
 from .pressure import SOLVERS, PoissonSolver
@@ -193,6 +194,7 @@ class GridFluid:
             parallel = int(np.prod(g.n)) >= K.PARALLEL_CELLS
         self.parallel = bool(parallel)
         self._k = K.KernelSet(K, self.parallel)
+        self._kv = K.KernelSet(V, self.parallel)   # implicit viscosity (viscosity.py)
         dim = self.dim = g.dim
         self.viscosity = positive_scalar(viscosity, "viscosity", allow_zero=True)
         self.fluid_density = positive_scalar(fluid_density, "fluid_density")
@@ -300,7 +302,7 @@ class GridFluid:
         self.pressure = PoissonSolver((nx, ny, nz), periodic, method=pressure_solver,
                                       tolerance=tol, max_iterations=max_iterations,
                                       parallel=self.parallel)
-        # implicit viscosity: node kinds (K.FREE, FIXED, NO_SLIP, SLIP) per component (obstacles
+        # implicit viscosity: node kinds (V.FREE, FIXED, NO_SLIP, SLIP) per component (obstacles
         # stage); node signed distance, solid velocity and owning obstacle where no-slip obstacles
         # exist (allocated on first need)
         self._vkind = [np.zeros(s, dtype=np.int8) for s in fs]
@@ -324,7 +326,7 @@ class GridFluid:
                 raise ValueError(f"obstacles must be colliders with dim {dim} "
                                  f"(signed_distance, velocity); got {o!r}")
         self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
-        self._slip = self._slip_flags(obstacle_slip, len(self.obstacles), "obstacle_slip")
+        self._slip = V.slip_flags(obstacle_slip, len(self.obstacles), "obstacle_slip")
         self._rigid_slip = False
         self._vertex_pts = g.vertex_positions() if self.obstacles else None
         self._face_pts = [g.face_positions(a) for a in range(dim)] if self.obstacles else None
@@ -366,18 +368,6 @@ class GridFluid:
                     else:
                         kind[3 + s, axis, sd] = K.NEUMANN
         return kind, value
-
-    @staticmethod
-    def _slip_flags(slip, count, name):
-        if isinstance(slip, (bool, np.bool_)):
-            return [bool(slip)] * count
-        try:
-            flags = list(slip)
-        except TypeError:
-            raise ValueError(f"{name} must be a bool or one bool per obstacle; got {slip!r}") from None
-        if len(flags) != count or not all(isinstance(x, (bool, np.bool_)) for x in flags):
-            raise ValueError(f"{name} must be a bool or {count} bools (one per obstacle); got {slip!r}")
-        return [bool(x) for x in flags]
 
     def _inflow_scalar(self, b, name):
         if name in b.scalars:
@@ -453,13 +443,13 @@ class GridFluid:
         self._no_slip_nodes = False
         for a in range(3):
             kind = self._vkind[a]
-            kind[...] = np.where(self._frac[a] == 0.0, K.FIXED, K.FREE)
+            kind[...] = np.where(self._frac[a] == 0.0, V.FIXED, V.FREE)
             if self.viscosity > 0.0 and obstacles and a < dim:
                 self._viscous_kinds(a)
             if self.periodic[a]:
                 idx = [slice(None)] * 3
                 idx[a] = -1
-                kind[tuple(idx)] = K.FIXED  # the duplicate of face 0
+                kind[tuple(idx)] = V.FIXED  # the duplicate of face 0
         self._enforce()
 
     def _viscous_nodes(self, a, best, vel, owner, slip):
@@ -480,10 +470,6 @@ class GridFluid:
         shape = self._face_shapes[a]
         best = self._vsdf[a].reshape(-1)
         owner = self._vowner[a].reshape(-1)
-        inside = best < 0.0
-        no_slip = inside & ~np.asarray(slip, dtype=bool)[owner]
-        kind = self._vkind[a].reshape(-1)
-        closed = kind == K.FIXED
         # domain-side faces stay FIXED (their value is the wall's or the inflow's)
         edge = np.zeros(shape, dtype=bool)
         idx = [slice(None)] * 3
@@ -491,10 +477,9 @@ class GridFluid:
             idx[a] = end
             if not isinstance(self.sides[2 * a + (0 if end == 0 else 1)], (Periodic, Outflow)):
                 edge[tuple(idx)] = True
-        edge = edge.reshape(-1)
-        kind[no_slip & ~edge] = K.NO_SLIP
-        kind[inside & ~no_slip & closed & ~edge] = K.SLIP
-        self._no_slip_nodes = self._no_slip_nodes or bool(np.any(no_slip & ~edge))
+        any_no_slip = V.obstacle_node_kinds(self._vkind[a].reshape(-1), best, owner, slip,
+                                            edge.reshape(-1))
+        self._no_slip_nodes = self._no_slip_nodes or any_no_slip
 
     def _inside_domain(self, o, t):
         pts = self.grid.cell_positions()
@@ -706,30 +691,12 @@ class GridFluid:
             ref = self._obstacle_refs()
         for a in range(self.dim):
             x = self._vel[a]
-            r, p, q, b = self._cg[a]
             kind, sdf, wall = self._vkind[a], self._vsdf[a], self._vwall[a]
-            self._k.helmholtz_rhs(x, kind, sdf, wall, a, coef, g, b)
-            # CG on (I - coef Lap) x = b, from the current x
-            self._k.helmholtz_apply(x, kind, sdf, a, coef, g, q)
-            np.subtract(b, q, out=r)
-            p[...] = r
-            rr = self._k.dot(r, r, self._partial_for(r))
-            bnorm = math.sqrt(self._k.dot(b, b, self._partial_for(b)))
-            tol = 1e-10 * max(bnorm, 1e-300)
-            xf, rf, pf, qf = x.reshape(-1), r.reshape(-1), p.reshape(-1), q.reshape(-1)
-            for _ in range(1000):
-                if math.sqrt(rr) <= tol:
-                    break
-                self._k.helmholtz_apply(p, kind, sdf, a, coef, g, q)
-                alpha = rr / self._k.dot(p, q, self._partial_for(p))
-                self._k.axpy(alpha, pf, xf)
-                self._k.axpy(-alpha, qf, rf)
-                rr_new = self._k.dot(r, r, self._partial_for(r))
-                self._k.xpby(rf, rr_new / rr, pf)
-                rr = rr_new
+            V.solve_component(self._kv, self._k, x, kind, sdf, wall, a, coef, g, self._cg[a],
+                              self._partial_for(x))
             if self._no_slip_nodes:
                 scale = self.fluid_density * self.grid.cell_size ** self.dim * coef
-                K.wall_shear_impulses(x, kind, sdf, wall, self._vowner[a], a, scale, g, ref,
+                V.wall_shear_impulses(x, kind, sdf, wall, self._vowner[a], a, scale, g, ref,
                                       lin, ang)
         if self._no_slip_nodes:
             self.obstacle_viscous_force = lin / dt
@@ -877,7 +844,7 @@ class GridFluid:
         cover (SDF) are skipped. 3-D grids only.
 
         With ``slip=False`` (default) and viscosity > 0 the shapes are no-slip walls of the implicit
-        viscosity and the viscous stress on them (`K.wall_shear_impulses`) is added to each
+        viscosity and the viscous stress on them (`viscosity.wall_shear_impulses`) is added to each
         body's impulse; ``slip=True`` leaves only the pressure."""
         if self.dim != 3:
             raise ValueError(f"rigid bodies couple to 3-D grids only; this grid has dim {self.dim}")
