@@ -44,7 +44,7 @@ References
 
 Limitations
 -----------
-- Constant density (Boussinesq smoke); no free surface (liquids are not implemented yet).
+- Constant density (Boussinesq smoke); no free surface (liquids are `LiquidFluid`, `fluids/grid/liquid.py`).
 - First-order splitting in time; semi-Lagrangian advection adds numerical viscosity
   (measured in tests/fluids/grid/test_solver.py), MacCormack much less.
 - No-slip obstacles (``obstacle_slip=False``, the default; `bind_rigid(slip=False)`): the
