@@ -241,7 +241,7 @@ def _resting_motion(x0x, x0y, x0z, v0x, v0y, v0z, ax, ay, az, nx, ny, nz, ux, uy
 @njit(cache=True)
 def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az,
-               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, resting_done,
+               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, unfiltered, resting_done,
                started, kinds, motion):
     """Steps 1-4 of ``collide_particles`` for one particle near a collider (kept out of the hot
     loop so that the far-from-everything path stays small). Returns the final (x, v), whether
@@ -269,7 +269,10 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
     if kr >= 0 and not resting_done:
         nx, ny, nz = rest_n[i, 0], rest_n[i, 1], rest_n[i, 2]
         ux, uy, uz = rest_u[i, 0], rest_u[i, 1], rest_u[i, 2]
-        if not filter_ran and ax * nx + ay * ny + az * nz < 0.0:
+        fused_rest = False
+        if unfiltered is not None:  # compiled in only where the force filter may not have run
+            fused_rest = ax * nx + ay * ny + az * nz < 0.0
+        if fused_rest:
             ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
                                                         ux, uy, uz, cmat[kr, 1], dt, rest_speed)
             ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
@@ -561,7 +564,7 @@ def _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, 
 @njit(cache=True)
 def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                   static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                  rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started, kinds, motion):
+                  rest_speed, a_priori, max_sub, max_iter, classify, unfiltered, started, kinds, motion):
     """Steps 1-4 of ``collide_particles`` for particle i, whose path may reach a collider (or
     which rests on one). Start (s, sv) and end (e, ev) of the integrator's step in, final
     (x, v) out, with whether they changed and whether the particle rests afterwards."""
@@ -582,26 +585,27 @@ def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_
     #    done without the general path
     modified = False
     resting_done = False
-    if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62 and not filter_ran:
-        nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
-        if ax * nx + ay * ny + az * nz < 0.0:
-            ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
-                                                        0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
-            ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
-            modified = resting_done = True
-        f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
-        wn = evx * nx + evy * ny + evz * nz
-        if -tol <= f <= tol and abs(wn) <= rest_speed:
-            if f < 0.0:
-                ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
-                modified = True
-            # resting: rest_k, rest_n (the plane's normal) and rest_u (0) stay
-            return ex, ey, ez, evx, evy, evz, modified, classify
+    if unfiltered is not None:  # the force filter did not run (a fused step): compiled in only then
+        if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62:
+            nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
+            if ax * nx + ay * ny + az * nz < 0.0:
+                ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
+                                                            0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
+                ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+                modified = resting_done = True
+            f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
+            wn = evx * nx + evy * ny + evz * nz
+            if -tol <= f <= tol and abs(wn) <= rest_speed:
+                if f < 0.0:
+                    ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
+                    modified = True
+                # resting: rest_k, rest_n (the plane's normal) and rest_u (0) stay
+                return ex, ey, ez, evx, evy, evz, modified, classify
 
     # 2-4. near a collider: the general path
     return _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                       static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay,
-                      az, dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran,
+                      az, dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, unfiltered,
                       resting_done, started, kinds, motion)
 
 
@@ -609,17 +613,18 @@ def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_
 def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cnear, cmat, cf, ci, pose0,
                       pose1, ref, rest_k, rest_n, rest_u, load, static_ok, dv_step,
                       dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, write_dv,
-                      filter_ran, save_next, kinds, motion):
+                      unfiltered, save_next, kinds, motion):
     """Detect and respond to particle-collider contacts for one step, in place on x and v.
 
     x0, v0: the state at the start of the step (rows valid where active0). For each particle
     (independently, in parallel):
     0. colliders that provably cannot be reached from the step's path are skipped (one distance
        evaluation at the end point each);
-    1. resting contact (rest_k >= 0): if the force filter ran, remove normal velocity into the
-       surface and stop sliding that friction stops within the step; if it did not run (fused
-       integrator), recompute the step's motion with the filtered acceleration
-       (``_resting_motion``);
+    1. resting contact (rest_k >= 0): if the force filter ran (``unfiltered`` None), remove
+       normal velocity into the surface and stop sliding that friction stops within the step;
+       if it did not run (``unfiltered`` True: a fused integrator), recompute the step's motion
+       with the filtered acceleration (``_resting_motion``). ``unfiltered`` is a compile-time
+       token like ``motion``: a scene whose filter runs does not compile the resting motion;
     2. a priori: the earliest time of impact on the step's path (the chord finds the contact,
        the parabola with the step's acceleration its time), move there, respond, finish the
        step from the contact; up to ``max_sub`` impacts;
@@ -668,7 +673,7 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
             ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                 i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                 static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started, kinds, motion)
+                rest_speed, a_priori, max_sub, max_iter, classify, unfiltered, started, kinds, motion)
             if mod:
                 changed += 1
                 check += (ex + ey + ez + evx + evy + evz) * 0.0
@@ -738,6 +743,7 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     resting = 0
     check = 0.0
     chunks = (n + STEP_CHUNK - 1) // STEP_CHUNK
+    unfiltered = cint.shape[0] >= 0  # True (no force filter runs), typed as collide_particles' token
     for c in prange(chunks):
         lo = c * STEP_CHUNK
         hi = min(lo + STEP_CHUNK, n)
@@ -798,7 +804,7 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                     i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
                     static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                    rest_speed, a_priori, max_sub, max_iter, True, False, True, kinds, motion)
+                    rest_speed, a_priori, max_sub, max_iter, True, unfiltered, True, kinds, motion)
                 if mod:
                     chunk_changed += 1
                 if rests:
@@ -1150,11 +1156,12 @@ class ParticleKernels:
 
 _BUNDLES: dict = {}
 
-#: The kind sets compiled: scenes whose colliders are all planes, spheres and containers (a
-#: ground, a ball, a room: most scenes and the bundled examples without boxes) get kernels
-#: with only those three distance functions; any other scene gets every kind. Two sets, not
-#: one per combination, so that a process (a test suite, a sweep of scenes) compiles each
-#: kernel at most twice.
+#: The kind sets compiled: scenes whose colliders are all planes (a ground: the fountain, most
+#: particle examples) get kernels with only the plane's distance and time of impact; scenes of
+#: planes, spheres and containers (a ground, a ball, a room) get those three; any other scene
+#: gets every kind. Three nested sets, not one per combination, so that a process (a test
+#: suite, a sweep of scenes) compiles each kernel at most three times.
+PLANE_KINDS = frozenset((_d.PLANE,))
 LIGHT_KINDS = frozenset((_d.PLANE, _d.SPHERE, _d.CONTAINER))
 ALL_KINDS = frozenset(range(_d.GRID + 1))
 
@@ -1185,7 +1192,8 @@ def kernels_for(kinds, moving: bool = True) -> ParticleKernels:
         moving = bool((kinds[:, 1] & 1).any())
         kinds = kinds[:, 0].tolist()
     used = {int(k) for k in kinds if 0 <= int(k) <= _d.GRID}
-    key = (LIGHT_KINDS if used <= LIGHT_KINDS else ALL_KINDS, bool(moving))
+    compiled = next(k for k in (PLANE_KINDS, LIGHT_KINDS, ALL_KINDS) if used <= k)
+    key = (compiled, bool(moving))
     bundle = _BUNDLES.get(key)
     if bundle is None:
         bundle = _BUNDLES[key] = ParticleKernels(*key)

@@ -512,7 +512,8 @@ class ParticleCollisionStage:
                 x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
                 d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
                 d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
-                d.max_substeps, d.max_iterations, classify, d.self_collisions, d.filter_ran, save_next)
+                d.max_substeps, d.max_iterations, classify, d.self_collisions,
+                None if d.filter_ran else True, save_next)
             if classify:
                 d.resting_count = resting
         else:
