@@ -2,13 +2,16 @@
 
 Colliders are passed packed (``ParticleCollisionData.pack``):
 
-cint  (K, 4) int64    [kind, flags (1 moving), cf offset, ci offset]
+cint  (K, 4) int64    [kind, flags (MOVING 1; BODY_VELOCITY 2: a body row), cf offset, ci offset]
 cnear (K, 5) float64  cheap distance lower bound for the "far from everything" test:
                       [NEAR_PLANE, n, c] | [NEAR_BALL, centre, bounding radius] |
                       [NEAR_PLANES, cf offset, plane count, -, -] | [NEAR_ALWAYS] | [NEAR_NEVER]
 cmat  (K, 2) float64  [restitution, friction]
 cf, ci                flat shape data (layouts in ``distance``)
-pose0, pose1 (K, 12)  [p, R] of each collider at the start / end of the step
+pose0, pose1 (K, 18)  [p, R] of each collider at the start / end of the step; a body row's
+                      pose1 also holds its body's velocity [w, v] (``body_qd``) in 12:18, and
+                      its surface velocity is the material velocity v + w x (x - c) there
+                      (``_body_velocity``); other moving colliders take the pose difference
 ref   (K, 3)          rest reference point
 
 Per-particle contact state (written by ``classify_contacts`` / ``collide_particles``, read by
@@ -54,6 +57,11 @@ from .response import surface_response
 from .toi import may_hit_in, path_fraction, segment_toi_in
 
 NEAR_PLANE, NEAR_BALL, NEAR_PLANES, NEAR_ALWAYS, NEAR_NEVER = 0.0, 1.0, 2.0, 3.0, 4.0
+#: Bits of ``cint[k, 1]``: the collider moves (pose0 -> pose1); its surface velocity is its
+#: body's (``pose1[k, 12:18]`` = ``body_qd``, written by the world; see ``_body_velocity``)
+MOVING, BODY_VELOCITY = 1, 2
+#: Columns of the pose rows: [p (3), R (9)] and, for body rows, the body's [w (3), v (3)]
+POSE_COLUMNS = 18
 
 
 @njit(cache=True, parallel=True)
@@ -78,12 +86,28 @@ def _eval(cint, cf, ci, pose, ref, k, x, y, z, kinds, motion):
 
 
 @njit(cache=True)
+def _body_velocity(pose1, ref, k, lx, ly, lz):
+    """Material velocity v + w x (x - c) at rest point l of a body row (``BODY_VELOCITY``): the
+    body's angular and linear velocity ``pose1[k, 12:18]`` (``body_qd`` after the rigid step) and
+    the lever arm x - c = R (l - ref) at the substep's end (pose1, whose position is the centre
+    of mass)."""
+    rx, ry, rz = _d.rotate(pose1[k], lx - ref[k, 0], ly - ref[k, 1], lz - ref[k, 2])
+    wx, wy, wz = pose1[k, 12], pose1[k, 13], pose1[k, 14]
+    return (pose1[k, 15] + wy * rz - wz * ry, pose1[k, 16] + wz * rx - wx * rz,
+            pose1[k, 17] + wx * ry - wy * rx)
+
+
+@njit(cache=True)
 def _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt, motion):
-    """Average velocity over the step of the collider material at rest point l."""
+    """Velocity of the collider material at rest point l: a body row's material velocity
+    (``_body_velocity``), or the average over the step from the pose difference (moving
+    colliders driven by a motion)."""
     if motion is None:
         return 0.0, 0.0, 0.0
-    if not (cint[k, 1] & 1):
+    if not (cint[k, 1] & MOVING):
         return 0.0, 0.0, 0.0
+    if cint[k, 1] & BODY_VELOCITY:
+        return _body_velocity(pose1, ref, k, lx, ly, lz)
     ax, ay, az = _d.to_world(pose0[k], ref[k], lx, ly, lz)
     bx, by, bz = _d.to_world(pose1[k], ref[k], lx, ly, lz)
     return (bx - ax) * inv_dt, (by - ay) * inv_dt, (bz - az) * inv_dt
@@ -269,16 +293,36 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
     if kr >= 0 and not resting_done:
         nx, ny, nz = rest_n[i, 0], rest_n[i, 1], rest_n[i, 2]
         ux, uy, uz = rest_u[i, 0], rest_u[i, 1], rest_u[i, 2]
+        body = False
+        if motion is not None:  # a body row: its material velocity (``_body_velocity``)
+            body = (cint[kr, 1] & BODY_VELOCITY) != 0
         fused_rest = False
         if unfiltered is not None:  # compiled in only where the force filter may not have run
             fused_rest = ax * nx + ay * ny + az * nz < 0.0
         if fused_rest:
+            if body:
+                # carried by the material point under the particle at the start: its displacement
+                # over the step (pose0 -> pose1), so that rotation keeps the distance to the axis
+                lx, ly, lz = _d.to_rest(pose0[kr], ref[kr], sx, sy, sz)
+                px0, py0, pz0 = _d.to_world(pose0[kr], ref[kr], lx, ly, lz)
+                px1, py1, pz1 = _d.to_world(pose1[kr], ref[kr], lx, ly, lz)
+                ux, uy, uz = (px1 - px0) * inv_dt, (py1 - py0) * inv_dt, (pz1 - pz0) * inv_dt
             ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
                                                         ux, uy, uz, cmat[kr, 1], dt, rest_speed)
+            if body:
+                # the end velocity: the body's material velocity where the particle ends, plus
+                # the particle's own velocity relative to the surface
+                lx, ly, lz = _d.to_rest(pose1[kr], ref[kr], ex, ey, ez)
+                bx, by, bz = _body_velocity(pose1, ref, kr, lx, ly, lz)
+                evx, evy, evz = evx - ux + bx, evy - uy + by, evz - uz + bz
             ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
             modified = True
             lagx = lagy = lagz = 0.0  # the resting motion is its own path
         else:
+            if body:
+                # a body carries the particle at its material velocity where the particle ends
+                lx, ly, lz = _d.to_rest(pose1[kr], ref[kr], ex, ey, ez)
+                ux, uy, uz = _body_velocity(pose1, ref, kr, lx, ly, lz)
             wx, wy, wz = evx - ux, evy - uy, evz - uz
             wn = wx * nx + wy * ny + wz * nz
             tx, ty, tz = wx - wn * nx, wy - wn * ny, wz - wn * nz
@@ -358,9 +402,7 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
             nx, ny, nz = bgx, bgy, bgz
             if motion is not None:
                 if cint[bk, 1] & 1:
-                    w0x, w0y, w0z = _d.to_world(pose0[bk], ref[bk], lcx, lcy, lcz)
-                    w1x, w1y, w1z = _d.to_world(pose1[bk], ref[bk], lcx, lcy, lcz)
-                    ux, uy, uz = (w1x - w0x) * inv_dt, (w1y - w0y) * inv_dt, (w1z - w0z) * inv_dt
+                    ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, bk, lcx, lcy, lcz, inv_dt, motion)
                     n0x, n0y, n0z = _d.rotate(pose0[bk], bgx, bgy, bgz)
                     n1x, n1y, n1z = _d.rotate(pose1[bk], bgx, bgy, bgz)
                     nx, ny, nz = n0x + best * (n1x - n0x), n0y + best * (n1y - n0y), n0z + best * (n1z - n0z)
