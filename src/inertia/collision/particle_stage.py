@@ -12,8 +12,14 @@ In a ``World`` with a Model, the table's body and world rows are packed into the
 arrays after the system's own colliders (``ParticleCollisionData.add_body_shapes``: each row a
 ``collision.shapes.BodyShape``, its geometry in its body's frame). Rows of dynamic and kinematic
 bodies are moving colliders whose ``pose0``/``pose1`` the world writes from the bodies' poses
-before and after the rigid stage (``update_poses`` leaves them alone); rows on body -1 and on
-static bodies are static colliders in world coordinates. With dynamic bodies the world sets
+before and after the rigid stage (``update_poses`` leaves them alone), with the body's velocity
+``body_qd`` after the rigid step in columns 12:18 (flag ``particle_kernels.BODY_VELOCITY``): a
+particle touching such a row takes the body's material velocity v + w x (x - c) where it ends
+the substep (not the pose difference, which is a chord: low by (w h)^2 / 24 in speed), and a
+particle resting on it in a fused step is carried by the chord of the material point under it
+(rotation keeps its distance to the axis); rows on body -1 and on static bodies are static
+colliders in world coordinates, and a world whose rows are all static keeps the fused
+integrator path (``can_fuse``). With dynamic bodies the world sets
 ``data.coupling`` (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``): the force filter
 and ``end_step`` then hand it the forces the filter cancelled and the state before and after the
 collision pass, from which it gathers the impulses that go back into the bodies. A lone system's
