@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 
-from numba import get_thread_id, njit, prange
+from numba import njit, prange
 
 from . import distance as _d
 from .._jit import SizeDispatched
@@ -753,51 +753,34 @@ def _affine_step(x, v, g, f, k, w, h, rk4):
     return x + h * vc, vc
 
 
-#: Particles per chunk of ``step_and_collide``: each chunk is integrated in tight loops that set
+#: Particles per chunk of ``step_and_collide``: each chunk is integrated in a tight loop that sets
 #: the particles near a collider aside, then those are collided while the chunk is in cache. A
 #: fixed size (not one per thread) keeps the work of each particle the same at any thread count.
 STEP_CHUNK = 1024
-#: Columns of ``step_and_collide``'s scratch rows (end x, v; far flag; path l1 length)
-STEP_SCRATCH_COLUMNS = 8
-
-
-def step_scratch():
-    """The scratch of ``step_and_collide``: (threads, STEP_SCRATCH_COLUMNS, STEP_CHUNK) float64,
-    one block per Numba thread (``numba.get_thread_id``), allocated once per collision data."""
-    import numpy as np
-    from numba import config
-    return np.empty((config.NUMBA_NUM_THREADS, STEP_SCRATCH_COLUMNS, STEP_CHUNK))
 
 
 @njit(cache=True, parallel=True)
 def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk4, cint, cnear, cmat, cf,
-                     ci, pose, ref, rest_k, rest_n, rest_u, load, static_ok, near_list, scratch, dt, tol,
+                     ci, pose, ref, rest_k, rest_n, rest_u, load, static_ok, near_list, dt, tol,
                      rest_speed, a_priori, max_sub, max_iter, kinds, motion):
     """The fused integrator step (rk4 or semi-implicit Euler, affine forces) and the collision
     pass against static colliders, in one pass over memory.
 
-    Each particle's start (x, v) stays in memory untouched until its end of step is known: no
-    start-of-step copy is written or read (the separate path moves x0, v0 through memory twice).
-    The particles go in chunks of ``STEP_CHUNK`` (in parallel), each through loops that keep the
-    chunk in cache:
-    1. integrate every row of the chunk, coordinate by coordinate, into the thread's rows of
-       ``scratch`` (T, 8, STEP_CHUNK) float64 (T >= the number of Numba threads: rows 0-5 the
-       end x, v; 6 the far flag; 7 the path's l1 length; unit stride over the chunk) -- straight-line loops without branches
-       that the compiler vectorises (SIMD);
-    2. the far test, collider by collider: a particle is far when its path provably reaches no
-       collider (``_far_from_all``'s comparisons: plane and ball bounds, branch-free selects in
-       a loop over the chunk per collider); resting, pinned and inactive particles are not;
-    3. far particles are written back, the others noted in ``near_list`` (N,) int64 (the
-       chunk's near particles from the chunk's first slot, ended by -1);
-    4. the near ones take the same ``_collide_near`` as ``collide_particles`` from the end state
-       kept in scratch (the same bits as the integrator's fused kernel followed by
-       ``collide_particles``).
-    pose (K, 12+): the static colliders' poses (unused by static shapes). Returns (changed,
-    resting, finite), finite False when any value of the state (pinned and inactive particles
-    included) is NaN or infinite. Nothing is allocated.
+    Each particle's start (x, v) and end of step stay in registers: no start-of-step copy is
+    written or read (the separate path moves x0, v0 through memory twice). The particles go in
+    chunks of ``STEP_CHUNK`` (in parallel): a first, tight loop integrates the chunk and tests
+    each path against the colliders (``_far_from_all``, a few flops per collider); particles whose
+    path cannot reach a collider (and that rest on none) are written back at once, the others
+    are left at their start and their indices noted in ``near_list`` (N,) int64 (a preallocated
+    scratch array: the chunk's near particles from the chunk's first slot, ended by -1). A
+    second loop over that short list integrates them again (the same arithmetic: the same
+    bits) and runs the same ``_collide_near`` as ``collide_particles``, so the results are the
+    same bits as the integrator's fused kernel followed by ``collide_particles``. The far path
+    thus stays a small loop free of the response code. pose (K, 12): the static colliders'
+    poses (unused by static shapes). Returns (changed, resting, finite), finite False when any
+    value of the state (pinned and inactive particles included) is NaN or infinite.
     """
     n, dim = x.shape
-    ncol = cnear.shape[0]
     changed = 0
     resting = 0
     check = 0.0
@@ -806,60 +789,12 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     for c in prange(chunks):
         lo = c * STEP_CHUNK
         hi = min(lo + STEP_CHUNK, n)
-        m = hi - lo
-        buf = scratch[get_thread_id()]
+        count = lo
         chunk_changed = 0
         chunk_resting = 0
         chunk_check = 0.0  # sum of (written value) * 0: NaN as soon as one is NaN or infinite
-        # 1. integrate every row (the rows of pinned and inactive particles are discarded below)
-        for d in range(dim):
-            gd, fd = gravity[d], force[d]
-            for j in range(m):
-                buf[d, j], buf[3 + d, j] = _affine_step(x[lo + j, d], v[lo + j, d], gd, fd, damping,
-                                                        inv_mass[lo + j], dt, rk4)
-        if dim == 2:
-            for j in range(m):
-                buf[2, j] = 0.0
-                buf[5, j] = 0.0
-        for j in range(m):
-            i = lo + j
-            sz = x[i, 2] if dim == 3 else 0.0
-            buf[7, j] = abs(buf[0, j] - x[i, 0]) + abs(buf[1, j] - x[i, 1]) + abs(buf[2, j] - sz)
-            buf[6, j] = 1.0 if rest_k[i] < 0 and ncol <= 62 else 0.0
-        # 2. the far test, one collider at a time (``_far_from_all``, the same comparisons)
-        for k in range(ncol):
-            kind = cnear[k, 0]
-            if kind == NEAR_NEVER:
-                continue
-            if kind == NEAR_PLANE:
-                nx, ny, nz, off = cnear[k, 1], cnear[k, 2], cnear[k, 3], cnear[k, 4]
-                for j in range(m):
-                    lin = nx * buf[0, j] + ny * buf[1, j] + nz * buf[2, j] - off
-                    reach0 = radius[lo + j] + 2.0 * tol
-                    buf[6, j] = buf[6, j] if lin - reach0 > buf[7, j] else 0.0
-            elif kind == NEAR_BALL:
-                bcx, bcy, bcz, br = cnear[k, 1], cnear[k, 2], cnear[k, 3], cnear[k, 4]
-                for j in range(m):
-                    bx, by, bz = buf[0, j] - bcx, buf[1, j] - bcy, buf[2, j] - bcz
-                    reach = br + ((radius[lo + j] + 2.0 * tol) + buf[7, j])
-                    far = reach > 0.0 and bx * bx + by * by + bz * bz > reach * reach
-                    buf[6, j] = buf[6, j] if far else 0.0
-            elif kind == NEAR_PLANES:
-                o, mp = int(cnear[k, 1]), int(cnear[k, 2])
-                for j in range(m):
-                    lin = 1e300
-                    for p in range(mp):
-                        b = o + 4 * p
-                        lin = min(lin, cf[b] * buf[0, j] + cf[b + 1] * buf[1, j] + cf[b + 2] * buf[2, j] - cf[b + 3])
-                    reach0 = radius[lo + j] + 2.0 * tol
-                    buf[6, j] = buf[6, j] if lin - reach0 > buf[7, j] else 0.0
-            else:  # NEAR_ALWAYS: every particle is a candidate
-                for j in range(m):
-                    buf[6, j] = 0.0
-        # 3. far particles are done, near ones noted
-        count = lo
-        for j in range(m):
-            i = lo + j
+        # 1. integrate; far particles are done, near ones noted
+        for i in range(lo, hi):
             w = inv_mass[i]
             if not active[i] or w == 0.0:
                 if rest_k[i] != -1:
@@ -867,11 +802,21 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 for d in range(dim):
                     chunk_check += x[i, d] * 0.0 + v[i, d] * 0.0
                 continue
-            if buf[6, j] == 0.0:
+            sx, svx = x[i, 0], v[i, 0]
+            sy, svy = x[i, 1], v[i, 1]
+            sz = x[i, 2] if dim == 3 else 0.0
+            svz = v[i, 2] if dim == 3 else 0.0
+            ex, evx = _affine_step(sx, svx, gravity[0], force[0], damping, w, dt, rk4)
+            ey, evy = _affine_step(sy, svy, gravity[1], force[1], damping, w, dt, rk4)
+            if dim == 3:
+                ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
+            else:
+                ez, evz = 0.0, 0.0
+            if rest_k[i] >= 0 or not _far_from_all(cnear, cf, radius[i], tol, ex, ey, ez, ex - sx,
+                                                   ey - sy, ez - sz):
                 near_list[count] = i
                 count += 1
                 continue
-            ex, ey, ez, evx, evy, evz = buf[0, j], buf[1, j], buf[2, j], buf[3, j], buf[4, j], buf[5, j]
             chunk_check += (ex + ey + ez + evx + evy + evz) * 0.0
             x[i, 0], x[i, 1] = ex, ey
             v[i, 0], v[i, 1] = evx, evy
@@ -879,20 +824,25 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 x[i, 2], v[i, 2] = ez, evz
         if count < hi:
             near_list[count] = -1
-        # 4. the particles near a collider: the collision response from the kept end state
+        # 2. the particles near a collider: the step again, then the collision response
         for q in range(lo, hi):
             i = near_list[q]
             if i < 0:
                 break
-            j = i - lo
+            w = inv_mass[i]
             sx, svx = x[i, 0], v[i, 0]
             sy, svy = x[i, 1], v[i, 1]
             sz = x[i, 2] if dim == 3 else 0.0
             svz = v[i, 2] if dim == 3 else 0.0
-            ex, ey, ez, evx, evy, evz = buf[0, j], buf[1, j], buf[2, j], buf[3, j], buf[4, j], buf[5, j]
+            ex, evx = _affine_step(sx, svx, gravity[0], force[0], damping, w, dt, rk4)
+            ey, evy = _affine_step(sy, svy, gravity[1], force[1], damping, w, dt, rk4)
+            if dim == 3:
+                ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
+            else:
+                ez, evz = 0.0, 0.0
             kr = rest_k[i]
             near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, ex - sx, ey - sy, ez - sz)
-            if near != 0 or kr >= 0:  # the exact test (the far test may send far particles)
+            if near != 0 or kr >= 0:  # the exact test (the first loop's may send far particles)
                 ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                     i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
                     static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,

@@ -275,8 +275,7 @@ class ParticleCollisionData:
         self.fused_result = pk.kernels_for(self.cint).step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
             self.cint, self.cnear, self.cmat, self.cf, self.ci, self.pose1, self.ref, self.rest_k,
-            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, self.step_scratch, dt,
-            self.distance_tolerance,
+            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, dt, self.distance_tolerance,
             self.rest_speed, self.mode == "a_priori", self.max_substeps, self.max_iterations)
         self.profile["collide"] += time.perf_counter() - tic
 
@@ -354,8 +353,6 @@ class ParticleCollisionData:
             self.load = np.zeros(n)
             self.static_ok = np.zeros(n, bool)
             self.near_list = np.empty(n, np.int64)  # scratch of the fused step (step_and_collide)
-            if getattr(self, "step_scratch", None) is None:
-                self.step_scratch = pk.step_scratch()  # per-thread chunk rows of the fused step
             self._valid_revision = None
         if self.self_collisions:
             self.table_size = bp.table_size_for(n)
