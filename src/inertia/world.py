@@ -85,7 +85,10 @@ Arrays (N = total particles over the groups in order, D = dim): ``World.position
 Limitations: all groups share dim and dt; groups do not interact with each other (springs,
 self-collisions and forces act within a group); the particle count is fixed for a run. The
 coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
-particles see a body's surface velocity as the average over the (sub)step of its rows' motion.
+particles see a moving body's surface velocity as its material velocity v + w x (x - c) from
+``body_qd`` after the rigid step, where the particle ends the (sub)step. In a world whose bodies are
+all static the particle groups keep the fused integrator path; their Contacts rows then list each
+particle's resting contact at the end of the step (zero impulse), not impacts on static rows.
 Heightfield rows are seen by particles as the solid under the rigid side's triangles
 (`inertia.collision.heightfield_distance`), a column ``max(1 m, grid extent)`` deep. Particle rows
 are recorded only in worlds with bodies (a world of static colliders has no Contacts buffer), for the
@@ -459,7 +462,7 @@ class World:
                         data = g.system._collision
                         _interpolated_poses(entries, g.entry_body_all, g.entry_bound, self._q_start,
                                             rigid.state.body_q, j / self.substeps, (j + 1) / self.substeps,
-                                            data.pose0, data.pose1, data.cnear)
+                                            data.pose0, data.pose1, data.cnear, rigid.state.body_qd)
                     sim.step()
                 self.profile[g.name] += clock() - t0
         finally:
@@ -700,13 +703,19 @@ def _sensor_poses(body, body_q, pose):
 
 
 @njit(cache=True)
-def _interpolated_poses(entries, entry_body, entry_bound, q_start, q_end, s0, s1, pose0, pose1, cnear):
+def _interpolated_poses(entries, entry_body, entry_bound, q_start, q_end, s0, s1, pose0, pose1, cnear, qd):
     """pose0/pose1 rows [p, R row-major] of the body-shape colliders `entries` at fractions s0, s1 of
     the step (positions linear, orientations normalised-linear between the step's two poses), and
     their ``cnear`` rows: a ball about the centre of mass swept over the substep (radius
-    ``entry_bound`` + half the displacement) for bounded shapes, "always near" for planes (< 0)."""
+    ``entry_bound`` + half the displacement) for bounded shapes, "always near" for planes (< 0).
+    Columns 12:18 of both rows: the body's velocity ``qd`` (``body_qd`` after the rigid step, the
+    velocity that moved it over the step), from which the particle stage takes the surface's
+    material velocity (``particle_kernels._body_velocity``)."""
     for e in range(entries.shape[0]):
         k, b = entries[e], entry_body[e]
+        for c in range(6):
+            pose0[k, 12 + c] = qd[b, c]
+            pose1[k, 12 + c] = qd[b, c]
         if entry_bound[e] >= 0.0:
             half = 0.0
             cnear[k, 0] = _NEAR_BALL

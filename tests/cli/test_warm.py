@@ -37,7 +37,7 @@ def test_warmup_covers_every_bundled_example_and_renders_it():
         assert sim["duration"] == 2.0  # long enough for falling particles to land
 
 
-def test_warmup_covers_the_fused_collision_kernels_of_both_kind_sets():
+def test_warmup_covers_the_fused_collision_kernels_of_every_kind_set():
     # `inertia run` compiles the collision kernels per collider kind set
     # (particle_kernels.kernels_for): the warm-up scenes fuse the collision pass into rk4 for both
     import json
@@ -54,7 +54,7 @@ def test_warmup_covers_the_fused_collision_kernels_of_both_kind_sets():
             d = group.system._collision
             assert group.integrator == "rk4" and d.can_fuse() and group.system._affine_terms() is not None
             kinds.add(pk.kernels_for(d.cint).kinds)
-    assert kinds == {pk.LIGHT_KINDS, pk.ALL_KINDS}
+    assert kinds == {pk.PLANE_KINDS, pk.LIGHT_KINDS, pk.ALL_KINDS}
 
 
 def test_warmup_ends_with_the_render_kernels_of_meshes_and_lines(monkeypatch):

@@ -56,15 +56,16 @@ def test_stage_runs_the_kernels_of_its_kind_set():
     ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
     ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.5)
     bundle = pk.kernels_for(ps._collision.cint)
-    assert bundle is pk.kernels_for([D.PLANE, D.CONTAINER], moving=False) and bundle.kinds == pk.LIGHT_KINDS
+    assert bundle is pk.kernels_for([D.PLANE], moving=False) and bundle.kinds == pk.PLANE_KINDS
     assert not bundle.moving  # static colliders only: the moving-collider code is not compiled in
-    assert repr(bundle) == "ParticleKernels(plane, sphere, container)"
+    assert repr(bundle) == "ParticleKernels(plane)"
+    assert pk.kernels_for([D.PLANE, D.CONTAINER]).kinds == pk.LIGHT_KINDS
     assert pk.kernels_for([D.PLANE, D.BOX]).kinds == pk.ALL_KINDS
     ia.Simulation(ps, integrator="rk4", dt=1 / 240).run(0.5)
-    # the light token: only the plane, sphere and container entries are compiled in
+    # the planes-only token: only the plane entry is compiled in
     sigs = bundle.step_and_collide.dispatched.serial.signatures
     tokens = [[str(t) for t in sig[-2].types] for sig in sigs]
-    assert ["bool", "bool", "none", "none", "none", "bool", "none"] in tokens
+    assert ["bool", "none", "none", "none", "none", "none", "none"] in tokens
     assert all(str(sig[-1]) == "none" for sig in sigs)  # motion token: no moving collider
     assert ps.x[0, 2] >= 0.05 - 1e-6
     # a moving collider compiles the moving-collider code in (rest frames, surface velocities)

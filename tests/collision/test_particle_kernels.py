@@ -41,3 +41,22 @@ def test_far_test_implies_the_exact_mask_is_empty():
     exact_far = sum(pk._near_mask(c, d.cf, -1, radii[i], tol, *ends[i], *steps[i]) == 0
                     for c in (d.cnear, d.cnear[:2], d.cnear[1:2]) for i in range(m))
     assert far_count >= 0.9 * exact_far > 0
+
+
+def test_a_scene_whose_force_filter_runs_does_not_compile_the_fused_resting_motion():
+    # quadratic drag is not affine: semi-implicit Euler runs the force filter in every evaluation,
+    # so collide_particles gets the ``unfiltered`` token None and prunes ``_resting_motion`` (a
+    # compile-time token, like ``motion``); the particle still comes to rest on the plane
+    import inertia as ia
+    from inertia.collision import particle_kernels as pk
+
+    ps = ia.ParticleSystem(np.array([[0.0, 0.0, 0.3]]), np.zeros((1, 3)), radius=0.05)
+    ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
+    ps.add_force(ia.forces.QuadraticDrag(1e-4))
+    ps.add_collider(ia.colliders.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.0, friction=0.2)
+    ia.Simulation(ps, integrator="semi_implicit_euler", dt=1 / 240).run(0.5)
+    bundle = pk.kernels_for(ps._collision.cint)
+    assert bundle.kinds == pk.PLANE_KINDS
+    sigs = bundle.collide_particles.dispatched.serial.signatures
+    assert any(str(sig[-4]) == "none" for sig in sigs)  # the unfiltered token None was compiled for it
+    assert ps._collision.resting_count == 1 and abs(ps.x[0, 2] - 0.05) < 1e-6

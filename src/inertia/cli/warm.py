@@ -4,8 +4,8 @@ Every kernel is ``@njit(cache=True)``, so compiling once fills the on-disk cache
 sources, or under ``NUMBA_CACHE_DIR``) and later runs start warm. First every bundled example
 runs for two frames and renders one (what `inertia run NAME` compiles, render kernels
 included); then the scenes below touch every integrator, force, emitter, tracer field and
-collider type for a few steps, in 2-D and 3-D, and the collision kernels of both collider kind
-sets (``particle_kernels.kernels_for``), fused into rk4 and separate; last the render kernels of
+collider type for a few steps, in 2-D and 3-D, and the collision kernels of every collider kind
+set (``particle_kernels.kernels_for``), fused into rk4 and separate; last the render kernels of
 meshes, lines and every collider primitive (``inertia.render.warm_kernels``).
 
 Limitations: kernels have a serial and a parallel build (``inertia._jit``); tiny scenes compile
@@ -124,21 +124,23 @@ def _colliders(dim: int, mode: str, moving: bool = True) -> dict:
     return scene
 
 
-def _fused_colliders(light: bool) -> dict:
+def _fused_colliders(kinds: str) -> dict:
     """Static colliders with affine forces under rk4: the collision pass fused into the
-    integrator's kernel (``particle_kernels.step_and_collide``), for the light kind set (planes,
-    spheres, containers) or every kind (``particle_kernels.kernels_for``); some particles start
-    inside the sphere (the first step's push-out)."""
+    integrator's kernel (``particle_kernels.step_and_collide``), for each kind set
+    (``particle_kernels.kernels_for``): "planes" (a ground only), "light" (planes, spheres,
+    containers) or "all" (every kind); some particles start inside the sphere (the first
+    step's push-out)."""
     scene = _base(3, "rk4")
     scene["particles"] = [{"radius": 0.05, "restitution": 0.5,
                            "lattice": {"origin": [-0.3, -0.3, 0.1], "counts": [3, 3, 3], "spacing": 0.3},
                            "velocity": [0.0, 0.0, -50.0]}]
     scene["forces"] = [{"type": "gravity"}]
-    colliders = [{"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]},
-                 {"type": "sphere", "center": [0.0, 0.0, 0.4], "radius": 0.2}]
-    if light:
+    colliders = [{"type": "plane", "point": [0.0, 0.0, 0.0], "normal": [0.0, 0.0, 1.0]}]
+    if kinds != "planes":
+        colliders.append({"type": "sphere", "center": [0.0, 0.0, 0.4], "radius": 0.2})
+    if kinds == "light":
         colliders.append({"type": "container", "center": [0.0, 0.0, 0.0], "half_extents": [5.0, 5.0, 5.0]})
-    else:
+    elif kinds == "all":
         colliders.append({"type": "box", "center": [2.0, 0.0, 0.0], "half_extents": [0.3, 0.3, 0.3]})
     scene["colliders"] = colliders
     return scene
@@ -159,9 +161,10 @@ def _scenes():
         for mode in ("a_priori", "a_posteriori"):
             scenes.append((f"{dim}-D colliders, {mode}", _colliders(dim, mode)))
             scenes.append((f"{dim}-D static colliders, {mode}", _colliders(dim, mode, moving=False)))
-    # the fused collision kernels of both kind sets (the same compiled code in 2-D and 3-D)
-    scenes.append(("3-D fused colliders, planes/spheres/containers", _fused_colliders(True)))
-    scenes.append(("3-D fused colliders, every kind", _fused_colliders(False)))
+    # the fused collision kernels of every kind set (the same compiled code in 2-D and 3-D)
+    scenes.append(("3-D fused colliders, planes", _fused_colliders("planes")))
+    scenes.append(("3-D fused colliders, planes/spheres/containers", _fused_colliders("light")))
+    scenes.append(("3-D fused colliders, every kind", _fused_colliders("all")))
     return scenes
 
 

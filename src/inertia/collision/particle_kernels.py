@@ -2,13 +2,16 @@
 
 Colliders are passed packed (``ParticleCollisionData.pack``):
 
-cint  (K, 4) int64    [kind, flags (1 moving), cf offset, ci offset]
+cint  (K, 4) int64    [kind, flags (MOVING 1; BODY_VELOCITY 2: a body row), cf offset, ci offset]
 cnear (K, 5) float64  cheap distance lower bound for the "far from everything" test:
                       [NEAR_PLANE, n, c] | [NEAR_BALL, centre, bounding radius] |
                       [NEAR_PLANES, cf offset, plane count, -, -] | [NEAR_ALWAYS] | [NEAR_NEVER]
 cmat  (K, 2) float64  [restitution, friction]
 cf, ci                flat shape data (layouts in ``distance``)
-pose0, pose1 (K, 12)  [p, R] of each collider at the start / end of the step
+pose0, pose1 (K, 18)  [p, R] of each collider at the start / end of the step; a body row's
+                      pose1 also holds its body's velocity [w, v] (``body_qd``) in 12:18, and
+                      its surface velocity is the material velocity v + w x (x - c) there
+                      (``_body_velocity``); other moving colliders take the pose difference
 ref   (K, 3)          rest reference point
 
 Per-particle contact state (written by ``classify_contacts`` / ``collide_particles``, read by
@@ -54,6 +57,11 @@ from .response import surface_response
 from .toi import may_hit_in, path_fraction, segment_toi_in
 
 NEAR_PLANE, NEAR_BALL, NEAR_PLANES, NEAR_ALWAYS, NEAR_NEVER = 0.0, 1.0, 2.0, 3.0, 4.0
+#: Bits of ``cint[k, 1]``: the collider moves (pose0 -> pose1); its surface velocity is its
+#: body's (``pose1[k, 12:18]`` = ``body_qd``, written by the world; see ``_body_velocity``)
+MOVING, BODY_VELOCITY = 1, 2
+#: Columns of the pose rows: [p (3), R (9)] and, for body rows, the body's [w (3), v (3)]
+POSE_COLUMNS = 18
 
 
 @njit(cache=True, parallel=True)
@@ -78,12 +86,28 @@ def _eval(cint, cf, ci, pose, ref, k, x, y, z, kinds, motion):
 
 
 @njit(cache=True)
+def _body_velocity(pose1, ref, k, lx, ly, lz):
+    """Material velocity v + w x (x - c) at rest point l of a body row (``BODY_VELOCITY``): the
+    body's angular and linear velocity ``pose1[k, 12:18]`` (``body_qd`` after the rigid step) and
+    the lever arm x - c = R (l - ref) at the substep's end (pose1, whose position is the centre
+    of mass)."""
+    rx, ry, rz = _d.rotate(pose1[k], lx - ref[k, 0], ly - ref[k, 1], lz - ref[k, 2])
+    wx, wy, wz = pose1[k, 12], pose1[k, 13], pose1[k, 14]
+    return (pose1[k, 15] + wy * rz - wz * ry, pose1[k, 16] + wz * rx - wx * rz,
+            pose1[k, 17] + wx * ry - wy * rx)
+
+
+@njit(cache=True)
 def _surface_velocity(cint, pose0, pose1, ref, k, lx, ly, lz, inv_dt, motion):
-    """Average velocity over the step of the collider material at rest point l."""
+    """Velocity of the collider material at rest point l: a body row's material velocity
+    (``_body_velocity``), or the average over the step from the pose difference (moving
+    colliders driven by a motion)."""
     if motion is None:
         return 0.0, 0.0, 0.0
-    if not (cint[k, 1] & 1):
+    if not (cint[k, 1] & MOVING):
         return 0.0, 0.0, 0.0
+    if cint[k, 1] & BODY_VELOCITY:
+        return _body_velocity(pose1, ref, k, lx, ly, lz)
     ax, ay, az = _d.to_world(pose0[k], ref[k], lx, ly, lz)
     bx, by, bz = _d.to_world(pose1[k], ref[k], lx, ly, lz)
     return (bx - ax) * inv_dt, (by - ay) * inv_dt, (bz - az) * inv_dt
@@ -241,7 +265,7 @@ def _resting_motion(x0x, x0y, x0z, v0x, v0y, v0z, ax, ay, az, nx, ny, nz, ux, uy
 @njit(cache=True)
 def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay, az,
-               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, resting_done,
+               dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, unfiltered, resting_done,
                started, kinds, motion):
     """Steps 1-4 of ``collide_particles`` for one particle near a collider (kept out of the hot
     loop so that the far-from-everything path stays small). Returns the final (x, v), whether
@@ -269,13 +293,36 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
     if kr >= 0 and not resting_done:
         nx, ny, nz = rest_n[i, 0], rest_n[i, 1], rest_n[i, 2]
         ux, uy, uz = rest_u[i, 0], rest_u[i, 1], rest_u[i, 2]
-        if not filter_ran and ax * nx + ay * ny + az * nz < 0.0:
+        body = False
+        if motion is not None:  # a body row: its material velocity (``_body_velocity``)
+            body = (cint[kr, 1] & BODY_VELOCITY) != 0
+        fused_rest = False
+        if unfiltered is not None:  # compiled in only where the force filter may not have run
+            fused_rest = ax * nx + ay * ny + az * nz < 0.0
+        if fused_rest:
+            if body:
+                # carried by the material point under the particle at the start: its displacement
+                # over the step (pose0 -> pose1), so that rotation keeps the distance to the axis
+                lx, ly, lz = _d.to_rest(pose0[kr], ref[kr], sx, sy, sz)
+                px0, py0, pz0 = _d.to_world(pose0[kr], ref[kr], lx, ly, lz)
+                px1, py1, pz1 = _d.to_world(pose1[kr], ref[kr], lx, ly, lz)
+                ux, uy, uz = (px1 - px0) * inv_dt, (py1 - py0) * inv_dt, (pz1 - pz0) * inv_dt
             ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
                                                         ux, uy, uz, cmat[kr, 1], dt, rest_speed)
+            if body:
+                # the end velocity: the body's material velocity where the particle ends, plus
+                # the particle's own velocity relative to the surface
+                lx, ly, lz = _d.to_rest(pose1[kr], ref[kr], ex, ey, ez)
+                bx, by, bz = _body_velocity(pose1, ref, kr, lx, ly, lz)
+                evx, evy, evz = evx - ux + bx, evy - uy + by, evz - uz + bz
             ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
             modified = True
             lagx = lagy = lagz = 0.0  # the resting motion is its own path
         else:
+            if body:
+                # a body carries the particle at its material velocity where the particle ends
+                lx, ly, lz = _d.to_rest(pose1[kr], ref[kr], ex, ey, ez)
+                ux, uy, uz = _body_velocity(pose1, ref, kr, lx, ly, lz)
             wx, wy, wz = evx - ux, evy - uy, evz - uz
             wn = wx * nx + wy * ny + wz * nz
             tx, ty, tz = wx - wn * nx, wy - wn * ny, wz - wn * nz
@@ -355,9 +402,7 @@ def _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n,
             nx, ny, nz = bgx, bgy, bgz
             if motion is not None:
                 if cint[bk, 1] & 1:
-                    w0x, w0y, w0z = _d.to_world(pose0[bk], ref[bk], lcx, lcy, lcz)
-                    w1x, w1y, w1z = _d.to_world(pose1[bk], ref[bk], lcx, lcy, lcz)
-                    ux, uy, uz = (w1x - w0x) * inv_dt, (w1y - w0y) * inv_dt, (w1z - w0z) * inv_dt
+                    ux, uy, uz = _surface_velocity(cint, pose0, pose1, ref, bk, lcx, lcy, lcz, inv_dt, motion)
                     n0x, n0y, n0z = _d.rotate(pose0[bk], bgx, bgy, bgz)
                     n1x, n1y, n1z = _d.rotate(pose1[bk], bgx, bgy, bgz)
                     nx, ny, nz = n0x + best * (n1x - n0x), n0y + best * (n1y - n0y), n0z + best * (n1z - n0z)
@@ -561,7 +606,7 @@ def _clear_of_planes_and_spheres(cint, cnear, near, r, tol, sx, sy, sz, ex, ey, 
 @njit(cache=True)
 def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                   static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                  rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started, kinds, motion):
+                  rest_speed, a_priori, max_sub, max_iter, classify, unfiltered, started, kinds, motion):
     """Steps 1-4 of ``collide_particles`` for particle i, whose path may reach a collider (or
     which rests on one). Start (s, sv) and end (e, ev) of the integrator's step in, final
     (x, v) out, with whether they changed and whether the particle rests afterwards."""
@@ -582,26 +627,27 @@ def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_
     #    done without the general path
     modified = False
     resting_done = False
-    if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62 and not filter_ran:
-        nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
-        if ax * nx + ay * ny + az * nz < 0.0:
-            ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
-                                                        0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
-            ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
-            modified = resting_done = True
-        f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
-        wn = evx * nx + evy * ny + evz * nz
-        if -tol <= f <= tol and abs(wn) <= rest_speed:
-            if f < 0.0:
-                ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
-                modified = True
-            # resting: rest_k, rest_n (the plane's normal) and rest_u (0) stay
-            return ex, ey, ez, evx, evy, evz, modified, classify
+    if unfiltered is not None:  # the force filter did not run (a fused step): compiled in only then
+        if kr >= 0 and near == (1 << kr) and cnear[kr, 0] == NEAR_PLANE and kr < 62:
+            nx, ny, nz = cnear[kr, 1], cnear[kr, 2], cnear[kr, 3]
+            if ax * nx + ay * ny + az * nz < 0.0:
+                ex, ey, ez, evx, evy, evz = _resting_motion(sx, sy, sz, svx, svy, svz, ax, ay, az, nx, ny, nz,
+                                                            0.0, 0.0, 0.0, cmat[kr, 1], dt, rest_speed)
+                ax, ay, az = (evx - svx) * inv_dt, (evy - svy) * inv_dt, (evz - svz) * inv_dt
+                modified = resting_done = True
+            f = nx * ex + ny * ey + nz * ez - cnear[kr, 4] - r
+            wn = evx * nx + evy * ny + evz * nz
+            if -tol <= f <= tol and abs(wn) <= rest_speed:
+                if f < 0.0:
+                    ex, ey, ez = ex - f * nx, ey - f * ny, ez - f * nz
+                    modified = True
+                # resting: rest_k, rest_n (the plane's normal) and rest_u (0) stay
+                return ex, ey, ez, evx, evy, evz, modified, classify
 
     # 2-4. near a collider: the general path
     return _full_path(i, radius, cint, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                       static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, ax, ay,
-                      az, dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, filter_ran,
+                      az, dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, unfiltered,
                       resting_done, started, kinds, motion)
 
 
@@ -609,17 +655,18 @@ def _collide_near(i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_
 def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cnear, cmat, cf, ci, pose0,
                       pose1, ref, rest_k, rest_n, rest_u, load, static_ok, dv_step,
                       dt, tol, rest_speed, a_priori, max_sub, max_iter, classify, write_dv,
-                      filter_ran, save_next, kinds, motion):
+                      unfiltered, save_next, kinds, motion):
     """Detect and respond to particle-collider contacts for one step, in place on x and v.
 
     x0, v0: the state at the start of the step (rows valid where active0). For each particle
     (independently, in parallel):
     0. colliders that provably cannot be reached from the step's path are skipped (one distance
        evaluation at the end point each);
-    1. resting contact (rest_k >= 0): if the force filter ran, remove normal velocity into the
-       surface and stop sliding that friction stops within the step; if it did not run (fused
-       integrator), recompute the step's motion with the filtered acceleration
-       (``_resting_motion``);
+    1. resting contact (rest_k >= 0): if the force filter ran (``unfiltered`` None), remove
+       normal velocity into the surface and stop sliding that friction stops within the step;
+       if it did not run (``unfiltered`` True: a fused integrator), recompute the step's motion
+       with the filtered acceleration (``_resting_motion``). ``unfiltered`` is a compile-time
+       token like ``motion``: a scene whose filter runs does not compile the resting motion;
     2. a priori: the earliest time of impact on the step's path (the chord finds the contact,
        the parabola with the step's acceleration its time), move there, respond, finish the
        step from the contact; up to ``max_sub`` impacts;
@@ -668,7 +715,7 @@ def collide_particles(x, v, x0, v0, radius, inv_mass, active, active0, cint, cne
             ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                 i, radius, cint, cnear, cmat, cf, ci, pose0, pose1, ref, rest_k, rest_n, rest_u, load,
                 static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                rest_speed, a_priori, max_sub, max_iter, classify, filter_ran, started, kinds, motion)
+                rest_speed, a_priori, max_sub, max_iter, classify, unfiltered, started, kinds, motion)
             if mod:
                 changed += 1
                 check += (ex + ey + ez + evx + evy + evz) * 0.0
@@ -738,6 +785,7 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     resting = 0
     check = 0.0
     chunks = (n + STEP_CHUNK - 1) // STEP_CHUNK
+    unfiltered = cint.shape[0] >= 0  # True (no force filter runs), typed as collide_particles' token
     for c in prange(chunks):
         lo = c * STEP_CHUNK
         hi = min(lo + STEP_CHUNK, n)
@@ -798,7 +846,7 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                     i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
                     static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                    rest_speed, a_priori, max_sub, max_iter, True, False, True, kinds, motion)
+                    rest_speed, a_priori, max_sub, max_iter, True, unfiltered, True, kinds, motion)
                 if mod:
                     chunk_changed += 1
                 if rests:
@@ -1150,11 +1198,12 @@ class ParticleKernels:
 
 _BUNDLES: dict = {}
 
-#: The kind sets compiled: scenes whose colliders are all planes, spheres and containers (a
-#: ground, a ball, a room: most scenes and the bundled examples without boxes) get kernels
-#: with only those three distance functions; any other scene gets every kind. Two sets, not
-#: one per combination, so that a process (a test suite, a sweep of scenes) compiles each
-#: kernel at most twice.
+#: The kind sets compiled: scenes whose colliders are all planes (a ground: the fountain, most
+#: particle examples) get kernels with only the plane's distance and time of impact; scenes of
+#: planes, spheres and containers (a ground, a ball, a room) get those three; any other scene
+#: gets every kind. Three nested sets, not one per combination, so that a process (a test
+#: suite, a sweep of scenes) compiles each kernel at most three times.
+PLANE_KINDS = frozenset((_d.PLANE,))
 LIGHT_KINDS = frozenset((_d.PLANE, _d.SPHERE, _d.CONTAINER))
 ALL_KINDS = frozenset(range(_d.GRID + 1))
 
@@ -1185,7 +1234,8 @@ def kernels_for(kinds, moving: bool = True) -> ParticleKernels:
         moving = bool((kinds[:, 1] & 1).any())
         kinds = kinds[:, 0].tolist()
     used = {int(k) for k in kinds if 0 <= int(k) <= _d.GRID}
-    key = (LIGHT_KINDS if used <= LIGHT_KINDS else ALL_KINDS, bool(moving))
+    compiled = next(k for k in (PLANE_KINDS, LIGHT_KINDS, ALL_KINDS) if used <= k)
+    key = (compiled, bool(moving))
     bundle = _BUNDLES.get(key)
     if bundle is None:
         bundle = _BUNDLES[key] = ParticleKernels(*key)

@@ -12,8 +12,14 @@ In a ``World`` with a Model, the table's body and world rows are packed into the
 arrays after the system's own colliders (``ParticleCollisionData.add_body_shapes``: each row a
 ``collision.shapes.BodyShape``, its geometry in its body's frame). Rows of dynamic and kinematic
 bodies are moving colliders whose ``pose0``/``pose1`` the world writes from the bodies' poses
-before and after the rigid stage (``update_poses`` leaves them alone); rows on body -1 and on
-static bodies are static colliders in world coordinates. With dynamic bodies the world sets
+before and after the rigid stage (``update_poses`` leaves them alone), with the body's velocity
+``body_qd`` after the rigid step in columns 12:18 (flag ``particle_kernels.BODY_VELOCITY``): a
+particle touching such a row takes the body's material velocity v + w x (x - c) where it ends
+the substep (not the pose difference, which is a chord: low by (w h)^2 / 24 in speed), and a
+particle resting on it in a fused step is carried by the chord of the material point under it
+(rotation keeps its distance to the axis); rows on body -1 and on static bodies are static
+colliders in world coordinates, and a world whose rows are all static keeps the fused
+integrator path (``can_fuse``). With dynamic bodies the world sets
 ``data.coupling`` (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``): the force filter
 and ``end_step`` then hand it the forces the filter cancelled and the state before and after the
 collision pass, from which it gathers the impulses that go back into the bodies. A lone system's
@@ -157,7 +163,8 @@ class ParticleCollisionData:
 
     Step state (preallocated; N particles, D dims):
     state0 (2 N D,)      copy of the state at the start of the step (begin_step); x0, v0 views
-    pose0, pose1 (K, 12) collider poses at t and t + dt (begin_step)
+    pose0, pose1 (K, 18) collider poses [p, R] at t and t + dt (begin_step); body rows also
+                         carry their body's velocity [w, v] in columns 12:18 (written by the world)
     rest_k (N,) int64, rest_n (N, 3), rest_u (N, 3)   resting contacts (classify / end_step)
     load (N,), static_ok (N,) bool                    written by the force filter
     dv_step (N, 3)       velocity change of the step before responses (self-collisions)
@@ -218,12 +225,15 @@ class ParticleCollisionData:
         self.cint[:, 0] = _d.CALLABLE  # the placeholder row (no colliders) is skipped by kernels
         self.cmat = np.zeros((max(k, 1), 2))
         self.ref = np.zeros((max(k, 1), 3))
-        self.pose0 = np.zeros((max(k, 1), 12))
+        self.pose0 = np.zeros((max(k, 1), pk.POSE_COLUMNS))
         self.pose0[:, 3::4] = 1.0  # identity rotations
         self.pose1 = self.pose0.copy()
         cfs, cis, off, ioff = [], [], 0, 0
         for i, c in enumerate(kernel):
-            self.cint[i] = (c.kind, 1 if c.moving else 0, off, ioff)
+            flags = pk.MOVING if c.moving else 0
+            if c.moving and getattr(c, "from_body", False):
+                flags |= pk.BODY_VELOCITY  # the world writes the body's velocity into pose1[i, 12:18]
+            self.cint[i] = (c.kind, flags, off, ioff)
             self.cmat[i] = (self.restitution[i], self.friction[i])
             self.ref[i] = c._ref
             self.pose0[i, :3] = c._ref
@@ -247,9 +257,15 @@ class ParticleCollisionData:
 
     def can_fuse(self) -> bool:
         """True when the collision pass can run inside the integrator's fused kernel: only
-        static compiled colliders (no moving ones, no unbaked SDFs) and no self-collisions."""
-        return (self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
-                and self.coupling is None)
+        static compiled colliders (no moving ones, no unbaked SDFs) and no self-collisions.
+
+        In a World whose bodies do not move (static bodies and body -1 rows only: every row is a
+        static collider) the coupling has no body to push, so the fused path stays on; the
+        world's Contacts buffer then lists each particle's resting contact at the end of the
+        step (zero impulse), not the impulses of impacts on static rows (the fused kernel keeps
+        no pre-collision state to gather them from). Rows of dynamic or kinematic bodies are
+        moving colliders (``any_moving``), which always take the separate pass."""
+        return self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
 
     def run_fused(self, system, affine, rk4, dt):
         """The integrator's fused step with the collision pass (``particle_kernels.step_and_collide``)."""
@@ -270,8 +286,8 @@ class ParticleCollisionData:
             return
         for i, c in enumerate(self.colliders):
             if c.moving and not getattr(c, "from_body", False):
-                self.pose0[i] = c._packed_pose(t)
-                self.pose1[i] = c._packed_pose(t + dt)
+                self.pose0[i, :12] = c._packed_pose(t)
+                self.pose1[i, :12] = c._packed_pose(t + dt)
 
     # --- shape-table rows on bodies ----------------------------------------------------------
     def add_body_shapes(self, model, shapes, state=None, cache=None):
@@ -512,7 +528,8 @@ class ParticleCollisionStage:
                 x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
                 d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
                 d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
-                d.max_substeps, d.max_iterations, classify, d.self_collisions, d.filter_ran, save_next)
+                d.max_substeps, d.max_iterations, classify, d.self_collisions,
+                None if d.filter_ran else True, save_next)
             if classify:
                 d.resting_count = resting
         else:

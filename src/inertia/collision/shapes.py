@@ -459,8 +459,9 @@ class BodyShape(Collider):
 
     The packed data (``_cf``, ``_ci``) is the row's geometry in its body's frame (reference point the
     body-frame origin, the centre of mass); the particle stage is handed the body's pose at the start
-    and end of each step (``pose0``/``pose1`` rows written by the world from ``body_q``), so the kernels
-    treat it as a moving collider whose material moves with the body. Rows on body -1 and on static
+    and end of each step (``pose0``/``pose1`` rows written by the world from ``body_q``, and the body's
+    velocity ``body_qd``), so the kernels treat it as a moving collider whose material moves with the
+    body at v + w x (x - c) (``particle_kernels._body_velocity``). Rows on body -1 and on static
     bodies are packed once in world coordinates and are static colliders.
 
     Mapping: SPHERE, BOX, CAPSULE, CYLINDER, PLANE to the closed-form kinds; CONVEX_HULL (its outward
