@@ -85,6 +85,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import as_points, as_vector, positive_scalar
+from ..collision.shapes import Plane, Sphere
 from . import kernels as K
 from .base import Field
 from .noise import NoiseParameters, component_gradients, lattice_tables
@@ -321,10 +322,22 @@ class _Boundaries:
         self.dim = dim
         self.width = width
         self._slot = np.empty(0, np.int64)
-        self._buffers = None  # per collider: distance (M,), normal (M, D), velocity (M, D)
+        self._buffers = {}  # name -> flat array reused between calls (`_buffer`)
+
+    def _buffer(self, name, shape, dtype=np.float64):
+        """A C-contiguous array of `shape` backed by a buffer kept between calls (grown when
+        too small): sampling every step allocates, and page-faults, nothing new."""
+        size = int(np.prod(shape))
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < size or buf.dtype != dtype:
+            buf = np.empty(max(size, 1), dtype=dtype)
+            self._buffers[name] = buf
+        return buf[:size].reshape(shape)
 
     def prepare(self, points, t):
-        """The wall lists the kernel reads (see the class docstring)."""
+        """The wall lists the kernel reads (see the class docstring).
+
+        The arrays returned are views of buffers this object reuses at the next call."""
         D = self.dim
         M = points.shape[0]
         cols = self.colliders
@@ -332,12 +345,17 @@ class _Boundaries:
         # A container's walls are its planes (a smooth distance each), any other collider is
         # one wall whose distance and normal come from its query.
         stack = points.size < K.SERIAL_BELOW
-        fd = [D == 3 and not callable(getattr(c, "distance_hessian", None))
-              and getattr(c, "plane_normals", None) is None for c in cols]
+        # How grad n is had in 3-D: "plane" (zero: a container's faces, a Plane), "sphere"
+        # (closed form (I - n n^T) / |x - c|), "hessian" (the collider's distance_hessian),
+        # "fd" (central differences of its normals).
+        how = [_hessian_source(c, D) for c in cols]
+        fd = [h_k == "fd" for h_k in how]
         # Walls in a fixed order (collider, then plane). wall_plane[w] >= 0: row of a plane
         # (a container's face: its distance is computed in `K.wall_counts` / `K.wall_rows`);
         # < 0: -1 - the row of query_distance that holds the collider's signed distance.
         wall_plane, wall_collider, plane_point, plane_normal, queries = [], [], [], [], []
+        n_queries = sum(1 for c in cols if _planes(c, t, D) is None)
+        query_distance = self._buffer("query_distance", (n_queries, M))
         for k, c in enumerate(cols):
             planes = _planes(c, t, D)
             if planes is not None:
@@ -347,50 +365,60 @@ class _Boundaries:
                     plane_point.append(p0)
                     plane_normal.append(n0)
                 continue
+            q = len(queries)
             rows = M * (2 * D + 1) if (fd[k] and stack) else M
             query_points = points if rows == M else _shifted_stack(points, h)
-            d_k, n_k = np.empty(rows), np.empty((rows, D))
             if callable(getattr(c, "query", None)):
-                c.query(query_points, t, d_k, n_k, np.empty((rows, D)))
+                d_k = query_distance[q] if rows == M else np.empty(rows)
+                n_k = self._buffer(f"normal{q}", (rows, D))
+                c.query(query_points, t, d_k, n_k, self._buffer(f"velocity{q}", (rows, D)))
+                if rows != M:
+                    query_distance[q] = d_k[:M]
             else:
-                d_k[:] = c.signed_distance(query_points, t)
+                query_distance[q] = np.asarray(c.signed_distance(query_points, t), dtype=np.float64)[:M]
                 n_k = None if rows == M else np.asarray(c.normal(query_points, t), dtype=np.float64)
-            wall_plane.append(-1 - len(queries))
+            wall_plane.append(-1 - q)
             wall_collider.append(k)
-            queries.append((len(wall_plane) - 1, k, d_k, n_k, c))
-        query_distance = np.empty((len(queries), M))
-        for q, (_, _, d_k, _, _) in enumerate(queries):
-            query_distance[q] = d_k[:M]
+            queries.append((len(wall_plane) - 1, k, n_k, c))
         wall_plane = np.array(wall_plane, dtype=np.int64)
         wall_collider = np.array(wall_collider, dtype=np.int64)
         plane_point = _padded3(plane_point)
         plane_normal = _padded3(plane_normal)
         # Per point, the walls within d0: CSR lists built by two compiled passes.
-        slot = np.empty(M, dtype=np.int64)
-        count = np.empty(M, dtype=np.int64)
+        slot = self._buffer("slot", (M,), np.int64)
+        count = self._buffer("count", (M,), np.int64)
         total = K.wall_counts(points, wall_plane, plane_point, plane_normal, query_distance,
                               self.width, slot, count)
-        dist = np.empty(total)
-        normal = np.empty((total, D))
-        hessian = np.zeros((total, D, D))
-        coll = np.empty(total, dtype=np.int64)
-        wall_of_row = np.empty(total, dtype=np.int64)
-        point_of_row = np.empty(total, dtype=np.int64)
+        dist = self._buffer("dist", (total,))
+        normal = self._buffer("normal", (total, D))
+        coll = self._buffer("coll", (total,), np.int64)
+        wall_of_row = self._buffer("wall_of_row", (total,), np.int64)
+        point_of_row = self._buffer("point_of_row", (total,), np.int64)
         K.wall_rows(points, wall_plane, wall_collider, plane_point, plane_normal, query_distance,
                     self.width, dist, normal, coll, wall_of_row, point_of_row)
+        # grad n only where some wall is curved; an empty array tells the kernel "all flat".
+        curved = D == 3 and any(h_k != "plane" for h_k in how)
+        hessian = self._buffer("hessian", (total if curved else 0, D, D))
+        if curved:
+            hessian[:] = 0.0
         # Normals (and 3-D Hessians) of the collider walls, at their rows only.
-        for w, k, _, n_k, c in queries:
+        for w, k, n_k, c in queries:
             rows = np.flatnonzero(wall_of_row == w)
             if rows.size == 0:
                 continue
             idx = point_of_row[rows]
-            pts = np.ascontiguousarray(points[idx])
-            nk = (np.asarray(c.normal(pts, t), dtype=np.float64) if n_k is None
-                  else np.ascontiguousarray(n_k[idx]))
+            nk = (np.asarray(c.normal(np.ascontiguousarray(points[idx]), t), dtype=np.float64)
+                  if n_k is None else np.ascontiguousarray(n_k[idx]))
             normal[rows] = nk
-            if D != 3:
+            if D != 3 or how[k] == "plane":
                 continue
-            if not fd[k]:
+            if how[k] == "sphere":
+                H = np.empty((idx.shape[0], D, D))
+                K.sphere_hessian(points, idx, nk, _reference_point(c, t, D), H, h)
+                hessian[rows] = H
+                continue
+            pts = np.ascontiguousarray(points[idx])
+            if how[k] == "hessian":
                 hessian[rows] = np.asarray(c.distance_hessian(pts, t), dtype=np.float64)
                 continue
             if n_k is None or n_k.shape[0] == M:
@@ -437,6 +465,17 @@ class _Boundaries:
             d_c = float(np.asarray(col.signed_distance(c[None, :], t)).reshape(-1)[0])
             R2[k] = d_c * d_c if d_c < 0 else 0.0
         return V, W, C, R2
+
+
+def _hessian_source(collider, dim):
+    """How `prepare` gets grad n of a collider's wall in 3-D (see there); "plane" in 2-D."""
+    if dim != 3 or getattr(collider, "plane_normals", None) is not None or isinstance(collider, Plane):
+        return "plane"
+    if isinstance(collider, Sphere):
+        return "sphere"
+    if callable(getattr(collider, "distance_hessian", None)):
+        return "hessian"
+    return "fd"
 
 
 def _padded3(rows):

@@ -1078,6 +1078,7 @@ def curl_noise_range(start, stop, points, offsets, perm, grads, table,
     S = points.shape[1]
     shared = offsets[0]
     bounded = slot.shape[0] > 0  # an empty slot array means: no boundaries
+    curved = bnd_hessian.shape[0] > 0  # an empty Hessian array means: every wall is flat
     psi = np.empty(3)
     J = np.empty((3, 3))  # J[c, j] = d psi_c / d x_j
     g = np.empty(3)
@@ -1187,13 +1188,17 @@ def curl_noise_range(start, stop, points, offsets, perm, grads, table,
             gc0 = b * g[0] * s
             gc1 = b * g[1] * s
             gc2 = b * g[2] * s
-            # gs = grad(n . psi) = H psi + J^T n
-            gs0 = (bnd_hessian[row, 0, 0] * psi[0] + bnd_hessian[row, 0, 1] * psi[1]
-                   + bnd_hessian[row, 0, 2] * psi[2] + n0 * J[0, 0] + n1 * J[1, 0] + n2 * J[2, 0])
-            gs1 = (bnd_hessian[row, 1, 0] * psi[0] + bnd_hessian[row, 1, 1] * psi[1]
-                   + bnd_hessian[row, 1, 2] * psi[2] + n0 * J[0, 1] + n1 * J[1, 1] + n2 * J[2, 1])
-            gs2 = (bnd_hessian[row, 2, 0] * psi[0] + bnd_hessian[row, 2, 1] * psi[1]
-                   + bnd_hessian[row, 2, 2] * psi[2] + n0 * J[0, 2] + n1 * J[1, 2] + n2 * J[2, 2])
+            # gs = grad(n . psi) = H psi + J^T n (H = 0 for planes: no Hessian rows at all)
+            gs0 = n0 * J[0, 0] + n1 * J[1, 0] + n2 * J[2, 0]
+            gs1 = n0 * J[0, 1] + n1 * J[1, 1] + n2 * J[2, 1]
+            gs2 = n0 * J[0, 2] + n1 * J[1, 2] + n2 * J[2, 2]
+            if curved:
+                gs0 += (bnd_hessian[row, 0, 0] * psi[0] + bnd_hessian[row, 0, 1] * psi[1]
+                        + bnd_hessian[row, 0, 2] * psi[2])
+                gs1 += (bnd_hessian[row, 1, 0] * psi[0] + bnd_hessian[row, 1, 1] * psi[1]
+                        + bnd_hessian[row, 1, 2] * psi[2])
+                gs2 += (bnd_hessian[row, 2, 0] * psi[0] + bnd_hessian[row, 2, 1] * psi[1]
+                        + bnd_hessian[row, 2, 2] * psi[2])
             v0 += gc1 * n2 - gc2 * n1 + ck * (gs1 * n2 - gs2 * n1)
             v1 += gc2 * n0 - gc0 * n2 + ck * (gs2 * n0 - gs0 * n2)
             v2 += gc0 * n1 - gc1 * n0 + ck * (gs0 * n1 - gs1 * n0)
@@ -1518,6 +1523,23 @@ def wall_rows(points, wall_plane, wall_collider, plane_point, plane_normal, quer
                     for a in range(S):
                         normal[row, a] = plane_normal[r, a]
                 row += 1
+
+
+@njit(cache=True, fastmath=_FAST)
+def sphere_hessian(points, rows, normal, center, out, small):
+    """grad n of a sphere's signed distance at points[rows]: (I - n n^T) / |x - c| (the
+    curvature of the sphere through x about c), zero within `small` of the centre."""
+    D = points.shape[1]
+    for i in range(rows.shape[0]):
+        r2 = 0.0
+        for a in range(D):
+            d = points[rows[i], a] - center[a]
+            r2 += d * d
+        r = math.sqrt(r2)
+        inv = 1.0 / r if r > small else 0.0
+        for a in range(D):
+            for b in range(D):
+                out[i, a, b] = ((1.0 if a == b else 0.0) - normal[i, a] * normal[i, b]) * inv
 
 
 # ---------------------------------------------------------------------------------------------
