@@ -153,6 +153,8 @@ class CurlNoise(Field):
         self.speed = positive_scalar(speed, "speed", allow_zero=True)
         self.lattice_dim = self.dim + (1 if self.params.time_frequency != 0.0 else 0)
         self.components = 1 if self.dim == 2 else 3
+        # One kernel per dimension: a 3-D scene never compiles the 2-D path.
+        self._kernel = K.curl_noise3 if self.dim == 3 else K.curl_noise2
         # One lattice offset per octave, shared by the components; one gradient table per
         # component (``component_gradients``): (C, 256, D) for the per-component kernels and
         # (256, C, D) for the batched one, which reads a corner's three gradients together.
@@ -194,7 +196,7 @@ class CurlNoise(Field):
         out = np.empty_like(pts)
         p = self.params
         # The serial build: a scene with a few tracers then never compiles the parallel one.
-        K.curl_noise.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
+        self._kernel.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
                             *_no_boundaries(D), np.zeros(D), out,
                             0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                             p.time_frequency, self._scale, 1.0)
@@ -207,7 +209,7 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        K.curl_noise(points, self._offsets, self._perm, self._grads[0], self._table, *bnd,
+        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, *bnd,
                      self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, self.boundary_width)
@@ -253,7 +255,7 @@ class CurlNoise(Field):
             else:
                 psi += 0.5 * np.cross(U, pts)
             return psi[:, 0].copy() if self.dim == 2 else psi
-        # With boundaries: point by point, the formula of `kernels.curl_noise_range` (a second,
+        # With boundaries: point by point, the formula of `kernels.curl_noise3_range` / `curl_noise2_range` (a second,
         # independent implementation that the tests difference against the kernel's curl).
         slot, count, dist, normal, _, coll, V, W, C, R2 = self.boundaries.prepare(pts, t)
         d0 = self.boundary_width
@@ -292,7 +294,7 @@ class _Boundaries:
 
     A wall is one collider, or one plane of a ``Container`` (whose distance is the least of its
     planes', with a normal that jumps across the medial planes; each plane alone is smooth).
-    ``prepare(points, t)`` returns the arrays the ``curl_noise`` kernel reads:
+    ``prepare(points, t)`` returns the arrays the ``curl_noise3`` / ``curl_noise2`` kernels read:
       slot (M,) int64         -- first row of the point's walls below, -1 where none is within d0
       count (M,) int64        -- how many walls are within d0 (rows slot .. slot + count - 1)
       distance (w,)           -- signed distance d to the wall (positive in the free space)

@@ -1016,13 +1016,14 @@ def _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, base, m, ski
 
 
 @njit(cache=True, fastmath=_FAST)
-def curl_noise_range(start, stop, points, offsets, perm, grads, table,
+def curl_noise3_range(start, stop, points, offsets, perm, grads, table,
                      slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                      rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                      out,
                      t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
                      boundary_width):
-    """Velocity of curl-noise at every point, with optional boundaries.
+    """Velocity of 3-D curl-noise at points start .. stop - 1, with optional boundaries (2-D:
+    `curl_noise2_range`, the same formulas).
 
     Potentials (unit-range noise times `scale`; offsets (1, octaves, 4), one lattice offset
     per octave):
@@ -1074,33 +1075,23 @@ def curl_noise_range(start, stop, points, offsets, perm, grads, table,
     js = np.empty((8, _BLOCK), np.int64)
     for s0 in range(start, stop, _BLOCK):
         n_block = min(_BLOCK, stop - s0)
-        if S == 3:
-            potential3_block(points, s0, n_block, t, shared, perm, table, kind, frequency,
-                             lacunarity, gain, octaves, time_frequency, scale, acc, fs, js)
+        potential3_block(points, s0, n_block, t, shared, perm, table, kind, frequency,
+                         lacunarity, gain, octaves, time_frequency, scale, acc, fs, js)
         for e in range(n_block):
             i = s0 + e
             p = points[i]
-            if S == 3:
-                psi[0] = acc[0, e]
-                psi[1] = acc[1, e]
-                psi[2] = acc[2, e]
-                for c in range(3):
-                    for b in range(3):
-                        J[c, b] = acc[3 + 3 * c + b, e]
-            else:
-                psi[0], J[0, 0], J[0, 1], J[0, 2] = fractal_grad(
-                    p[0], p[1], 0.0, S, t, offsets, 0, perm, grads, kind, frequency, lacunarity,
-                    gain, octaves, time_frequency, scale)
+            psi[0] = acc[0, e]
+            psi[1] = acc[1, e]
+            psi[2] = acc[2, e]
+            for c in range(3):
+                for b in range(3):
+                    J[c, b] = acc[3 + 3 * c + b, e]
             sl = slot[i] if bounded else -1
             if sl < 0:
                 # Free flow: v = curl psi + U.
-                if S == 2:
-                    out[i, 0] = J[0, 1] + mean_velocity[0]
-                    out[i, 1] = -J[0, 0] + mean_velocity[1]
-                else:
-                    out[i, 0] = J[2, 1] - J[1, 2] + mean_velocity[0]
-                    out[i, 1] = J[0, 2] - J[2, 0] + mean_velocity[1]
-                    out[i, 2] = J[1, 0] - J[0, 1] + mean_velocity[2]
+                out[i, 0] = J[2, 1] - J[1, 2] + mean_velocity[0]
+                out[i, 1] = J[0, 2] - J[2, 0] + mean_velocity[1]
+                out[i, 2] = J[1, 0] - J[0, 1] + mean_velocity[2]
                 continue
             m = bnd_count[i]
             # Ramps of the walls within d0, and the nearest wall's collider (for the mean flow).
@@ -1115,40 +1106,6 @@ def curl_noise_range(start, stop, points, offsets, perm, grads, table,
             cx = p[0] - rigid_center[kn, 0]
             cy = p[1] - rigid_center[kn, 1]
             alpha = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, 0, 0, S, g)
-            if S == 2:
-                # Mean flow U, as a potential about c: psi_U = U_x (y - c_y) - U_y (x - c_x).
-                psi[0] += mean_velocity[0] * cy - mean_velocity[1] * cx
-                J[0, 0] -= mean_velocity[1]
-                J[0, 1] += mean_velocity[0]
-                # grad psi' = grad alpha psi + alpha grad psi + sum_K (grad gamma psi_R + gamma grad psi_R)
-                gx = g[0] * psi[0] + alpha * J[0, 0]
-                gy = g[1] * psi[0] + alpha * J[0, 1]
-                for j in range(m):
-                    k = bnd_collider[sl + j]
-                    first = True
-                    for l in range(j):
-                        if bnd_collider[sl + l] == k:
-                            first = False
-                    if not first:
-                        continue
-                    ak = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 1, S, g)
-                    gax = g[0]
-                    gay = g[1]
-                    bk = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 2, S, g)
-                    gamma = (1.0 - ak) * bk
-                    ggx = -gax * bk + (1.0 - ak) * g[0]
-                    ggy = -gay * bk + (1.0 - ak) * g[1]
-                    kx = p[0] - rigid_center[k, 0]
-                    ky = p[1] - rigid_center[k, 1]
-                    vx = rigid_velocity[k, 0]
-                    vy = rigid_velocity[k, 1]
-                    om = rigid_spin[k, 0]
-                    psir = vx * ky - vy * kx - 0.5 * om * (kx * kx + ky * ky - rigid_radius2[k])
-                    gx += ggx * psir + gamma * (-vy - om * kx)
-                    gy += ggy * psir + gamma * (vx - om * ky)
-                out[i, 0] = gy
-                out[i, 1] = -gx
-                continue
             # 3-D. Mean flow U, as a potential about c: psi_U = U x (x - c) / 2, grad psi_U = [U]_x / 2.
             cz = p[2] - rigid_center[kn, 2]
             U0 = 0.5 * mean_velocity[0]
@@ -1236,22 +1193,119 @@ def curl_noise_range(start, stop, points, offsets, perm, grads, table,
             out[i, 2] = v2
 
 
+@njit(cache=True, fastmath=_FAST)
+def curl_noise2_range(start, stop, points, offsets, perm, grads, table,
+                     slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+                     rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+                     out,
+                     t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+                     boundary_width):
+    """Velocity of 2-D curl-noise at points start .. stop - 1: v = (dpsi'/dy, -dpsi'/dx) with
+    the boundary-modified stream function psi' of `curl_noise3_range` (no normal blend in
+    2-D). A kernel of its own so that a 3-D scene never compiles the 2-D path and the reverse."""
+    S = points.shape[1]
+    bounded = slot.shape[0] > 0  # an empty slot array means: no boundaries
+    psi = np.empty(3)
+    J = np.empty((3, 3))  # J[c, j] = d psi_c / d x_j
+    g = np.empty(3)
+    most = 1
+    if bounded:
+        for i in range(start, stop):
+            most = max(most, bnd_count[i])
+    ramp_value = np.empty(most)
+    ramp_slope = np.empty(most)
+    for i in range(start, stop):
+        p = points[i]
+        psi[0], J[0, 0], J[0, 1], J[0, 2] = fractal_grad(
+            p[0], p[1], 0.0, S, t, offsets, 0, perm, grads, kind, frequency, lacunarity,
+            gain, octaves, time_frequency, scale)
+        sl = slot[i] if bounded else -1
+        if sl < 0:
+            # Free flow: v = curl psi + U.
+            out[i, 0] = J[0, 1] + mean_velocity[0]
+            out[i, 1] = -J[0, 0] + mean_velocity[1]
+            continue
+        m = bnd_count[i]
+        # Ramps of the walls within d0, and the nearest wall's collider (for the mean flow).
+        nearest = 0
+        for j in range(m):
+            al, dal, _ = ramp(bnd_distance[sl + j] / boundary_width)
+            ramp_value[j] = al
+            ramp_slope[j] = dal / boundary_width
+            if bnd_distance[sl + j] < bnd_distance[sl + nearest]:
+                nearest = j
+        kn = bnd_collider[sl + nearest]
+        cx = p[0] - rigid_center[kn, 0]
+        cy = p[1] - rigid_center[kn, 1]
+        alpha = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, 0, 0, S, g)
+        # Mean flow U, as a potential about c: psi_U = U_x (y - c_y) - U_y (x - c_x).
+        psi[0] += mean_velocity[0] * cy - mean_velocity[1] * cx
+        J[0, 0] -= mean_velocity[1]
+        J[0, 1] += mean_velocity[0]
+        # grad psi' = grad alpha psi + alpha grad psi + sum_K (grad gamma psi_R + gamma grad psi_R)
+        gx = g[0] * psi[0] + alpha * J[0, 0]
+        gy = g[1] * psi[0] + alpha * J[0, 1]
+        for j in range(m):
+            k = bnd_collider[sl + j]
+            first = True
+            for l in range(j):
+                if bnd_collider[sl + l] == k:
+                    first = False
+            if not first:
+                continue
+            ak = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 1, S, g)
+            gax = g[0]
+            gay = g[1]
+            bk = _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, sl, m, -1, k, 2, S, g)
+            gamma = (1.0 - ak) * bk
+            ggx = -gax * bk + (1.0 - ak) * g[0]
+            ggy = -gay * bk + (1.0 - ak) * g[1]
+            kx = p[0] - rigid_center[k, 0]
+            ky = p[1] - rigid_center[k, 1]
+            vx = rigid_velocity[k, 0]
+            vy = rigid_velocity[k, 1]
+            om = rigid_spin[k, 0]
+            psir = vx * ky - vy * kx - 0.5 * om * (kx * kx + ky * ky - rigid_radius2[k])
+            gx += ggx * psir + gamma * (-vy - om * kx)
+            gy += ggy * psir + gamma * (vx - om * ky)
+        out[i, 0] = gy
+        out[i, 1] = -gx
+
+
 @parallel_kernel(serial_below=SERIAL_BELOW)
-def curl_noise(points, offsets, perm, grads, table,
-               slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
-               rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-               out,
-               t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
-               boundary_width):
-    """Velocity of curl-noise at every point (see `curl_noise_range`), in parallel chunks."""
+def curl_noise3(points, offsets, perm, grads, table,
+                slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+                rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+                out,
+                t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+                boundary_width):
+    """Velocity of 3-D curl-noise at every point (see `curl_noise3_range`), in parallel chunks."""
     M = points.shape[0]
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
-        curl_noise_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
-                         table, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
-                         rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
-                         out, t, kind, frequency, lacunarity, gain, octaves, time_frequency,
-                         scale, boundary_width)
+        curl_noise3_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
+                          table, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
+                          bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2,
+                          mean_velocity, out, t, kind, frequency, lacunarity, gain, octaves,
+                          time_frequency, scale, boundary_width)
+
+
+@parallel_kernel(serial_below=SERIAL_BELOW)
+def curl_noise2(points, offsets, perm, grads, table,
+                slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
+                rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
+                out,
+                t, kind, frequency, lacunarity, gain, octaves, time_frequency, scale,
+                boundary_width):
+    """Velocity of 2-D curl-noise at every point (see `curl_noise2_range`), in parallel chunks."""
+    M = points.shape[0]
+    nchunks = (M + _CHUNK - 1) // _CHUNK
+    for ch in prange(nchunks):
+        curl_noise2_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
+                          table, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
+                          bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2,
+                          mean_velocity, out, t, kind, frequency, lacunarity, gain, octaves,
+                          time_frequency, scale, boundary_width)
 
 
 @njit(cache=True)
