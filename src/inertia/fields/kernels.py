@@ -49,10 +49,14 @@ _FAST = {"contract", "reassoc", "nsz", "arcp"}
 _CHUNK = 1024
 
 # Elements of the points array (M * S) below which the parallel kernels run their serial twin
-# (``inertia._jit``): a point costs ~0.1-1 us here, ~100 times a particle update, so threads
-# pay from a few thousand points on an idle machine; 16384 (5,461 points in 3-D) leaves a
-# margin for a loaded one.
-SERIAL_BELOW = 16384
+# (``inertia._jit``). Measured for 3-D curl-noise (3 octaves, simplex, ~150 ns per point on one
+# thread) on the shared 2-core machine with 2 threads (``benchmarks/bench_curl_noise.py
+# --threshold``: serial vs parallel build, median and best of many calls): at best (a core free) the parallel
+# build pays from about 1,000-2,000 points (2,048: 0.19 against 0.30 ms); under load (load
+# average 11) its median call was 32-48 ms at every size up to 16,384 points against 0.08-3 ms
+# serially, and still no faster at 65,536. 24,576 elements (8,192 3-D points, ~1.2 ms of work)
+# keeps every small batch serial and leaves large ones parallel.
+SERIAL_BELOW = 24576
 
 # Simplex kernel radius squared: 0.5 keeps every corner's kernel inside the simplices that share
 # that corner in 2-D, 3-D and 4-D, so the noise is C^2. (Gustavson's reference code uses 0.6 in
