@@ -13,8 +13,8 @@ between tables), so each octave's lattice walk (cell, corner hashes and weights)
 three and a corner costs three dot products; simplex noise walks the lattice for a block of
 128 points at a time, corner by corner without branches (``kernels.potential3_block``). At
 10^6 points, 3 octaves, one thread, against inertia before the batched walk (commit
-13a834f): simplex 3.1-4.1 times faster (steady or time-varying, free, sphere or container),
-Perlin 1.6-2.3 times (``benchmarks/bench_curl_noise.py --compare-with``). Each potential is
+13a834f): simplex 3.3-4.4 times faster (steady or time-varying, free, sphere or container),
+Perlin 2.2-3.1 times (``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each potential is
 still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
