@@ -302,11 +302,13 @@ class _Boundaries:
       count (M,) int64        -- how many walls are within d0 (rows slot .. slot + count - 1)
       distance (w,)           -- signed distance d to the wall (positive in the free space)
       normal (w, D)           -- its unit normal grad d
-      hessian (w, D, D)       -- grad n (3-D only; zeros in 2-D and for planes)
+      hessian (w, D, D)       -- grad n (3-D; zero for planes), or (0, D, D) when every wall
+                                 is flat (2-D, containers, planes: the kernel skips the term)
       collider (w,) int64     -- which collider the wall belongs to
       velocity (K, D), spin (K, D), center (K, D), radius2 (K,) -- rigid motion per collider
     Rows of one point are in a fixed order (collider, then plane), so results do not depend on
-    the thread count.
+    the thread count. The arrays are views of buffers kept between calls (no allocation per
+    step once the largest batch has been seen); a caller must not hold them across calls.
     """
 
     def __init__(self, colliders, dim: int, width: float):
