@@ -31,6 +31,16 @@ configuration's best time on both and their ratio: both trees see the same machi
 10 s, and prints how many left and the least signed distance seen (before the continuous wall
 blend, 53 of 3000 left). Takes minutes; the test suite runs 400 tracers near the edges.
 
+``--threshold`` times the serial and the parallel build of the 3-D curl-noise kernel from 512 to
+65,536 points (run it with ``NUMBA_NUM_THREADS=2``): where the parallel build pays sets
+``fields.kernels.SERIAL_BELOW``.
+
+``--cold-compile [SRC ...]`` measures the CPU seconds a 3-D curl-noise scene (3 octaves,
+time-varying, a sphere boundary, 200 points) takes to build and sample once from an empty
+Numba cache, in a fresh process per source tree (this one and each SRC):
+
+    python benchmarks/bench_curl_noise.py --cold-compile /tmp/before/src
+
 Timings are the best of ``--repeat`` runs after one warm-up call (Numba compilation excluded).
 """
 
@@ -102,10 +112,19 @@ def main(argv=None):
     parser.add_argument("--compare-with", metavar="SRC", help="another source tree to compare with")
     parser.add_argument("--rounds", type=int, default=3, help="alternations for --compare-with")
     parser.add_argument("--threads", type=int, default=1, help="Numba threads for --compare-with")
+    parser.add_argument("--threshold", action="store_true", help="serial vs parallel build by size")
+    parser.add_argument("--cold-compile", nargs="*", metavar="SRC", help="cold-compile CPU seconds")
+    parser.add_argument("--cold-child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--sampling-json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.leak:
         return leak_check(args.leak_dt)
+    if args.threshold:
+        return threshold()
+    if args.cold_child:
+        return cold_child()
+    if args.cold_compile is not None:
+        return cold_compile(args.cold_compile)
     if args.sampling_json:
         print(json.dumps(sampling_table(args.points, args.repeat)))
         return None
@@ -232,6 +251,62 @@ def compare(args):
     for label in best["this"]:
         a, b = best["other"].get(label, np.nan), best["this"][label]
         print(f"{label:30s} {M / a / 1e6:12.2f} {M / b / 1e6:12.2f} {a / b:8.2f}x")
+
+
+def threshold():
+    """Median and best wall-clock time of the serial and parallel 3-D curl-noise builds."""
+    from inertia.fields import kernels as K
+    from inertia.fields.curl import _no_boundaries
+    field = ia.fields.CurlNoise(dim=3, seed=1, frequency=2.0, octaves=3)
+    p = field.params
+    empty = _no_boundaries(3)
+
+    def call(kernel, pts, out):
+        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, *empty,
+               field.mean_velocity, out, 0.25, p.kind_code, p.frequency, p.lacunarity, p.gain,
+               p.octaves, p.time_frequency, field._scale, field.boundary_width)
+
+    rng = np.random.default_rng(0)
+    print(f"numba threads {numba.get_num_threads()}, load average {os.getloadavg()[0]:.1f}")
+    for M in (512, 1024, 2048, 4096, 8192, 16384, 65536):
+        pts = rng.uniform(-1, 1, (M, 3))
+        out = np.empty_like(pts)
+        row = {}
+        for name, kernel in (("serial", K.curl_noise3.serial), ("parallel", K.curl_noise3.parallel)):
+            call(kernel, pts, out)
+            times = []
+            for _ in range(max(5, 200_000 // M)):
+                t0 = time.perf_counter()
+                call(kernel, pts, out)
+                times.append(time.perf_counter() - t0)
+            row[name] = (np.median(times), min(times))
+        print(f"{M:6d} points: serial median {row['serial'][0] * 1e3:8.3f} ms (best "
+              f"{row['serial'][1] * 1e3:.3f}), parallel median {row['parallel'][0] * 1e3:8.3f} ms "
+              f"(best {row['parallel'][1] * 1e3:.3f}), load average {os.getloadavg()[0]:.1f}")
+
+
+def cold_child():
+    """Build and sample a 3-D curl-noise scene once; print the CPU seconds it took."""
+    t0 = time.process_time()
+    sphere = ia.colliders.Sphere(center=(0.0, 0.0, 0.0), radius=0.3)
+    field = ia.fields.CurlNoise(dim=3, seed=1, octaves=3, time_frequency=0.5, boundaries=[sphere])
+    pts = np.random.default_rng(0).uniform(-1.0, 1.0, (200, 3))
+    field.sample(pts, 0.1, np.empty_like(pts))
+    print(time.process_time() - t0)
+
+
+def cold_compile(others):
+    """CPU seconds of `cold_child` from an empty Numba cache, for this tree and each other."""
+    import tempfile
+    here = os.path.abspath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src"))
+    for src in [here, *[os.path.abspath(o) for o in others]]:
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, PYTHONPATH=src, NUMBA_CACHE_DIR=cache)
+            run = subprocess.run([sys.executable, os.path.abspath(__file__), "--cold-child"],
+                                 env=env, capture_output=True, text=True, check=True)
+        seconds = float(run.stdout.strip().splitlines()[-1])
+        print(f"cold compile, 3-D curl-noise scene with a sphere: {seconds:5.1f} s CPU  ({src}; "
+              f"load average {os.getloadavg()[0]:.1f})", flush=True)
 
 
 def leak_check(dt: float, count: int = 3000, duration: float = 10.0) -> None:

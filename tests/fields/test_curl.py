@@ -203,6 +203,44 @@ def test_wall_lists_match_a_brute_force_search():
             np.testing.assert_allclose(normal[row], n, atol=1e-14)
 
 
+def test_sphere_hessian_is_the_derivative_of_its_normal():
+    # The closed form grad n = (I - n n^T) / |x - c| that the boundaries use for a Sphere (in
+    # place of central differences of its normals) against central differences of the
+    # collider's own normal, step 1e-5: O(h^2) ~ 1e-10 / |x - c|^3 agreement.
+    sphere = ia.colliders.Sphere(center=(0.2, -0.1, 0.05), radius=0.3)
+    field = CurlNoise(dim=3, seed=1, boundaries=[sphere], boundary_width=0.3)
+    pts = np.random.default_rng(5).uniform(-0.6, 0.6, (3000, 3))
+    slot, count, _, normal, hessian, *_ = field.boundaries.prepare(pts, 0.0)
+    near = np.flatnonzero(slot >= 0)
+    r = np.linalg.norm(pts[near] - sphere.center, axis=1)
+    near = near[r > 0.05]
+    assert near.size > 300
+    rows = slot[near]
+    h = 1e-5
+    for a in range(3):
+        e = np.zeros(3)
+        e[a] = h
+        fd = (sphere.normal(pts[near] + e) - sphere.normal(pts[near] - e)) / (2 * h)
+        np.testing.assert_allclose(hessian[rows, a, :], fd, atol=1e-7)
+    np.testing.assert_allclose(normal[rows], sphere.normal(pts[near]), atol=1e-14)
+
+
+def test_reused_boundary_buffers_give_the_same_velocity():
+    # prepare() keeps its arrays between calls (no allocation per step): sampling a large, a
+    # small and again the large batch gives, bit for bit, what a fresh field gives.
+    room = ia.colliders.Container(half_extents=(1.0, 1.0, 1.0))
+    sphere = ia.colliders.Sphere(center=(0.0, 0.0, 0.0), radius=0.3)
+    pts = np.random.default_rng(6).uniform(-0.99, 0.99, (3000, 3))
+    used = CurlNoise(dim=3, seed=2, boundaries=[sphere, room])
+    used(pts[:50], 0.1)
+    big = used(pts, 0.3)
+    small = used(pts[:700], 0.2)
+    np.testing.assert_array_equal(used(pts, 0.3), big)
+    fresh = CurlNoise(dim=3, seed=2, boundaries=[sphere, room])
+    np.testing.assert_array_equal(fresh(pts, 0.3), big)
+    np.testing.assert_array_equal(CurlNoise(dim=3, seed=2, boundaries=[sphere, room])(pts[:700], 0.2), small)
+
+
 def test_jacobian_not_offered_with_boundaries():
     field = CurlNoise(dim=3, boundaries=[ia.colliders.Sphere(radius=0.2)])
     with pytest.raises(NotImplementedError, match="boundaries"):

@@ -10,10 +10,12 @@ it is incompressible by construction; its derivatives are the analytic derivativ
 The three 3-D potentials sample the same lattice points (one seeded offset per octave) with
 three gradient tables (``noise.component_gradients``: zero mean, exactly zero covariance
 between tables), so each octave's lattice walk (cell, corner hashes and weights) serves all
-three and a corner costs three dot products: 2.2-2.4 times faster than three separate noises
-at 10^6 points (2.6-2.7 times inside a container, whose walls' distances are now computed in
-compiled code; ``benchmarks/bench_curl_noise.py --compare-with``). Each potential is still a gradient noise
-with the range and statistics of ``noise.py``.
+three and a corner costs three dot products; simplex noise walks the lattice for a block of
+128 points at a time, corner by corner without branches (``kernels.potential3_block``). At
+10^6 points, 3 octaves, one thread, against inertia before the batched walk (commit
+13a834f): simplex 3.3-4.4 times faster (steady or time-varying, free, sphere or container),
+Perlin 2.2-3.1 times (``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each potential is
+still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
 walls within the boundary width d0: a collider is one wall, a ``Container`` one wall per plane
@@ -63,8 +65,9 @@ Limitations
   flow's potential is taken about the centre of the nearest wall's collider, so with a mean
   flow U the velocity jumps by O(|U|) where the nearest collider changes (not between the
   walls of one container).
-- 3-D boundaries need grad n (the Hessian of the signed distance). A container's planes have
-  none; other colliders give it by ``distance_hessian(points, t)`` when they have one,
+- 3-D boundaries need grad n (the Hessian of the signed distance). A container's planes and a
+  ``Plane`` have none; a ``Sphere``'s is the closed form (I - n n^T) / |x - c|; other
+  colliders give it by ``distance_hessian(points, t)`` when they have one,
   otherwise it is taken by central differences of ``collider.normal`` with step 1e-3 d0
   (O(step^2) error in the curvature term only; the tangency at the surface does not depend
   on it). Across an edge of a collider's own distance field (a baked mesh's medial surfaces)
@@ -85,6 +88,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._validate import as_points, as_vector, positive_scalar
+from ..collision.shapes import Plane, Sphere
 from . import kernels as K
 from .base import Field
 from .noise import NoiseParameters, component_gradients, lattice_tables
@@ -152,6 +156,8 @@ class CurlNoise(Field):
         self.speed = positive_scalar(speed, "speed", allow_zero=True)
         self.lattice_dim = self.dim + (1 if self.params.time_frequency != 0.0 else 0)
         self.components = 1 if self.dim == 2 else 3
+        # One kernel per dimension: a 3-D scene never compiles the 2-D path.
+        self._kernel = K.curl_noise3 if self.dim == 3 else K.curl_noise2
         # One lattice offset per octave, shared by the components; one gradient table per
         # component (``component_gradients``): (C, 256, D) for the per-component kernels and
         # (256, C, D) for the batched one, which reads a corner's three gradients together.
@@ -193,7 +199,7 @@ class CurlNoise(Field):
         out = np.empty_like(pts)
         p = self.params
         # The serial build: a scene with a few tracers then never compiles the parallel one.
-        K.curl_noise.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
+        self._kernel.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
                             *_no_boundaries(D), np.zeros(D), out,
                             0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                             p.time_frequency, self._scale, 1.0)
@@ -206,7 +212,7 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        K.curl_noise(points, self._offsets, self._perm, self._grads[0], self._table, *bnd,
+        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, *bnd,
                      self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, self.boundary_width)
@@ -252,7 +258,7 @@ class CurlNoise(Field):
             else:
                 psi += 0.5 * np.cross(U, pts)
             return psi[:, 0].copy() if self.dim == 2 else psi
-        # With boundaries: point by point, the formula of `kernels.curl_noise_range` (a second,
+        # With boundaries: point by point, the formula of `kernels.curl_noise3_range` / `curl_noise2_range` (a second,
         # independent implementation that the tests difference against the kernel's curl).
         slot, count, dist, normal, _, coll, V, W, C, R2 = self.boundaries.prepare(pts, t)
         d0 = self.boundary_width
@@ -291,16 +297,18 @@ class _Boundaries:
 
     A wall is one collider, or one plane of a ``Container`` (whose distance is the least of its
     planes', with a normal that jumps across the medial planes; each plane alone is smooth).
-    ``prepare(points, t)`` returns the arrays the ``curl_noise`` kernel reads:
+    ``prepare(points, t)`` returns the arrays the ``curl_noise3`` / ``curl_noise2`` kernels read:
       slot (M,) int64         -- first row of the point's walls below, -1 where none is within d0
       count (M,) int64        -- how many walls are within d0 (rows slot .. slot + count - 1)
       distance (w,)           -- signed distance d to the wall (positive in the free space)
       normal (w, D)           -- its unit normal grad d
-      hessian (w, D, D)       -- grad n (3-D only; zeros in 2-D and for planes)
+      hessian (w, D, D)       -- grad n (3-D; zero for planes), or (0, D, D) when every wall
+                                 is flat (2-D, containers, planes: the kernel skips the term)
       collider (w,) int64     -- which collider the wall belongs to
       velocity (K, D), spin (K, D), center (K, D), radius2 (K,) -- rigid motion per collider
     Rows of one point are in a fixed order (collider, then plane), so results do not depend on
-    the thread count.
+    the thread count. The arrays are views of buffers kept between calls (no allocation per
+    step once the largest batch has been seen); a caller must not hold them across calls.
     """
 
     def __init__(self, colliders, dim: int, width: float):
@@ -321,10 +329,22 @@ class _Boundaries:
         self.dim = dim
         self.width = width
         self._slot = np.empty(0, np.int64)
-        self._buffers = None  # per collider: distance (M,), normal (M, D), velocity (M, D)
+        self._buffers = {}  # name -> flat array reused between calls (`_buffer`)
+
+    def _buffer(self, name, shape, dtype=np.float64):
+        """A C-contiguous array of `shape` backed by a buffer kept between calls (grown when
+        too small): sampling every step allocates, and page-faults, nothing new."""
+        size = int(np.prod(shape))
+        buf = self._buffers.get(name)
+        if buf is None or buf.size < size or buf.dtype != dtype:
+            buf = np.empty(max(size, 1), dtype=dtype)
+            self._buffers[name] = buf
+        return buf[:size].reshape(shape)
 
     def prepare(self, points, t):
-        """The wall lists the kernel reads (see the class docstring)."""
+        """The wall lists the kernel reads (see the class docstring).
+
+        The arrays returned are views of buffers this object reuses at the next call."""
         D = self.dim
         M = points.shape[0]
         cols = self.colliders
@@ -332,12 +352,17 @@ class _Boundaries:
         # A container's walls are its planes (a smooth distance each), any other collider is
         # one wall whose distance and normal come from its query.
         stack = points.size < K.SERIAL_BELOW
-        fd = [D == 3 and not callable(getattr(c, "distance_hessian", None))
-              and getattr(c, "plane_normals", None) is None for c in cols]
+        # How grad n is had in 3-D: "plane" (zero: a container's faces, a Plane), "sphere"
+        # (closed form (I - n n^T) / |x - c|), "hessian" (the collider's distance_hessian),
+        # "fd" (central differences of its normals).
+        how = [_hessian_source(c, D) for c in cols]
+        fd = [h_k == "fd" for h_k in how]
         # Walls in a fixed order (collider, then plane). wall_plane[w] >= 0: row of a plane
         # (a container's face: its distance is computed in `K.wall_counts` / `K.wall_rows`);
         # < 0: -1 - the row of query_distance that holds the collider's signed distance.
         wall_plane, wall_collider, plane_point, plane_normal, queries = [], [], [], [], []
+        n_queries = sum(1 for c in cols if _planes(c, t, D) is None)
+        query_distance = self._buffer("query_distance", (n_queries, M))
         for k, c in enumerate(cols):
             planes = _planes(c, t, D)
             if planes is not None:
@@ -347,50 +372,60 @@ class _Boundaries:
                     plane_point.append(p0)
                     plane_normal.append(n0)
                 continue
+            q = len(queries)
             rows = M * (2 * D + 1) if (fd[k] and stack) else M
             query_points = points if rows == M else _shifted_stack(points, h)
-            d_k, n_k = np.empty(rows), np.empty((rows, D))
             if callable(getattr(c, "query", None)):
-                c.query(query_points, t, d_k, n_k, np.empty((rows, D)))
+                d_k = query_distance[q] if rows == M else np.empty(rows)
+                n_k = self._buffer(f"normal{q}", (rows, D))
+                c.query(query_points, t, d_k, n_k, self._buffer(f"velocity{q}", (rows, D)))
+                if rows != M:
+                    query_distance[q] = d_k[:M]
             else:
-                d_k[:] = c.signed_distance(query_points, t)
+                query_distance[q] = np.asarray(c.signed_distance(query_points, t), dtype=np.float64)[:M]
                 n_k = None if rows == M else np.asarray(c.normal(query_points, t), dtype=np.float64)
-            wall_plane.append(-1 - len(queries))
+            wall_plane.append(-1 - q)
             wall_collider.append(k)
-            queries.append((len(wall_plane) - 1, k, d_k, n_k, c))
-        query_distance = np.empty((len(queries), M))
-        for q, (_, _, d_k, _, _) in enumerate(queries):
-            query_distance[q] = d_k[:M]
+            queries.append((len(wall_plane) - 1, k, n_k, c))
         wall_plane = np.array(wall_plane, dtype=np.int64)
         wall_collider = np.array(wall_collider, dtype=np.int64)
         plane_point = _padded3(plane_point)
         plane_normal = _padded3(plane_normal)
         # Per point, the walls within d0: CSR lists built by two compiled passes.
-        slot = np.empty(M, dtype=np.int64)
-        count = np.empty(M, dtype=np.int64)
+        slot = self._buffer("slot", (M,), np.int64)
+        count = self._buffer("count", (M,), np.int64)
         total = K.wall_counts(points, wall_plane, plane_point, plane_normal, query_distance,
                               self.width, slot, count)
-        dist = np.empty(total)
-        normal = np.empty((total, D))
-        hessian = np.zeros((total, D, D))
-        coll = np.empty(total, dtype=np.int64)
-        wall_of_row = np.empty(total, dtype=np.int64)
-        point_of_row = np.empty(total, dtype=np.int64)
+        dist = self._buffer("dist", (total,))
+        normal = self._buffer("normal", (total, D))
+        coll = self._buffer("coll", (total,), np.int64)
+        wall_of_row = self._buffer("wall_of_row", (total,), np.int64)
+        point_of_row = self._buffer("point_of_row", (total,), np.int64)
         K.wall_rows(points, wall_plane, wall_collider, plane_point, plane_normal, query_distance,
                     self.width, dist, normal, coll, wall_of_row, point_of_row)
+        # grad n only where some wall is curved; an empty array tells the kernel "all flat".
+        curved = D == 3 and any(h_k != "plane" for h_k in how)
+        hessian = self._buffer("hessian", (total if curved else 0, D, D))
+        if curved:
+            hessian[:] = 0.0
         # Normals (and 3-D Hessians) of the collider walls, at their rows only.
-        for w, k, _, n_k, c in queries:
+        for w, k, n_k, c in queries:
             rows = np.flatnonzero(wall_of_row == w)
             if rows.size == 0:
                 continue
             idx = point_of_row[rows]
-            pts = np.ascontiguousarray(points[idx])
-            nk = (np.asarray(c.normal(pts, t), dtype=np.float64) if n_k is None
-                  else np.ascontiguousarray(n_k[idx]))
+            nk = (np.asarray(c.normal(np.ascontiguousarray(points[idx]), t), dtype=np.float64)
+                  if n_k is None else np.ascontiguousarray(n_k[idx]))
             normal[rows] = nk
-            if D != 3:
+            if D != 3 or how[k] == "plane":
                 continue
-            if not fd[k]:
+            if how[k] == "sphere":
+                H = np.empty((idx.shape[0], D, D))
+                K.sphere_hessian(points, idx, nk, _reference_point(c, t, D), H, h)
+                hessian[rows] = H
+                continue
+            pts = np.ascontiguousarray(points[idx])
+            if how[k] == "hessian":
                 hessian[rows] = np.asarray(c.distance_hessian(pts, t), dtype=np.float64)
                 continue
             if n_k is None or n_k.shape[0] == M:
@@ -437,6 +472,17 @@ class _Boundaries:
             d_c = float(np.asarray(col.signed_distance(c[None, :], t)).reshape(-1)[0])
             R2[k] = d_c * d_c if d_c < 0 else 0.0
         return V, W, C, R2
+
+
+def _hessian_source(collider, dim):
+    """How `prepare` gets grad n of a collider's wall in 3-D (see there); "plane" in 2-D."""
+    if dim != 3 or getattr(collider, "plane_normals", None) is not None or isinstance(collider, Plane):
+        return "plane"
+    if isinstance(collider, Sphere):
+        return "sphere"
+    if callable(getattr(collider, "distance_hessian", None)):
+        return "hessian"
+    return "fd"
 
 
 def _padded3(rows):
