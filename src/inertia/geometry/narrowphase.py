@@ -877,45 +877,63 @@ def _body_speed(b, body_qd, radius):
     return (qd[3], qd[4], qd[5]), w * radius[b]
 
 
-@njit(inline="always")
-def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr):
-    sa, sb = pairs[i, 0], pairs[i, 1]
-    ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
-    ca.contact_shape[i, 0] = sa
-    ca.contact_shape[i, 1] = sb
-    ca.contact_body[i, 0] = ba
-    ca.contact_body[i, 1] = bb
-    ca.contact_key[i] = keys[i]
-    ca.contact_friction[i] = math.sqrt(shapes.shape_friction[sa] * shapes.shape_friction[sb])
-    ca.contact_restitution[i] = max(shapes.shape_restitution[sa], shapes.shape_restitution[sb])
-    ca.contact_rolling_friction[i] = max(shapes.shape_rolling_friction[sa],
-                                         shapes.shape_rolling_friction[sb])
-    ca.contact_is_sensor[i] = shapes.shape_is_sensor[sa] or shapes.shape_is_sensor[sb]
-    # speculative distance: what the pair can close within the step
-    va, wa = _body_speed(ba, body_qd, body_bound_radius)
-    vb, wb = _body_speed(bb, body_qd, body_bound_radius)
-    spec = max(shapes.shape_margin[sa], shapes.shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
-    cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec, scr)
-    ca.contact_point_count[i] = cnt
-    n = (ca.contact_normal[i, 0], ca.contact_normal[i, 1], ca.contact_normal[i, 2])
-    t1, t2 = orthonormal_basis(n)
-    for m in range(3):
-        ca.contact_tangent[i, 0, m] = t1[m]
-        ca.contact_tangent[i, 1, m] = t2[m]
-        ca.contact_rolling_impulse[i, m] = 0.0
-    for k in range(4):
-        ca.contact_normal_impulse[i, k] = 0.0
-        ca.contact_tangent_impulse[i, k, 0] = 0.0
-        ca.contact_tangent_impulse[i, k, 1] = 0.0
-        ca.contact_max_normal_impulse[i, k] = 0.0
-        ca.contact_total_normal_impulse[i, k] = 0.0
+class ManifoldOut(NamedTuple):
+    """The four contact arrays a pair routine writes (``_emit``, ``_set_normal``): a small bundle, so a
+    call per pair does not pass (and reference-count) the whole contact buffer."""
+    contact_normal: np.ndarray
+    contact_point: np.ndarray
+    contact_separation: np.ndarray
+    contact_feature: np.ndarray
 
 
 @njit(cache=True)
 def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """Manifolds of pairs ``lo:hi``. The bundles' arrays are unpacked once into locals: reading a
+    NamedTuple member inside the loop takes and drops a reference each time."""
     scr = new_scratch()                 # one scratch per run of pairs: no allocation per pair
+    out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
+    shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
+    shape_friction, shape_restitution = shapes.shape_friction, shapes.shape_restitution
+    shape_rolling_friction, shape_is_sensor = shapes.shape_rolling_friction, shapes.shape_is_sensor
+    contact_shape, contact_body, contact_key = ca.contact_shape, ca.contact_body, ca.contact_key
+    contact_friction, contact_restitution = ca.contact_friction, ca.contact_restitution
+    contact_rolling_friction, contact_is_sensor = ca.contact_rolling_friction, ca.contact_is_sensor
+    contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
+                                                            ca.contact_tangent)
+    contact_rolling_impulse, contact_normal_impulse = ca.contact_rolling_impulse, ca.contact_normal_impulse
+    contact_tangent_impulse, contact_max_normal_impulse = (ca.contact_tangent_impulse,
+                                                           ca.contact_max_normal_impulse)
+    contact_total_normal_impulse = ca.contact_total_normal_impulse
     for i in range(lo, hi):
-        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr)
+        sa, sb = pairs[i, 0], pairs[i, 1]
+        ba, bb = shape_body[sa], shape_body[sb]
+        contact_shape[i, 0] = sa
+        contact_shape[i, 1] = sb
+        contact_body[i, 0] = ba
+        contact_body[i, 1] = bb
+        contact_key[i] = keys[i]
+        contact_friction[i] = math.sqrt(shape_friction[sa] * shape_friction[sb])
+        contact_restitution[i] = max(shape_restitution[sa], shape_restitution[sb])
+        contact_rolling_friction[i] = max(shape_rolling_friction[sa], shape_rolling_friction[sb])
+        contact_is_sensor[i] = shape_is_sensor[sa] or shape_is_sensor[sb]
+        # speculative distance: what the pair can close within the step
+        va, wa = _body_speed(ba, body_qd, body_bound_radius)
+        vb, wb = _body_speed(bb, body_qd, body_bound_radius)
+        spec = max(shape_margin[sa], shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
+        cnt = _collide(out, i, shape_type[sa], shape_type[sb], sa, sb, shapes, pose, spec, scr)
+        contact_point_count[i] = cnt
+        n = (contact_normal[i, 0], contact_normal[i, 1], contact_normal[i, 2])
+        t1, t2 = orthonormal_basis(n)
+        for m in range(3):
+            contact_tangent[i, 0, m] = t1[m]
+            contact_tangent[i, 1, m] = t2[m]
+            contact_rolling_impulse[i, m] = 0.0
+        for k in range(4):
+            contact_normal_impulse[i, k] = 0.0
+            contact_tangent_impulse[i, k, 0] = 0.0
+            contact_tangent_impulse[i, k, 1] = 0.0
+            contact_max_normal_impulse[i, k] = 0.0
+            contact_total_normal_impulse[i, k] = 0.0
 
 
 @njit(cache=True, parallel=True)
