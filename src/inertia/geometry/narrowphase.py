@@ -532,11 +532,16 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
         _set_normal(ca, i, ne)
         _emit(ca, i, 0, scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
         return 1
+    # one call site with runtime arguments: a literal True / False per branch would compile the clipper
+    # once per literal (Numba specialises on literal arguments)
+    ref_is_a = not use_b
     if use_b:
         n = B[kb] if dot(d, B[kb]) < 0 else scale(B[kb], -1.0)      # B -> A
-        return _box_face_manifold(ca, i, pb, B, hb, kb, n, pa, A, ha, spec, False, 3 + kb, scr)
-    n = A[ka] if dot(d, A[ka]) > 0 else scale(A[ka], -1.0)          # A -> B
-    return _box_face_manifold(ca, i, pa, A, ha, ka, n, pb, B, hb, spec, True, ka, scr)
+        ref_p, ref_ax, ref_h, k, inc_p, inc_ax, inc_h, code = pb, B, hb, kb, pa, A, ha, 3 + kb
+    else:
+        n = A[ka] if dot(d, A[ka]) > 0 else scale(A[ka], -1.0)      # A -> B
+        ref_p, ref_ax, ref_h, k, inc_p, inc_ax, inc_h, code = pa, A, ha, ka, pb, B, hb, ka
+    return _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, spec, ref_is_a, code, scr)
 
 
 
