@@ -256,38 +256,6 @@ def _apply_angular(qd, b, sign, l, ii):
         qd[b, k] += sign * dw[k]
 
 
-@njit(inline="always")
-def _push(v, w, sign, p, r, im, ii):
-    """``_apply`` on a body's velocities held in locals: (v, w) after the impulse sign * p at offset r
-    (the same operations in the same order, so the same bits)."""
-    if im == 0.0:
-        return v, w
-    dw = mat_vec(ii, cross(r, p))
-    return ((v[0] + sign * im * p[0], v[1] + sign * im * p[1], v[2] + sign * im * p[2]),
-            (w[0] + sign * dw[0], w[1] + sign * dw[1], w[2] + sign * dw[2]))
-
-
-@njit(inline="always")
-def _push_angular(w, sign, l, im, ii):
-    """``_apply_angular`` on locals (bodies with im == 0 have a zero inverse inertia: no change)."""
-    if im == 0.0:
-        return w
-    dw = mat_vec(ii, l)
-    return (w[0] + sign * dw[0], w[1] + sign * dw[1], w[2] + sign * dw[2])
-
-
-@njit(inline="always")
-def _store(qd, b, im, v, w):
-    """Write a constraint's local body velocities back (only bodies the solver moves: im > 0)."""
-    if im != 0.0:
-        qd[b, 0] = w[0]
-        qd[b, 1] = w[1]
-        qd[b, 2] = w[2]
-        qd[b, 3] = v[0]
-        qd[b, 4] = v[1]
-        qd[b, 5] = v[2]
-
-
 @njit(cache=True)
 def _prepare_block(lo, hi, body_q, contact_point, contact_separation, soft, static_soft, twist_radius, cons_twist,
                    contact_friction, body_inv_inertia_world, body_inv_mass, body_qd, cons_anchor,
@@ -393,9 +361,6 @@ def prepare_contacts(ctx, body_q, n_cons, contact_point, contact_separation, h, 
 # --- the hot loops. Each range kernel unpacks the context bundle once into local arrays: reading a
 # NamedTuple member inside the loop makes Numba take and drop a reference to the array every time
 # (measured: 15 us per manifold instead of 0.3 us), so the per-constraint code below sees only locals.
-# Within one constraint the two bodies' velocities live in locals (``_push``, loaded once, stored once:
-# Box2D v3's solver bodies) instead of a load and a store of the body rows for every point and row; the
-# arithmetic is the same, so are the bits.
 
 @njit(cache=True)
 def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact_body, contact_point_count,
@@ -407,9 +372,6 @@ def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact
         ba, bb = contact_body[i, 0], contact_body[i, 1]
         ima, imb = _inv_m(inv_mass, ba), _inv_m(inv_mass, bb)
         iia, iib = _inv_i(inv_inertia, ba), _inv_i(inv_inertia, bb)
-        # the two bodies' velocities stay in locals over the constraint (Box2D v3's solver bodies)
-        va, wa = _vel(qd, ba)
-        vb, wb = _vel(qd, bb)
         n = (contact_normal[i, 0], contact_normal[i, 1], contact_normal[i, 2])
         t1 = (contact_tangent[i, 0, 0], contact_tangent[i, 0, 1], contact_tangent[i, 0, 2])
         t2 = (contact_tangent[i, 1, 0], contact_tangent[i, 1, 1], contact_tangent[i, 1, 2])
@@ -418,17 +380,15 @@ def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact
             rb = (cons_anchor[c, k, 1, 0], cons_anchor[c, k, 1, 1], cons_anchor[c, k, 1, 2])
             p = add(add(scale(n, normal_impulse[i, k]), scale(t1, tangent_impulse[i, k, 0])),
                     scale(t2, tangent_impulse[i, k, 1]))
-            va, wa = _push(va, wa, -1.0, p, ra, ima, iia)
-            vb, wb = _push(vb, wb, 1.0, p, rb, imb, iib)
+            _apply(qd, ba, -1.0, p, ra, ima, iia)
+            _apply(qd, bb, 1.0, p, rb, imb, iib)
         l = (rolling_impulse[i, 0], rolling_impulse[i, 1], rolling_impulse[i, 2])
         tw = cons_twist[c, 1]
         if tw != 0.0:
             l = add(l, scale(n, tw))
         if l[0] != 0.0 or l[1] != 0.0 or l[2] != 0.0:
-            wa = _push_angular(wa, -1.0, l, ima, iia)
-            wb = _push_angular(wb, 1.0, l, imb, iib)
-        _store(qd, ba, ima, va, wa)
-        _store(qd, bb, imb, vb, wb)
+            _apply_angular(qd, ba, -1.0, l, iia)
+            _apply_angular(qd, bb, 1.0, l, iib)
 
 
 @njit(inline="always")
@@ -456,9 +416,6 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
         ba, bb = contact_body[i, 0], contact_body[i, 1]
         ima, imb = _inv_m(inv_mass, ba), _inv_m(inv_mass, bb)
         iia, iib = _inv_i(inv_inertia, ba), _inv_i(inv_inertia, bb)
-        # the two bodies' velocities stay in locals over the constraint (Box2D v3's solver bodies)
-        va, wa = _vel(qd, ba)
-        vb, wb = _vel(qd, bb)
         n = (contact_normal[i, 0], contact_normal[i, 1], contact_normal[i, 2])
         t1 = (contact_tangent[i, 0, 0], contact_tangent[i, 0, 1], contact_tangent[i, 0, 2])
         t2 = (contact_tangent[i, 1, 0], contact_tangent[i, 1, 1], contact_tangent[i, 1, 2])
@@ -478,6 +435,8 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
             elif use_bias:
                 bias = max(bias_rate * s, -push_max)
                 mscale, iscale = soft_mass, soft_imp
+            va, wa = _vel(qd, ba)
+            vb, wb = _vel(qd, bb)
             vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n)
             if vn + max(s, 0.0) * inv_h < 0.0 and vn < relative_velocity[i, k]:
                 # approach speed at impact (for restitution): the fastest approach of any pass in
@@ -496,8 +455,8 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
                 total_normal_impulse[i, k] += new
             total_normal += new
             p = scale(n, lam)
-            va, wa = _push(va, wa, -1.0, p, ra, ima, iia)
-            vb, wb = _push(vb, wb, 1.0, p, rb, imb, iib)
+            _apply(qd, ba, -1.0, p, ra, ima, iia)
+            _apply(qd, bb, 1.0, p, rb, imb, iib)
         # -- Coulomb friction, circular cone at each point
         mu = contact_friction[i]
         for k in range(npts):
@@ -507,6 +466,8 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
                 continue                     # a speculative point: the cone is a point, nothing changes
             ra = (cons_anchor[c, k, 0, 0], cons_anchor[c, k, 0, 1], cons_anchor[c, k, 0, 2])
             rb = (cons_anchor[c, k, 1, 0], cons_anchor[c, k, 1, 1], cons_anchor[c, k, 1, 2])
+            va, wa = _vel(qd, ba)
+            vb, wb = _vel(qd, bb)
             dv = sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra)))
             n1 = o1 - cons_tangent_mass[c, k, 0] * dot(dv, t1)
             n2 = o2 - cons_tangent_mass[c, k, 1] * dot(dv, t2)
@@ -519,21 +480,25 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
             tangent_impulse[i, k, 0] = n1
             tangent_impulse[i, k, 1] = n2
             p = add(scale(t1, n1 - o1), scale(t2, n2 - o2))
-            va, wa = _push(va, wa, -1.0, p, ra, ima, iia)
-            vb, wb = _push(vb, wb, 1.0, p, rb, imb, iib)
+            _apply(qd, ba, -1.0, p, ra, ima, iia)
+            _apply(qd, bb, 1.0, p, rb, imb, iib)
         # -- twisting friction: |impulse about n| <= friction * twist_radius * total normal impulse
         tlim = cons_twist[c, 2] * total_normal
         if cons_twist[c, 0] > 0.0 and (tlim > 0.0 or cons_twist[c, 1] != 0.0):
+            va, wa = _vel(qd, ba)
+            vb, wb = _vel(qd, bb)
             old = cons_twist[c, 1]
             new = old - cons_twist[c, 0] * dot(sub(wb, wa), n)
             new = min(max(new, -tlim), tlim)
             cons_twist[c, 1] = new
             l = scale(n, new - old)
-            wa = _push_angular(wa, -1.0, l, ima, iia)
-            wb = _push_angular(wb, 1.0, l, imb, iib)
+            _apply_angular(qd, ba, -1.0, l, iia)
+            _apply_angular(qd, bb, 1.0, l, iib)
         # -- rolling resistance: |angular impulse| <= rolling_friction * total normal impulse
         rr = contact_rolling_friction[i]
         if rr > 0.0:
+            va, wa = _vel(qd, ba)
+            vb, wb = _vel(qd, bb)
             dw = sub(wb, wa)
             dw = sub(dw, scale(n, dot(dw, n)))           # rolling only: spin about n is twisting friction's
             rm = (cons_rolling_mass[c, 0], cons_rolling_mass[c, 1], cons_rolling_mass[c, 2],
@@ -550,10 +515,8 @@ def _solve_block(items, lo, hi, use_bias, inv_h, push_max, qd, dp, dtheta, inv_m
             for m in range(3):
                 rolling_impulse[i, m] = new3[m]
             l = sub(new3, old3)
-            wa = _push_angular(wa, -1.0, l, ima, iia)
-            wb = _push_angular(wb, 1.0, l, imb, iib)
-        _store(qd, ba, ima, va, wa)
-        _store(qd, bb, imb, vb, wb)
+            _apply_angular(qd, ba, -1.0, l, iia)
+            _apply_angular(qd, bb, 1.0, l, iib)
 
 
 @njit(cache=True)
