@@ -116,7 +116,7 @@ class SolverContext(NamedTuple):
                                   # limit per unit normal impulse m (friction * twist_radius)
 
 
-@njit(cache=True)
+@njit(inline="always")   # called per body per substep: no call overhead
 def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
                             ang_damp, force, torque, gravity, body_q, body_qd, h):
     if body_type[b] != S.DYNAMIC or not body_awake[b]:
@@ -149,7 +149,7 @@ def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, bod
                                 ang_damp, force, torque, gravity, body_q, body_qd, h)
 
 
-@njit(cache=True)
+@njit(inline="always")   # called per body per substep: no call overhead
 def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
     if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
         return
