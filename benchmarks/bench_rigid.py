@@ -54,7 +54,11 @@ Measured 2026-11-25 (rigid-realtime; load 11-15 on the 2 vCPUs, main tree and th
                   asleep 6.53 s, 2.74 mm at rest, 0.89 mm lowest centre), stack 0.508 mm.
                   At the idle 17.5-19.75 ms frame of the issue (narrow 7.5 ms) that is ~14-16 ms: real time,
                   to be re-measured idle with the default command.
-    Wall time, default command, main then this tree (before the solver inlining): 299.1 -> 253.3 and
+    Wall time, default command, near idle (load ~3), this tree / main / this tree / main at 19:07 UTC:
+                  16.35, 18.31, 15.09, 19.24 ms per 1/60 s frame (this tree under 16.7 ms: real time; -11 %
+                  and -22 % against the main run after each); narrow 4.37, 7.46, 4.11, 7.90; solve 10.03,
+                  8.99, 9.11, 9.41 (noise); pile and stack figures identical to main's.
+    Wall time, default command, load 14, main then this tree (before the solver inlining): 299.1 -> 253.3 and
                   186.3 -> 157.3 ms per step (x0.85, x0.84); narrow 91.5 -> 51.3, 56.4 -> 34.9.
     Cold compile, box + sphere on a plane, 60 steps, empty NUMBA_CACHE_DIR: 140.9 -> 55.7 s CPU (the
                   narrow phase's pair families are separate kernels and a box-and-sphere scene never
