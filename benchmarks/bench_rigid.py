@@ -43,6 +43,27 @@ anything; the pile of inertia_pile, 0-3 s window, ms per 1/60 s frame, serial pa
     100-sphere pile (tests/rigid/test_world.py): the default rolling resistance C_rr = 0.002 decelerates the
                   fastest ball by 0.070 m/s per 5 s (C_rr g / 1.4 = 0.0140 m/s^2); all asleep at 85 s, none
                   of the rolling balls ever sleeps without it
+
+Measured 2026-11-25 (rigid-realtime; load 11-15 on the 2 vCPUs, main tree and this one side by side):
+    CPU time per stage (thread time, NUMBA_NUM_THREADS=1, serial path, min of two 0-3 s windows; script in
+    the report: the pile of inertia_pile, timed with time.thread_time instead of perf_counter):
+                  frame 21.80 -> 17.68 and 22.75 -> 17.85 ms (-19 %, -22 %); narrow 7.70 -> 4.17 and
+                  7.81 -> 4.22 (the bundles unpacked once per run of pairs, a 4-array ManifoldOut per pair
+                  call); solve 12.17 -> 11.61, 12.80 -> 11.66 (per-body integrate helpers inlined; in
+                  isolation substeps_serial x0.80-0.96 on three snapshots); pile bit-identical (same hash,
+                  asleep 6.53 s, 2.74 mm at rest, 0.89 mm lowest centre), stack 0.508 mm.
+                  At the idle 17.5-19.75 ms frame of the issue (narrow 7.5 ms) that is ~14-16 ms: real time,
+                  to be re-measured idle with the default command.
+    Wall time, default command, near idle (load ~3), this tree / main / this tree / main at 19:07 UTC:
+                  16.35, 18.31, 15.09, 19.24 ms per 1/60 s frame (this tree under 16.7 ms: real time; -11 %
+                  and -22 % against the main run after each); narrow 4.37, 7.46, 4.11, 7.90; solve 10.03,
+                  8.99, 9.11, 9.41 (noise); pile and stack figures identical to main's.
+    Wall time, default command, load 14, main then this tree (before the solver inlining): 299.1 -> 253.3 and
+                  186.3 -> 157.3 ms per step (x0.85, x0.84); narrow 91.5 -> 51.3, 56.4 -> 34.9.
+    Cold compile, box + sphere on a plane, 60 steps, empty NUMBA_CACHE_DIR: 140.9 -> 55.7 s CPU (the
+                  narrow phase's pair families are separate kernels and a box-and-sphere scene never
+                  compiles GJK/EPA or the triangle routines; one specialisation of the box clipper and of
+                  the solve block instead of one per literal True / False argument).
 """
 
 from __future__ import annotations

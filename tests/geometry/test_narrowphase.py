@@ -195,3 +195,54 @@ def test_speculative_distance_grows_with_speed():
         b.add_sphere(b.add_body(position=(0, 0, 0.6), linear_velocity=(0, 0, -v)), 0.1)
         c, _ = _manifolds(b)
         assert len(c.manifolds()) == expect
+
+
+def test_pair_families_route_each_pair_to_one_kernel_and_a_scene_compiles_only_its_own():
+    """Each canonical type pair belongs to exactly one family (closed form, general convex, mesh, none),
+    matching the routes of the module docstring; ``scene_families`` of a box + sphere + plane scene asks
+    for neither the GJK/EPA kernel nor the mesh kernel (their compile is skipped), a box + capsule scene
+    needs GJK/EPA (box-capsule is general), a heightfield scene the mesh kernel."""
+    from inertia.geometry import shapes as S
+    from inertia.geometry.narrowphase import (FAMILY_CLOSED, FAMILY_GENERAL, FAMILY_MESH, FAMILY_NONE,
+                                              pair_family, scene_families)
+    fam = pair_family.py_func
+    closed = {(S.SPHERE, S.SPHERE), (S.SPHERE, S.BOX), (S.SPHERE, S.CAPSULE), (S.SPHERE, S.PLANE),
+              (S.BOX, S.BOX), (S.BOX, S.PLANE), (S.CAPSULE, S.CAPSULE), (S.CAPSULE, S.PLANE),
+              (S.CYLINDER, S.PLANE), (S.CONVEX_HULL, S.PLANE)}
+    for ta in range(9):
+        for tb in range(ta, 9):
+            f = fam(ta, tb)
+            if tb in (S.TRIANGLE_MESH, S.HEIGHTFIELD):
+                assert f == FAMILY_MESH
+            elif (ta, tb) in closed:
+                assert f == FAMILY_CLOSED
+            elif tb <= S.CONVEX_HULL:
+                assert f == FAMILY_GENERAL
+            else:
+                assert f == FAMILY_NONE
+    assert scene_families([S.PLANE, S.BOX, S.SPHERE, S.BOX]) == (False, False)
+    assert scene_families([S.PLANE, S.BOX, S.CAPSULE]) == (True, False)
+    assert scene_families([S.HEIGHTFIELD, S.SPHERE]) == (False, True)
+
+
+def test_general_and_mesh_kernels_fill_their_pairs_after_the_closed_form_kernel():
+    """A scene with every family: the split kernels give each pair the manifold of its routine (a box on
+    a box and a sphere on a plane by closed forms, a capsule across a box by GJK/EPA with its two
+    clipped points, a sphere on a triangle mesh) and zero points to separated pairs."""
+    b = ModelBuilder()
+    b.add_plane()
+    b.add_box(b.add_body(position=(0, 0, 0.1)), (0.1, 0.1, 0.1))
+    b.add_box(b.add_body(position=(0, 0, 0.299)), (0.1, 0.1, 0.1))
+    b.add_capsule(b.add_body(position=(0, 0, 0.448), orientation=_rot((0, 1, 0), math.pi / 2)), 0.05, 0.05)
+    b.add_sphere(b.add_body(position=(3, 0, 0.099)), 0.1)
+    b.add_triangle_mesh([(5.5, -0.5, 1.0), (6.5, -0.5, 1.0), (6.5, 0.5, 1.0), (5.5, 0.5, 1.0)], [(0, 1, 2), (0, 2, 3)])
+    b.add_sphere(b.add_body(position=(6, 0, 1.099)), 0.1)
+    c, m = _manifolds(b)
+    act = c.manifolds()
+    seps = {tuple(sorted(c.contact_shape[i])): c.contact_separation[i, :c.contact_point_count[i]] for i in act}
+    assert set(seps) == {(0, 1), (1, 2), (2, 3), (0, 4), (5, 6)}
+    assert seps[(1, 2)] == pytest.approx([-0.001] * 4, abs=1e-9)          # box on box (closed form)
+    assert seps[(2, 3)] == pytest.approx([-0.001] * 2, abs=1e-6)          # capsule across the box (GJK/EPA)
+    assert seps[(0, 4)] == pytest.approx([-0.001], abs=1e-12)             # sphere on the plane
+    assert seps[(5, 6)] == pytest.approx([-0.001], abs=1e-9)              # sphere on the mesh
+    assert seps[(0, 1)] == pytest.approx([-0.0] * 4, abs=1e-12)           # lower box resting on the plane

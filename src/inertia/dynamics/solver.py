@@ -116,7 +116,7 @@ class SolverContext(NamedTuple):
                                   # limit per unit normal impulse m (friction * twist_radius)
 
 
-@njit(cache=True)
+@njit(inline="always")   # called per body per substep: no call overhead
 def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
                             ang_damp, force, torque, gravity, body_q, body_qd, h):
     if body_type[b] != S.DYNAMIC or not body_awake[b]:
@@ -149,7 +149,7 @@ def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, bod
                                 ang_damp, force, torque, gravity, body_q, body_qd, h)
 
 
-@njit(cache=True)
+@njit(inline="always")   # called per body per substep: no call overhead
 def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
     if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
         return
@@ -742,15 +742,18 @@ def substeps_serial(ctx, colour_start, colour_items, substeps, h, push_max, body
     body_q, body_qd, body_dp, body_dtheta = ctx.body_q, ctx.body_qd, ctx.body_dp, ctx.body_dtheta
     n_items = colour_start[colour_start.shape[0] - 1]
     inv_h = 1.0 / h
+    # use_bias as a runtime bool (True inside the loop): literal True / False arguments would compile the
+    # solve block twice (Numba specialises on literals)
+    use_bias = substeps > 0
     for _ in range(substeps):
         for b in range(nb):
             _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia,
                                     lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h)
         _warm_range(ctx, colour_items, 0, n_items)
-        _solve_range(ctx, colour_items, 0, n_items, True, inv_h, push_max)
+        _solve_range(ctx, colour_items, 0, n_items, use_bias, inv_h, push_max)
         for b in range(nb):
             _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h)
-        _solve_range(ctx, colour_items, 0, n_items, False, inv_h, push_max)
+        _solve_range(ctx, colour_items, 0, n_items, not use_bias, inv_h, push_max)
 
 
 def serial_versions():

@@ -32,6 +32,16 @@ References
 - Ericson, C. (2005). Real-Time Collision Detection, 5.1.9 (closest points of two segments).
 - Gilbert, Johnson and Keerthi (1988) GJK; van den Bergen (2001) EPA: see ``inertia.geometry.convex``.
 
+Kernels and compilation: pairs fall in families (``pair_family``): closed forms, the general convex path
+(GJK/EPA) and triangle meshes/heightfields. ``narrow_phase_closed`` writes every pair's row (shapes,
+bodies, key, combined material, zeroed impulses) and the closed-form manifolds; ``narrow_phase_general``
+and ``narrow_phase_mesh`` then fill their own pairs' manifolds. A world calls the last two only when its
+shape types can form such pairs (``scene_families``), so a scene of boxes, spheres and planes never
+compiles GJK/EPA or the triangle routines (the largest part of the narrow phase's cold compile). Each
+run of pairs unpacks the bundles into locals once and hands the pair routines a four-array
+``ManifoldOut``, not the whole contact buffer (passing and reading members of a large bundle per pair
+cost half the stage's time). ``narrow_phase`` runs the three in that order.
+
 Limitations
 - Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`
   allocated once per run of pairs; GJK/EPA (``inertia.geometry.convex``) keep their own work arrays.
@@ -52,7 +62,8 @@ from . import shapes as S
 from . import convex as CV
 from ._tup import add, cross, dot, madd, norm, normalize, orthonormal_basis, qrot, qrot_inv, scale, sub
 
-__all__ = ["narrow_phase", "match_warm_start"]
+__all__ = ["narrow_phase", "narrow_phase_closed", "narrow_phase_general", "narrow_phase_mesh", "scene_families",
+           "match_warm_start"]
 
 _inl = njit(inline="always")
 
@@ -521,11 +532,16 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
         _set_normal(ca, i, ne)
         _emit(ca, i, 0, scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
         return 1
+    # one call site with runtime arguments: a literal True / False per branch would compile the clipper
+    # once per literal (Numba specialises on literal arguments)
+    ref_is_a = not use_b
     if use_b:
         n = B[kb] if dot(d, B[kb]) < 0 else scale(B[kb], -1.0)      # B -> A
-        return _box_face_manifold(ca, i, pb, B, hb, kb, n, pa, A, ha, spec, False, 3 + kb, scr)
-    n = A[ka] if dot(d, A[ka]) > 0 else scale(A[ka], -1.0)          # A -> B
-    return _box_face_manifold(ca, i, pa, A, ha, ka, n, pb, B, hb, spec, True, ka, scr)
+        ref_p, ref_ax, ref_h, k, inc_p, inc_ax, inc_h, code = pb, B, hb, kb, pa, A, ha, 3 + kb
+    else:
+        n = A[ka] if dot(d, A[ka]) > 0 else scale(A[ka], -1.0)      # A -> B
+        ref_p, ref_ax, ref_h, k, inc_p, inc_ax, inc_h, code = pa, A, ha, ka, pb, B, hb, ka
+    return _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, spec, ref_is_a, code, scr)
 
 
 
@@ -829,42 +845,71 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
 
 
 # ------------------------------------------------------------------------------------------ dispatch
+# Pair families, each with its own kernel so a scene compiles only the pair routines it can meet (module
+# docstring, "Compilation"): closed forms, the general convex path (GJK/EPA), meshes and heightfields.
+FAMILY_CLOSED, FAMILY_GENERAL, FAMILY_MESH, FAMILY_NONE = 0, 1, 2, 3
+
+
+@njit(inline="always")
+def pair_family(ta, tb):
+    """Family of the canonical pair (ta <= tb) of shape types."""
+    if tb == S.TRIANGLE_MESH or tb == S.HEIGHTFIELD:
+        return FAMILY_MESH
+    if ta == S.SPHERE:
+        if tb == S.SPHERE or tb == S.BOX or tb == S.CAPSULE or tb == S.PLANE:
+            return FAMILY_CLOSED
+    elif ta == S.BOX or ta == S.CAPSULE:
+        if tb == ta or tb == S.PLANE:
+            return FAMILY_CLOSED
+    elif ta == S.CYLINDER or ta == S.CONVEX_HULL:
+        if tb == S.PLANE:
+            return FAMILY_CLOSED
+    if tb <= S.CONVEX_HULL:
+        return FAMILY_GENERAL
+    return FAMILY_NONE
+
+
+def scene_families(shape_type) -> tuple[bool, bool]:
+    """(general, mesh): whether any pair of the shape types present can take the general convex path or
+    the mesh path (conservative: every type pair, same body or not)."""
+    types = sorted({int(t) for t in np.asarray(shape_type)})
+    fams = {pair_family.py_func(ta, tb) for i, ta in enumerate(types) for tb in types[i:]}
+    return FAMILY_GENERAL in fams, FAMILY_MESH in fams
+
+
 @njit(cache=True)
-def _collide(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+def _collide_closed(out, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+    """The closed-form pairs (``pair_family`` FAMILY_CLOSED); 0 for any other pair."""
     pa, qa = _pose(pose, sa)
     pb, qb = _pose(pose, sb)
     A = shapes.shape_params[sa]
     B = shapes.shape_params[sb]
-    if tb == S.TRIANGLE_MESH or tb == S.HEIGHTFIELD:  # meshes/heightfields: geometry/trimesh_collide.py
-        return _tm.collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec)
     if ta == S.SPHERE:
         if tb == S.SPHERE:
-            return _sphere_sphere(ca, i, pa, A[0], pb, B[0], spec)
+            return _sphere_sphere(out, i, pa, A[0], pb, B[0], spec)
         if tb == S.BOX:
-            return _sphere_box(ca, i, pa, A[0], pb, qb, (B[0], B[1], B[2]), spec)
+            return _sphere_box(out, i, pa, A[0], pb, qb, (B[0], B[1], B[2]), spec)
         if tb == S.CAPSULE:
-            return _sphere_capsule(ca, i, pa, A[0], pb, qb, B[0], B[1], spec)
+            return _sphere_capsule(out, i, pa, A[0], pb, qb, B[0], B[1], spec)
         if tb == S.PLANE:
-            return _sphere_plane(ca, i, pa, A[0], pb, qb, spec)
+            return _sphere_plane(out, i, pa, A[0], pb, qb, spec)
     elif ta == S.BOX:
         if tb == S.BOX:
-            return _box_box(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec, scr)
+            return _box_box(out, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec, scr)
         if tb == S.PLANE:
-            return _box_plane(ca, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec, scr)
+            return _box_plane(out, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec, scr)
     elif ta == S.CAPSULE:
         if tb == S.CAPSULE:
-            return _capsule_capsule(ca, i, pa, qa, A[0], A[1], pb, qb, B[0], B[1], spec)
+            return _capsule_capsule(out, i, pa, qa, A[0], A[1], pb, qb, B[0], B[1], spec)
         if tb == S.PLANE:
-            return _capsule_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec)
+            return _capsule_plane(out, i, pa, qa, A[0], A[1], pb, qb, spec)
     elif ta == S.CYLINDER:
         if tb == S.PLANE:
-            return _cylinder_plane(ca, i, pa, qa, A[0], A[1], pb, qb, spec, scr)
+            return _cylinder_plane(out, i, pa, qa, A[0], A[1], pb, qb, spec, scr)
     elif ta == S.CONVEX_HULL:
         if tb == S.PLANE:
-            return _hull_plane(ca, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
+            return _hull_plane(out, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
                                shapes.shape_vert_count[sa], pb, qb, spec, scr)
-    if tb <= S.CONVEX_HULL:
-        return _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr)
     return 0
 
 
@@ -878,63 +923,168 @@ def _body_speed(b, body_qd, radius):
 
 
 @njit(inline="always")
-def _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr):
-    sa, sb = pairs[i, 0], pairs[i, 1]
-    ba, bb = shapes.shape_body[sa], shapes.shape_body[sb]
-    ca.contact_shape[i, 0] = sa
-    ca.contact_shape[i, 1] = sb
-    ca.contact_body[i, 0] = ba
-    ca.contact_body[i, 1] = bb
-    ca.contact_key[i] = keys[i]
-    ca.contact_friction[i] = math.sqrt(shapes.shape_friction[sa] * shapes.shape_friction[sb])
-    ca.contact_restitution[i] = max(shapes.shape_restitution[sa], shapes.shape_restitution[sb])
-    ca.contact_rolling_friction[i] = max(shapes.shape_rolling_friction[sa],
-                                         shapes.shape_rolling_friction[sb])
-    ca.contact_is_sensor[i] = shapes.shape_is_sensor[sa] or shapes.shape_is_sensor[sb]
-    # speculative distance: what the pair can close within the step
+def _speculative_distance(ba, bb, margin_a, margin_b, body_qd, body_bound_radius, dt):
+    """What the pair can close within the step, plus the larger margin."""
     va, wa = _body_speed(ba, body_qd, body_bound_radius)
     vb, wb = _body_speed(bb, body_qd, body_bound_radius)
-    spec = max(shapes.shape_margin[sa], shapes.shape_margin[sb]) + dt * (norm(sub(vb, va)) + wa + wb)
-    cnt = _collide(ca, i, shapes.shape_type[sa], shapes.shape_type[sb], sa, sb, shapes, pose, spec, scr)
-    ca.contact_point_count[i] = cnt
-    n = (ca.contact_normal[i, 0], ca.contact_normal[i, 1], ca.contact_normal[i, 2])
+    return max(margin_a, margin_b) + dt * (norm(sub(vb, va)) + wa + wb)
+
+
+@njit(inline="always")
+def _tangents(i, contact_normal, contact_tangent):
+    n = (contact_normal[i, 0], contact_normal[i, 1], contact_normal[i, 2])
     t1, t2 = orthonormal_basis(n)
     for m in range(3):
-        ca.contact_tangent[i, 0, m] = t1[m]
-        ca.contact_tangent[i, 1, m] = t2[m]
-        ca.contact_rolling_impulse[i, m] = 0.0
-    for k in range(4):
-        ca.contact_normal_impulse[i, k] = 0.0
-        ca.contact_tangent_impulse[i, k, 0] = 0.0
-        ca.contact_tangent_impulse[i, k, 1] = 0.0
-        ca.contact_max_normal_impulse[i, k] = 0.0
-        ca.contact_total_normal_impulse[i, k] = 0.0
+        contact_tangent[i, 0, m] = t1[m]
+        contact_tangent[i, 1, m] = t2[m]
+
+
+class ManifoldOut(NamedTuple):
+    """The four contact arrays a pair routine writes (``_emit``, ``_set_normal``): a small bundle, so a
+    call per pair does not pass (and reference-count) the whole contact buffer."""
+    contact_normal: np.ndarray
+    contact_point: np.ndarray
+    contact_separation: np.ndarray
+    contact_feature: np.ndarray
 
 
 @njit(cache=True)
 def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """Every pair of ``lo:hi``: materials, keys, zeroed impulses, and the manifold of the closed-form
+    pairs (the other families' kernels fill theirs afterwards). The bundles' arrays are unpacked once
+    into locals: reading a NamedTuple member inside the loop takes and drops a reference each time."""
     scr = new_scratch()                 # one scratch per run of pairs: no allocation per pair
+    out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
+    shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
+    shape_friction, shape_restitution = shapes.shape_friction, shapes.shape_restitution
+    shape_rolling_friction, shape_is_sensor = shapes.shape_rolling_friction, shapes.shape_is_sensor
+    contact_shape, contact_body, contact_key = ca.contact_shape, ca.contact_body, ca.contact_key
+    contact_friction, contact_restitution = ca.contact_friction, ca.contact_restitution
+    contact_rolling_friction, contact_is_sensor = ca.contact_rolling_friction, ca.contact_is_sensor
+    contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
+                                                            ca.contact_tangent)
+    contact_rolling_impulse, contact_normal_impulse = ca.contact_rolling_impulse, ca.contact_normal_impulse
+    contact_tangent_impulse, contact_max_normal_impulse = (ca.contact_tangent_impulse,
+                                                           ca.contact_max_normal_impulse)
+    contact_total_normal_impulse = ca.contact_total_normal_impulse
     for i in range(lo, hi):
-        _narrow_one(i, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr)
+        sa, sb = pairs[i, 0], pairs[i, 1]
+        ba, bb = shape_body[sa], shape_body[sb]
+        contact_shape[i, 0] = sa
+        contact_shape[i, 1] = sb
+        contact_body[i, 0] = ba
+        contact_body[i, 1] = bb
+        contact_key[i] = keys[i]
+        contact_friction[i] = math.sqrt(shape_friction[sa] * shape_friction[sb])
+        contact_restitution[i] = max(shape_restitution[sa], shape_restitution[sb])
+        contact_rolling_friction[i] = max(shape_rolling_friction[sa], shape_rolling_friction[sb])
+        contact_is_sensor[i] = shape_is_sensor[sa] or shape_is_sensor[sb]
+        ta, tb = shape_type[sa], shape_type[sb]
+        cnt = 0
+        if pair_family(ta, tb) == FAMILY_CLOSED:
+            spec = _speculative_distance(ba, bb, shape_margin[sa], shape_margin[sb], body_qd, body_bound_radius,
+                                         dt)
+            cnt = _collide_closed(out, i, ta, tb, sa, sb, shapes, pose, spec, scr)
+        contact_point_count[i] = cnt
+        _tangents(i, contact_normal, contact_tangent)
+        for m in range(3):
+            contact_rolling_impulse[i, m] = 0.0
+        for k in range(4):
+            contact_normal_impulse[i, k] = 0.0
+            contact_tangent_impulse[i, k, 0] = 0.0
+            contact_tangent_impulse[i, k, 1] = 0.0
+            contact_max_normal_impulse[i, k] = 0.0
+            contact_total_normal_impulse[i, k] = 0.0
+
+
+@njit(cache=True)
+def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents."""
+    scr = new_scratch()
+    out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
+    shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
+    contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
+                                                            ca.contact_tangent)
+    for i in range(lo, hi):
+        sa, sb = pairs[i, 0], pairs[i, 1]
+        ta, tb = shape_type[sa], shape_type[sb]
+        if pair_family(ta, tb) != FAMILY_GENERAL:
+            continue
+        spec = _speculative_distance(shape_body[sa], shape_body[sb], shape_margin[sa], shape_margin[sb], body_qd,
+                                     body_bound_radius, dt)
+        contact_point_count[i] = _convex_general(out, i, ta, tb, sa, sb, shapes, pose, spec, scr)
+        _tangents(i, contact_normal, contact_tangent)
+
+
+@njit(cache=True)
+def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """The pairs of ``lo:hi`` with a triangle mesh or heightfield (``geometry/trimesh_collide.py``)."""
+    out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
+    shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
+    contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
+                                                            ca.contact_tangent)
+    for i in range(lo, hi):
+        sa, sb = pairs[i, 0], pairs[i, 1]
+        ta, tb = shape_type[sa], shape_type[sb]
+        if pair_family(ta, tb) != FAMILY_MESH:
+            continue
+        spec = _speculative_distance(shape_body[sa], shape_body[sb], shape_margin[sa], shape_margin[sb], body_qd,
+                                     body_bound_radius, dt)
+        contact_point_count[i] = _tm.collide_triangles(out, i, ta, sa, sb, shapes, pose, spec)
+        _tangents(i, contact_normal, contact_tangent)
+
+
+# contiguous runs of pairs, one call each (passing the bundles costs once per run, not per pair)
+_RUNS = 16
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
-    """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring)."""
-    # contiguous runs of pairs, one call each (passing the bundles costs once per run, not per pair)
-    nch = min(npairs, 16)
+def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """Every candidate pair's row, and the manifolds of the closed-form pairs (runs in parallel)."""
+    nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, keys, shapes, pose, body_qd,
                       body_bound_radius, dt, ca)
 
 
+@njit(cache=True, parallel=True)
+def narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """The manifolds of the general convex pairs (GJK/EPA), after ``narrow_phase_closed``."""
+    nch = min(npairs, _RUNS)
+    for ch in prange(nch):
+        _narrow_range_general(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, shapes, pose, body_qd,
+                              body_bound_radius, dt, ca)
+
+
+@njit(cache=True, parallel=True)
+def narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
+    """The manifolds of the mesh and heightfield pairs, after ``narrow_phase_closed``."""
+    nch = min(npairs, _RUNS)
+    for ch in prange(nch):
+        _narrow_range_mesh(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, shapes, pose, body_qd,
+                           body_bound_radius, dt, ca)
+
+
+def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, families=None):
+    """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring): the closed-form
+    kernel, then the general and mesh kernels when the scene's shape types can form such pairs
+    (``families = (general, mesh)``, default ``scene_families(shapes.shape_type)``)."""
+    general, mesh = scene_families(shapes.shape_type) if families is None else families
+    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+    if general:
+        narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+    if mesh:
+        narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+
+
 @njit(cache=True)
 def compact_active(ca, npairs):
     """Scan: indices of manifolds with points, in pair order. Returns their count."""
+    count, active = ca.contact_point_count, ca.active
     n = 0
     for i in range(npairs):
-        if ca.contact_point_count[i] > 0:
-            ca.active[n] = i
+        if count[i] > 0:
+            active[n] = i
             n += 1
     return n
 
@@ -946,47 +1096,55 @@ def match_warm_start(prev, prev_count, cur, cur_count, match_distance):
     else of the nearest previous point within ``match_distance`` (m) -- clipping can rename a corner
     when a face tilts past a side plane or the reference face swaps, and losing its impulse would make
     a stack jitter. Tangent impulses are re-projected on the new tangent basis."""
+    # the bundles' arrays as locals (a member read inside the loop costs a reference count)
+    p_key, p_count, p_feature, p_point = prev.contact_key, prev.contact_point_count, prev.contact_feature, \
+        prev.contact_point
+    p_rolling, p_normal_imp, p_tangent_imp, p_tangent = prev.contact_rolling_impulse, \
+        prev.contact_normal_impulse, prev.contact_tangent_impulse, prev.contact_tangent
+    c_key, c_count, c_feature, c_point = cur.contact_key, cur.contact_point_count, cur.contact_feature, \
+        cur.contact_point
+    c_rolling, c_normal_imp, c_tangent_imp, c_tangent = cur.contact_rolling_impulse, \
+        cur.contact_normal_impulse, cur.contact_tangent_impulse, cur.contact_tangent
     j = 0
     md2 = match_distance * match_distance
     for i in range(cur_count):
-        key = cur.contact_key[i]
-        while j < prev_count and prev.contact_key[j] < key:
+        key = c_key[i]
+        while j < prev_count and p_key[j] < key:
             j += 1
         if j >= prev_count:
             break
-        if prev.contact_key[j] != key or cur.contact_point_count[i] == 0:
+        if p_key[j] != key or c_count[i] == 0:
             continue
         for m in range(3):
-            cur.contact_rolling_impulse[i, m] = prev.contact_rolling_impulse[j, m]
-        for k in range(cur.contact_point_count[i]):
-            f = cur.contact_feature[i, k]
+            c_rolling[i, m] = p_rolling[j, m]
+        for k in range(c_count[i]):
+            f = c_feature[i, k]
             found = -1
-            for kp in range(prev.contact_point_count[j]):
-                if prev.contact_feature[j, kp] == f:
+            for kp in range(p_count[j]):
+                if p_feature[j, kp] == f:
                     found = kp
                     break
             if found < 0:
                 best = md2
-                for kp in range(prev.contact_point_count[j]):
+                for kp in range(p_count[j]):
                     d2 = 0.0
                     for m in range(3):
-                        d = cur.contact_point[i, k, m] - prev.contact_point[j, kp, m]
+                        d = c_point[i, k, m] - p_point[j, kp, m]
                         d2 += d * d
                     if d2 < best:
                         best, found = d2, kp
             if found < 0:
                 continue
             kp = found
-            cur.contact_normal_impulse[i, k] = prev.contact_normal_impulse[j, kp]
+            c_normal_imp[i, k] = p_normal_imp[j, kp]
             # old tangent impulse vector, expressed in the new tangent basis
-            g0 = prev.contact_tangent_impulse[j, kp, 0]
-            g1 = prev.contact_tangent_impulse[j, kp, 1]
+            g0 = p_tangent_imp[j, kp, 0]
+            g1 = p_tangent_imp[j, kp, 1]
             for ax in range(2):
                 acc = 0.0
                 for m in range(3):
-                    acc += (g0 * prev.contact_tangent[j, 0, m] + g1 * prev.contact_tangent[j, 1, m]) \
-                        * cur.contact_tangent[i, ax, m]
-                cur.contact_tangent_impulse[i, k, ax] = acc
+                    acc += (g0 * p_tangent[j, 0, m] + g1 * p_tangent[j, 1, m]) * c_tangent[i, ax, m]
+                c_tangent_imp[i, k, ax] = acc
 
 
 from . import trimesh_collide as _tm  # noqa: E402  (imports this module's manifold helpers)

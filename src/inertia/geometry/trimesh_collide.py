@@ -7,9 +7,9 @@ row keeps its grid points (x, y, height) in ``geom_vertices`` (row ``i * ny + j`
 (nx, ny, dx, dy); cell (i, j) holds the triangles (v00, v10, v11) and (v00, v11, v01), enumerated on the
 fly from the cells under a query box.
 
-Narrow phase (stage ``narrow_phase``, called from ``narrowphase._collide`` for pairs whose B is a mesh or
-heightfield), all in the mesh's local frame, candidates = triangles under A's box fattened by the
-speculative distance:
+Narrow phase (stage ``narrow_phase``, called from ``narrowphase.narrow_phase_mesh`` for pairs whose B
+is a mesh or heightfield), all in the mesh's local frame, candidates = triangles under A's box fattened
+by the speculative distance:
 - sphere: the closest point of each candidate triangle (Ericson 2005, 5.1.5), normal from that point to
   the sphere centre (so edges and vertices round correctly; a centre behind the face takes the face
   normal); triangles giving the same normal (shared edge or vertex, coplanar faces) count once, distinct

@@ -85,7 +85,8 @@ from ..dynamics.contacts import Contacts
 from ..errors import SimulationDiverged
 from ..geometry import shapes as S
 from ..geometry.broadphase import shape_world_bounds, sort_and_sweep
-from ..geometry.narrowphase import compact_active, match_warm_start, narrow_phase
+from ..geometry.narrowphase import (compact_active, match_warm_start, narrow_phase_closed, narrow_phase_general,
+                                    narrow_phase_mesh, scene_families)
 from ..geometry.toi import time_of_impact_batch
 from ..model import Control, Model, State
 
@@ -97,7 +98,9 @@ STAGES = ("broad_phase", "narrow_phase", "islands", "solve", "toi", "finalize")
 class _Kernels:
     def __init__(self, parallel: bool):
         self.shape_world_bounds = shape_world_bounds
-        self.narrow_phase = narrow_phase
+        self.narrow_phase_closed = narrow_phase_closed
+        self.narrow_phase_general = narrow_phase_general
+        self.narrow_phase_mesh = narrow_phase_mesh
         self.time_of_impact_batch = time_of_impact_batch
         if parallel:
             self.integrate_velocities = sv.integrate_velocities
@@ -112,7 +115,9 @@ class _Kernels:
             for name, fn in sv.serial_versions().items():
                 setattr(self, name, fn)
             self.shape_world_bounds = serial_twin(shape_world_bounds)
-            self.narrow_phase = serial_twin(narrow_phase)
+            self.narrow_phase_closed = serial_twin(narrow_phase_closed)
+            self.narrow_phase_general = serial_twin(narrow_phase_general)
+            self.narrow_phase_mesh = serial_twin(narrow_phase_mesh)
             self.time_of_impact_batch = serial_twin(time_of_impact_batch)
 
 
@@ -185,6 +190,7 @@ class RigidWorld:
         m = self.model
         nb, ns = m.body_count, m.shape_count
         self._shapes = m.shapes()
+        self._families = scene_families(m.shape_type)      # (general convex pairs, mesh pairs) possible
         self._shape_pose = np.zeros((ns, 7))
         self._aabb = np.zeros((ns, 6))
         self._order = np.zeros(ns, np.int64)
@@ -273,8 +279,17 @@ class RigidWorld:
         c.reserve(npairs)
         ca = c.arrays()
         # speculative=False: only the shapes' margins (dt = 0 closes nothing), as a test of the TOI sweep
-        self._k.narrow_phase(self._pairs, self._keys, npairs, self._shapes, self._shape_pose, st.body_qd,
-                             m.body_bound_radius, self.dt if self.speculative else 0.0, ca)
+        dt = self.dt if self.speculative else 0.0
+        self._k.narrow_phase_closed(self._pairs, self._keys, npairs, self._shapes, self._shape_pose, st.body_qd,
+                                    m.body_bound_radius, dt, ca)
+        # the other families' kernels only when the scene's shape types can pair that way: a box-and-sphere
+        # scene never compiles GJK/EPA or the triangle routines
+        if self._families[0]:
+            self._k.narrow_phase_general(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
+                                         m.body_bound_radius, dt, ca)
+        if self._families[1]:
+            self._k.narrow_phase_mesh(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
+                                      m.body_bound_radius, dt, ca)
         c.count = npairs
         c.active_count = compact_active(ca, npairs)
         if self.rolling_resistance > 0.0:
