@@ -102,7 +102,9 @@ MAX_CELLS = 1 << 26
 TAIT_EXPONENT = 7.0
 RELAXATION = 0.5  # relaxed Jacobi for the DFSPH solves (see kernels.pressure_increment)
 UNCONVERGED_SHRINK = 0.5
-BOUNDARY_PRESSURE = {"akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
+import os
+_MLSMODE = int(os.environ.get("MLSMODE", "1"))
+BOUNDARY_PRESSURE = {"mls": 1.0, "akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
 
 
 def _lattice(lo, hi, spacing, origin=None):
@@ -235,7 +237,7 @@ class SPHFluid:
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
                  divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
                  dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
-                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="akinci",
+                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="mls",
                  warm_start_divergence=False):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
@@ -332,7 +334,10 @@ class SPHFluid:
             raise ValueError(f"boundary_pressure must be one of {sorted(BOUNDARY_PRESSURE)}; got {boundary_pressure!r}")
         self.boundary_pressure = boundary_pressure
         self._mirror = BOUNDARY_PRESSURE[boundary_pressure]
+        self._g3 = np.zeros(3)
+        self._g3[:dim] = self.gravity
         self._hydrostatic_wall = boundary_pressure == "mirror"   # Adami et al.'s wall share comes with the mirror
+        self._mls = boundary_pressure == "mls"   # Band et al. 2018's extrapolated boundary pressure
         self.warm_start_divergence = bool(warm_start_divergence)
         self._dt_scale = 1.0  # adaptive-step factor of the DFSPH convergence control (saved in the state)
         self.fixed_dt = None
@@ -804,8 +809,39 @@ class SPHFluid:
         self._b_tmp1 = np.empty(nbnd)
         self._b_tmpi = np.empty(nbnd, np.int64)
         self._k_floor = np.zeros(self.capacity)  # k_i of the hydrostatic wall kick (kernels)
+        # MLS boundary pressure (kernels.boundary_mls_*): boundary->fluid lists, weights, k_b totals
+        self._bt_start = np.zeros(nbnd + 1, np.int64)
+        self._bt = self._alloc_transpose(max(16, 4 * nbnd))
+        self._kb_dens = np.zeros(nbnd)   # k_b of the density solve's total (WCSPH: of the Tait pressure)
+        self._kb_div = np.zeros(nbnd)    # k_b of the divergence solve's total
+        self._kb_step = np.zeros(nbnd)   # the change applied by the last boundary_pressure_kick
+        self._kb_sum = np.zeros(nbnd)
+        self._mls_scratch = np.zeros((nbnd, 4, 5))
         self._bodies_moved = bool(self._bodies)
         self._sort_boundary()
+
+    def _alloc_transpose(self, m):
+        return np.zeros(m, np.int64), np.zeros(m), np.zeros(m)   # fluid index, W_bf, beta_bf
+
+    def _mls_weights(self):
+        """Boundary->fluid lists and the MLS weights of this step's positions (Band et al. 2018)."""
+        nbnd = self._B.x.shape[0]
+        pairs = int(self._nbn.start[self._n])
+        if pairs > self._bt[0].shape[0]:
+            self._bt = self._alloc_transpose(int(pairs * 1.25) + 16)
+        bt_i, bt_w, beta = self._bt
+        _k.boundary_transpose(self._nbn, self._n, nbnd, self._bt_start, bt_i, bt_w)
+        self._K.boundary_mls_weights(self._F, self._B, self.grid, nbnd, self._bt_start, bt_i, bt_w, self.h, beta,
+                                     self._mls_scratch)
+
+    def _mls_push(self, k_fluid, kb_total, dt, from_total):
+        """Extrapolate k_fluid (a total or an iteration's increment) to the boundary and push the
+        fluid with the boundary particles' share of the pressure term."""
+        nbnd = self._B.x.shape[0]
+        self._K.boundary_mls_pressure(self._F, self._B, self.grid, nbnd, self._bt_start, self._bt[0], self._bt[1], self._bt[2],
+                                      k_fluid,
+                                      self.rest_density, self._g3, from_total, kb_total, self._kb_step)
+        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, self._kb_step)
 
     def _sort_boundary(self):
         B = self._B
@@ -892,17 +928,23 @@ class SPHFluid:
         ``local_density_tolerance``; the divergence solve on the mean only (as the paper)."""
         F, nf, nb, B, n, m = self._F, self._nf, self._nbn, self._B, self._n, self.mass
         total = F.k_dens if density_mode else F.k_div
+        kb_total = self._kb_dens if density_mode else self._kb_div
         if density_mode:
             # warm start with the previous step's pressure (Bender & Koschier 2017, sec. 4.3):
             # the constant-density solve balances the same forces (gravity) every step
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
+            if self._mls:
+                self._mls_push(total, kb_total, dt, _MLSMODE)
         else:
             # optional warm start of the divergence solve (Bender & Koschier 2017): at rest it
             # then carries part of the hydrostatic load (see warm_start_divergence)
             if self.warm_start_divergence:
                 self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
+                if self._mls:
+                    self._mls_push(total, kb_total, dt, _MLSMODE)
             else:
                 total[:n] = 0.0
+                kb_total[:] = 0.0
         scale = 1.0 / self.rest_density * (1.0 if density_mode else dt)
         local = self.local_density_tolerance if density_mode else math.inf
         # compression present at the start of a step shorter than the CFL step at the flow's
@@ -922,6 +964,8 @@ class SPHFluid:
             if (converged and it >= 1) or it >= self.max_iterations:
                 break
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True, self._mirror)
+            if self._mls:
+                self._mls_push(F.kappa, kb_total, dt, False)
             it += 1
         return it, err, big, converged
 
@@ -974,6 +1018,8 @@ class SPHFluid:
         self._nbn, _ = self._neighbour_lists(self._B.x, self._b_start, False, self._nbn)
         nf, nb, B = self._nf, self._nbn, self._B
         self.stats["neighbours_per_particle"] = pairs / max(n, 1)
+        if self._mls:
+            self._mls_weights()
         t0 = self._tick("neighbours", t0)
         # 3. density
         self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._mirror)
@@ -1039,6 +1085,8 @@ class SPHFluid:
         else:
             self._K.tait_pressure(F, n, self.rest_density, self.tait_stiffness, TAIT_EXPONENT)
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.k_dens, F.k_dens, False, self._mirror)
+            if self._mls:
+                self._mls_push(F.k_dens, self._kb_dens, dt, True)
             np.subtract(F.rho[:n], self.rest_density, out=self._tmp1[:n])
             np.maximum(self._tmp1[:n], 0.0, out=self._tmp1[:n])
             self.stats["density_error"] = self._reduce(self._tmp1, n)[0] / max(n, 1) / self.rest_density
@@ -1050,6 +1098,10 @@ class SPHFluid:
             if self._hydrostatic_wall:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
                 _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
                                            self.body_torque)
+            if self._mls:   # the boundary particles' extrapolated pressure (Band et al. 2018)
+                np.add(self._kb_dens, self._kb_div, out=self._kb_sum)
+                _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_sum, self.body_force,
+                                                 self.body_torque)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)

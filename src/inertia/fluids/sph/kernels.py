@@ -695,3 +695,220 @@ def cg_direction(n, beta, z, p):
 
 
 _PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_update", "cg_direction")
+
+
+# --------------------------------------------------------------------------- MLS boundary pressure
+# Band, S., Gissler, C., Peer, A. & Teschner, M. (2018), "MLS pressure boundaries for divergence-free
+# and viscous SPH fluids", Computers & Graphics 76: every boundary particle b carries the pressure of
+# the linear moving-least-squares fit of the fluid pressure around it, evaluated at x_b:
+#     p_b = sum_f beta_bf p_f,  beta_bf = W_bf (c_0 + c . (x_f - x_b) / h),  M c = e_0,
+#     M = sum_f W_bf [1, r_f / h] [1, r_f / h]^T  (r_f = x_f - x_b),
+# and the fluid's pressure acceleration takes it into the symmetric sum,
+#     a_i = -sum_j m (k_i + k_j) g_ij - sum_b psi_b (k_i + k_b) g_ib,  k_b = p_b / rho0^2.
+# A linear pressure field (hydrostatics) is reproduced exactly at the wall, so the fluid row on a wall
+# feels the same pressure gradient as a row inside the fluid. Where the fit is degenerate (fewer than
+# D + 1 fluid neighbours, or all of them on one line/plane: a one-row film) the weights fall back to
+# the Shepard average beta_bf = W_bf / sum_f W_bf (constant extrapolation). p_b >= 0 (no suction).
+# The DFSPH solves carry it incrementally: each iteration extrapolates the fluid increments kappa
+# (``boundary_mls_pressure``) and pushes with them (``boundary_pressure_kick``).
+
+
+@njit(cache=True)
+def boundary_transpose(nb, n, nbound, bt_start, bt_i, bt_w):
+    """The boundary->fluid lists from the fluid->boundary CSR ``nb`` (serial, fixed order:
+    deterministic): fluid neighbours of boundary particle b are bt_i[bt_start[b]:bt_start[b+1]]
+    (ascending fluid index) with W_bf in bt_w. bt_start (nbound + 1,) int64."""
+    for b in range(nbound + 1):
+        bt_start[b] = 0
+    for k in range(nb.start[0], nb.start[n]):
+        bt_start[nb.j[k] + 1] += 1
+    for b in range(nbound):
+        bt_start[b + 1] += bt_start[b]
+    for i in range(n):
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            q = bt_start[b]
+            bt_i[q] = i
+            bt_w[q] = nb.w[k]
+            bt_start[b] = q + 1
+    for b in range(nbound, 0, -1):  # the fill advanced every start to its end: shift back
+        bt_start[b] = bt_start[b - 1]
+    bt_start[0] = 0
+
+
+@njit(cache=True, parallel=True)
+def boundary_mls_weights(F, B, grid, nbound, bt_start, bt_i, bt_w, h, beta, scratch):
+    """beta_bf of the linear MLS extrapolation to every boundary particle (see the section comment);
+    scratch (nbound, 4, 5) holds each particle's augmented moment matrix (no allocation). The fit
+    is degenerate when a pivot of the (normalised) moment matrix falls below 1e-3 of M_00: then
+    the Shepard weights."""
+    F_x = F.x
+    dim = F_x.shape[1]
+    m = dim + 1
+    for b in prange(nbound):
+        a0 = bt_start[b]
+        a1 = bt_start[b + 1]
+        if a1 == a0:
+            continue
+        A = scratch[b]
+        for r in range(m):
+            for c in range(m + 1):
+                A[r, c] = 0.0
+        wsum = 0.0
+        for q in range(a0, a1):
+            f = bt_i[q]
+            w = bt_w[q]
+            wsum += w
+            e0 = 1.0
+            e1 = _min_image(F_x[f, 0] - B.x[b, 0], 0, grid) / h
+            e2 = _min_image(F_x[f, 1] - B.x[b, 1], 1, grid) / h
+            e3 = _min_image(F_x[f, 2] - B.x[b, 2], 2, grid) / h if dim == 3 else 0.0
+            for r in range(m):
+                er = e0 if r == 0 else (e1 if r == 1 else (e2 if r == 2 else e3))
+                for c in range(m):
+                    ec = e0 if c == 0 else (e1 if c == 1 else (e2 if c == 2 else e3))
+                    A[r, c] += w * er * ec
+        A[0, m] = 1.0
+        scale = A[0, 0]
+        ok = a1 - a0 >= m
+        # Gaussian elimination with partial pivoting on [M | e_0]
+        for c in range(m):
+            if not ok:
+                break
+            p = c
+            for r in range(c + 1, m):
+                if abs(A[r, c]) > abs(A[p, c]):
+                    p = r
+            if abs(A[p, c]) < 1e-3 * scale:
+                ok = False
+                break
+            if p != c:
+                for k in range(m + 1):
+                    t = A[c, k]
+                    A[c, k] = A[p, k]
+                    A[p, k] = t
+            for r in range(c + 1, m):
+                fac = A[r, c] / A[c, c]
+                for k in range(c, m + 1):
+                    A[r, k] -= fac * A[c, k]
+        if ok:
+            for r in range(m - 1, -1, -1):  # back substitution: the solution into column m
+                s = A[r, m]
+                for k in range(r + 1, m):
+                    s -= A[r, k] * A[k, m]
+                A[r, m] = s / A[r, r]
+            for q in range(a0, a1):
+                f = bt_i[q]
+                s = A[0, m]
+                s += A[1, m] * _min_image(F_x[f, 0] - B.x[b, 0], 0, grid) / h
+                s += A[2, m] * _min_image(F_x[f, 1] - B.x[b, 1], 1, grid) / h
+                if dim == 3:
+                    s += A[3, m] * _min_image(F_x[f, 2] - B.x[b, 2], 2, grid) / h
+                beta[q] = bt_w[q] * s
+        else:
+            for q in range(a0, a1):
+                beta[q] = bt_w[q] / wsum
+
+
+@njit(cache=True, parallel=True)
+def boundary_mls_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, beta, k_fluid, rho0, gravity, from_total, kb_total,
+                          kb_step):
+    """Boundary k_b = p_b / rho0^2 from the fluid's k (p_f = k_f rho_f^2) by the MLS weights.
+    from_total: k_fluid is a running total; kb_total = max(0, extrapolation), kb_step = kb_total.
+    Otherwise k_fluid is an increment (a DFSPH iteration's kappa): kb_total += the extrapolated
+    increment, clamped so that kb_total stays >= 0, and kb_step = the change of kb_total (what
+    ``boundary_pressure_kick`` applies)."""
+    F_rho = F.rho
+    inv = 1.0 / (rho0 * rho0)
+    for b in prange(nbound):
+        p = 0.0
+        if from_total == 1:   # the MLS fit (Band et al. 2018)
+            for q in range(bt_start[b], bt_start[b + 1]):
+                f = bt_i[q]
+                p += beta[q] * k_fluid[f] * F_rho[f] * F_rho[f]
+        elif from_total == 3:   # Shepard average plus the body force's share (Adami et al. 2012)
+            wsum = 0.0
+            dim = F.x.shape[1]
+            for q in range(bt_start[b], bt_start[b + 1]):
+                f = bt_i[q]
+                hyd = gravity[0] * _min_image(B.x[b, 0] - F.x[f, 0], 0, grid)
+                hyd += gravity[1] * _min_image(B.x[b, 1] - F.x[f, 1], 1, grid)
+                if dim == 3:
+                    hyd += gravity[2] * _min_image(B.x[b, 2] - F.x[f, 2], 2, grid)
+                p += bt_w[q] * (k_fluid[f] * F_rho[f] * F_rho[f] + F_rho[f] * hyd)
+                wsum += bt_w[q]
+            if wsum > 0.0:
+                p /= wsum
+        else:            # an iteration's increment: the Shepard average (a convex combination)
+            wsum = 0.0
+            for q in range(bt_start[b], bt_start[b + 1]):
+                f = bt_i[q]
+                p += bt_w[q] * k_fluid[f] * F_rho[f] * F_rho[f]
+                wsum += bt_w[q]
+            if wsum > 0.0:
+                p /= wsum
+        if from_total:
+            k = p * inv
+            if k < 0.0:
+                k = 0.0
+            kb_total[b] = k
+            kb_step[b] = k
+        else:
+            k = kb_total[b] + p * inv
+            if k < 0.0:
+                k = 0.0
+            kb_step[b] = k - kb_total[b]
+            kb_total[b] = k
+
+
+@njit(cache=True, parallel=True)
+def boundary_pressure_kick(F, nb, B, n, dt, kb):
+    """v_i -= dt sum_b psi_b kb_b g_ib: the boundary particles' own pressure share of the symmetric
+    sum (the k_i share is in ``apply_pressure`` with bfac = 1)."""
+    F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
+    F_x = F.x
+    dim = F_x.shape[1]
+    for i in prange(n):
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            s = B.psi[b] * kb[b]
+            ax -= s * nb.g[k, 0]
+            ay -= s * nb.g[k, 1]
+            if dim == 3:
+                az -= s * nb.g[k, 2]
+        F_v[i, 0] += dt * ax
+        F_v[i, 1] += dt * ay
+        if dim == 3:
+            F_v[i, 2] += dt * az
+
+
+@njit(cache=True)
+def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb, force, torque):
+    """Adds to force, torque (nbody, 3) the reaction of ``boundary_pressure_kick`` on the bodies'
+    particles: f_b = m psi_b kb_b g_ib, torque (x_b - com) x f_b (serial, fixed order)."""
+    dim = F.x.shape[1]
+    for i in range(n):
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            body = B.body[b]
+            if body < 0:
+                continue
+            s = mass * B.psi[b] * kb[b]
+            fx = s * nb.g[k, 0]
+            fy = s * nb.g[k, 1]
+            fz = s * nb.g[k, 2] if dim == 3 else 0.0
+            px = B.x[b, 0] - com[body, 0]
+            py = B.x[b, 1] - com[body, 1]
+            pz = (B.x[b, 2] - com[body, 2]) if dim == 3 else 0.0
+            force[body, 0] += fx
+            force[body, 1] += fy
+            force[body, 2] += fz
+            torque[body, 0] += py * fz - pz * fy
+            torque[body, 1] += pz * fx - px * fz
+            torque[body, 2] += px * fy - py * fx
+
+
+_PARALLEL_KERNELS = _PARALLEL_KERNELS + ("boundary_mls_weights", "boundary_mls_pressure", "boundary_pressure_kick")
