@@ -150,9 +150,10 @@ def _inverse_transform(pose, p):
 
 
 def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, world_origin):
-    """Boundary bands of every shape row. Returns a list of (points (M, 3), body, local (M, 3)):
-    body -1 with world points for static geometry; the rigid body index with body-frame points
-    (``local``) and their world positions at ``body_q`` for dynamic/kinematic bodies.
+    """Boundary bands of every shape row. Returns a list of (points (M, 3), body, local (M, 3),
+    normal (M, 3)): body -1 with world points and normals for static geometry; the rigid body
+    index with body-frame points (``local``) and normals and their world positions at ``body_q``
+    for dynamic/kinematic bodies. The normal is the unit gradient of the signed distance.
     ``lattice(lo, hi, spacing, origin)`` makes lattice points (``fluid._lattice``)."""
     parts = []
     types = np.asarray(model.shape_type)
@@ -182,14 +183,30 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
             keep = (sd < 0) & (sd >= -support)
             in_body = _transform(local_pose, pts[keep])
             world = _transform(np.asarray(body_q[body], float), in_body)
-            parts.append((world, body, in_body))
+            normal = _surface_normal(st, params, pts[keep], verts, spacing) @ quat_to_matrices(local_pose[3:7])[0].T
+            parts.append((world, body, in_body, normal))
         else:
             pose = local_pose if body < 0 else _compose(np.asarray(body_q[body], float), local_pose)
             pts = lattice(world_lo, world_hi, spacing, world_origin)
-            sd = shape_signed_distance(st, params, _inverse_transform(pose, pts), verts)
+            local = _inverse_transform(pose, pts)
+            sd = shape_signed_distance(st, params, local, verts)
             keep = (sd < 0) & (sd >= -support)
-            parts.append((pts[keep], -1, np.zeros((int(keep.sum()), 3))))
+            normal = _surface_normal(st, params, local[keep], verts, spacing) @ quat_to_matrices(pose[3:7])[0].T
+            parts.append((pts[keep], -1, np.zeros((int(keep.sum()), 3)), normal))
     return parts
+
+
+def _surface_normal(shape_type, params, p, verts, spacing):
+    """(M, 3) unit gradient of the signed distance at p (shape frame; central differences of
+    1e-3 spacing): the outward normal of the nearest surface point."""
+    eps = 1e-3 * spacing
+    g = np.empty((p.shape[0], 3))
+    for d in range(3):
+        e = np.zeros(3)
+        e[d] = eps
+        g[:, d] = shape_signed_distance(shape_type, params, p + e, verts) - shape_signed_distance(
+            shape_type, params, p - e, verts)
+    return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
 
 
 def _compose(a, b):

@@ -102,9 +102,8 @@ MAX_CELLS = 1 << 26
 TAIT_EXPONENT = 7.0
 RELAXATION = 0.5  # relaxed Jacobi for the DFSPH solves (see kernels.pressure_increment)
 UNCONVERGED_SHRINK = 0.5
-import os
-_MLSMODE = int(os.environ.get("MLSMODE", "1"))
-BOUNDARY_PRESSURE = {"mls": 1.0, "akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
+# weight of k_i in the boundary term (see SPHFluid)
+BOUNDARY_PRESSURE = {"extrapolated": 1.0, "akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
 
 
 def _lattice(lo, hi, spacing, origin=None):
@@ -119,6 +118,11 @@ def _lattice(lo, hi, spacing, origin=None):
         axes.append(origin[d] + (np.arange(i0, i1 + 1) + 0.5) * spacing)
     grids = np.meshgrid(*axes, indexing="ij")
     return np.ascontiguousarray(np.stack([g.ravel() for g in grids], axis=1))
+
+
+def _unit_rows(v):
+    v = np.asarray(v, float)
+    return v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-300)
 
 
 def sample_block(lo, hi, spacing: float) -> np.ndarray:
@@ -237,7 +241,7 @@ class SPHFluid:
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
                  divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
                  dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
-                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="mls",
+                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="extrapolated",
                  warm_start_divergence=False):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
@@ -337,7 +341,7 @@ class SPHFluid:
         self._g3 = np.zeros(3)
         self._g3[:dim] = self.gravity
         self._hydrostatic_wall = boundary_pressure == "mirror"   # Adami et al.'s wall share comes with the mirror
-        self._mls = boundary_pressure == "mls"   # Band et al. 2018's extrapolated boundary pressure
+        self._extrapolated = boundary_pressure == "extrapolated"   # Adami et al. 2012's wall pressure
         self.warm_start_divergence = bool(warm_start_divergence)
         self._dt_scale = 1.0  # adaptive-step factor of the DFSPH convergence control (saved in the state)
         self.fixed_dt = None
@@ -470,7 +474,8 @@ class SPHFluid:
         speed when the fluid is inviscid). Returns the number of particles added."""
         grow = np.where(self.periodic, 0.0, self.support)  # a periodic axis holds each point once
         pts = self._band(collider, self.domain_lo - grow, self.domain_hi + grow, origin=self.domain_lo)
-        self._add_part(pts, -1, self._noslip(slip, boundary_viscosity), np.zeros_like(pts))
+        self._add_part(pts, -1, self._noslip(slip, boundary_viscosity), np.zeros_like(pts),
+                       _unit_rows(collider.normal(pts)) if pts.shape[0] else np.zeros_like(pts))
         return pts.shape[0]
 
     def add_body(self, collider, *, slip=False, boundary_viscosity=None) -> int:
@@ -501,7 +506,8 @@ class SPHFluid:
         rot3 = np.eye(3)
         rot3[:self.dim, :self.dim] = rot
         self._bodies.append((p.copy(), rot3))
-        self._add_part(world[keep], body, self._noslip(slip, boundary_viscosity), local[keep])
+        normal = _unit_rows(collider.normal(world[keep])) @ rot if keep.any() else np.zeros((0, self.dim))
+        self._add_part(world[keep], body, self._noslip(slip, boundary_viscosity), local[keep], normal)
         count = len(self._bodies)
         self.body_force = np.zeros((count, 3))
         self.body_torque = np.zeros((count, 3))
@@ -535,8 +541,9 @@ class SPHFluid:
                                       self.domain_lo - grow, self.domain_hi + grow, self.domain_lo)
         noslip = self._noslip(slip, boundary_viscosity)
         count = 0
-        for world, body, local in parts:
-            self._add_part(np.ascontiguousarray(world), body, noslip, np.ascontiguousarray(local))
+        for world, body, local, normal in parts:
+            self._add_part(np.ascontiguousarray(world), body, noslip, np.ascontiguousarray(local),
+                           np.ascontiguousarray(normal))
             count += world.shape[0]
         nbody = int(model.body_count)
         rot = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
@@ -626,6 +633,8 @@ class SPHFluid:
         out["particle_id"] = self._id.copy()
         out["boundary_rest"] = self._b_rest.copy()
         out["boundary_local"] = self._b_local.copy()
+        out["boundary_normal"] = self._b_normal.copy()
+        out["boundary_normal_rest"] = self._b_nrest.copy()
         out["boundary_cell_start"] = self._b_start.copy()
         out["bodies_moved"] = np.array(self._bodies_moved)
         if len(self._bodies):
@@ -664,6 +673,8 @@ class SPHFluid:
         put("particle_id", self._id)
         put("boundary_rest", self._b_rest)
         put("boundary_local", self._b_local)
+        put("boundary_normal", self._b_normal)
+        put("boundary_normal_rest", self._b_nrest)
         put("boundary_cell_start", self._b_start)
         self._bodies_moved = bool(np.asarray(state["bodies_moved"]))
         if len(self._bodies):
@@ -784,8 +795,10 @@ class SPHFluid:
         sd = collider.signed_distance(pts)
         return np.ascontiguousarray(pts[(sd < 0) & (sd >= -self.support)])
 
-    def _add_part(self, pts, body, noslip, local):
-        self._boundary_parts.append((pts, body, noslip, local))
+    def _add_part(self, pts, body, noslip, local, normal):
+        # normal: unit normal of the solid's surface (out of the solid), world frame for static
+        # parts, body frame for moving ones (the wall-normal direction of the extrapolated pressure)
+        self._boundary_parts.append((pts, body, noslip, local, normal))
         self._B = None
 
     def _finalize_boundary(self):
@@ -798,6 +811,8 @@ class SPHFluid:
         noslip = np.concatenate([np.full(p[0].shape[0], p[2]) for p in parts]) if parts else np.zeros(0)
         noslip *= self._visc_scale
         local = np.concatenate([p[3] for p in parts]) if parts else np.zeros((0, d))
+        self._b_nrest = np.ascontiguousarray(np.concatenate([p[4] for p in parts])) if parts else np.zeros((0, d))
+        self._b_normal = self._b_nrest.copy()   # world frame (bodies: rotated in _sort_boundary)
         psi = np.full(nbnd, self.rest_density * self.volume)
         self._B = _k.BoundaryArrays(np.ascontiguousarray(x), np.zeros((nbnd, d)), psi, body, noslip)
         self._b_rest = x.copy()
@@ -809,38 +824,34 @@ class SPHFluid:
         self._b_tmp1 = np.empty(nbnd)
         self._b_tmpi = np.empty(nbnd, np.int64)
         self._k_floor = np.zeros(self.capacity)  # k_i of the hydrostatic wall kick (kernels)
-        # MLS boundary pressure (kernels.boundary_mls_*): boundary->fluid lists, weights, k_b totals
+        # extrapolated boundary pressure (kernels.boundary_extrapolated_pressure): boundary->fluid lists, k_b
         self._bt_start = np.zeros(nbnd + 1, np.int64)
         self._bt = self._alloc_transpose(max(16, 4 * nbnd))
         self._kb_dens = np.zeros(nbnd)   # k_b of the density solve's total (WCSPH: of the Tait pressure)
         self._kb_div = np.zeros(nbnd)    # k_b of the divergence solve's total
         self._kb_step = np.zeros(nbnd)   # the change applied by the last boundary_pressure_kick
         self._kb_sum = np.zeros(nbnd)
-        self._mls_scratch = np.zeros((nbnd, 4, 5))
         self._bodies_moved = bool(self._bodies)
         self._sort_boundary()
 
     def _alloc_transpose(self, m):
-        return np.zeros(m, np.int64), np.zeros(m), np.zeros(m)   # fluid index, W_bf, beta_bf
+        return np.zeros(m, np.int64), np.zeros(m)   # fluid index, W_bf
 
-    def _mls_weights(self):
-        """Boundary->fluid lists and the MLS weights of this step's positions (Band et al. 2018)."""
+    def _boundary_lists(self):
+        """Boundary->fluid neighbour lists of this step (for the extrapolated boundary pressure)."""
         nbnd = self._B.x.shape[0]
         pairs = int(self._nbn.start[self._n])
         if pairs > self._bt[0].shape[0]:
             self._bt = self._alloc_transpose(int(pairs * 1.25) + 16)
-        bt_i, bt_w, beta = self._bt
-        _k.boundary_transpose(self._nbn, self._n, nbnd, self._bt_start, bt_i, bt_w)
-        self._K.boundary_mls_weights(self._F, self._B, self.grid, nbnd, self._bt_start, bt_i, bt_w, self.h, beta,
-                                     self._mls_scratch)
+        _k.boundary_transpose(self._nbn, self._n, nbnd, self._bt_start, self._bt[0], self._bt[1])
 
-    def _mls_push(self, k_fluid, kb_total, dt, from_total):
-        """Extrapolate k_fluid (a total or an iteration's increment) to the boundary and push the
-        fluid with the boundary particles' share of the pressure term."""
+    def _boundary_push(self, k_fluid, kb_total, dt, from_total):
+        """Extrapolate k_fluid (a total or an iteration's increment) to the boundary particles and
+        push the fluid with their share of the pressure term (Adami et al. 2012)."""
         nbnd = self._B.x.shape[0]
-        self._K.boundary_mls_pressure(self._F, self._B, self.grid, nbnd, self._bt_start, self._bt[0], self._bt[1], self._bt[2],
-                                      k_fluid,
-                                      self.rest_density, self._g3, from_total, kb_total, self._kb_step)
+        self._K.boundary_extrapolated_pressure(self._F, self._B, self.grid, nbnd, self._bt_start, self._bt[0],
+                                               self._bt[1], self._b_normal, k_fluid, self.rest_density, self._g3,
+                                               from_total, kb_total, self._kb_step)
         self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, self._kb_step)
 
     def _sort_boundary(self):
@@ -850,12 +861,14 @@ class SPHFluid:
         if self._bodies:
             self._K.move_boundary(self._b_local, B.body, self._b_rest, self._body_x, self._body_rot, self._body_v,
                              self._body_w, B.x, B.v)
+            _k.rotate_boundary_normals(self._b_nrest, B.body, self._body_rot, self._b_normal)
         self._K.bin_cells(B.x, nbnd, self.grid, np.inf, self._outflow_lo[:0], self._outflow_hi[:0], self._b_cell)
         total = _bp.counting_sort(self._b_cell, self._ncells, self._b_start, self._b_order)
         assert total == nbnd
         o = self._b_order
         for arr, tmp in ((B.x, self._b_tmp2), (B.v, self._b_tmp2), (self._b_rest, self._b_tmp2),
-                         (self._b_local, self._b_tmp2), (B.psi, self._b_tmp1), (B.noslip, self._b_tmp1),
+                         (self._b_local, self._b_tmp2), (self._b_nrest, self._b_tmp2),
+                         (self._b_normal, self._b_tmp2), (B.psi, self._b_tmp1), (B.noslip, self._b_tmp1),
                          (B.body, self._b_tmpi)):
             self._K.gather(o, nbnd, arr, tmp)
             arr[:] = tmp
@@ -933,15 +946,15 @@ class SPHFluid:
             # warm start with the previous step's pressure (Bender & Koschier 2017, sec. 4.3):
             # the constant-density solve balances the same forces (gravity) every step
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
-            if self._mls:
-                self._mls_push(total, kb_total, dt, _MLSMODE)
+            if self._extrapolated:
+                self._boundary_push(total, kb_total, dt, True)
         else:
             # optional warm start of the divergence solve (Bender & Koschier 2017): at rest it
             # then carries part of the hydrostatic load (see warm_start_divergence)
             if self.warm_start_divergence:
                 self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
-                if self._mls:
-                    self._mls_push(total, kb_total, dt, _MLSMODE)
+                if self._extrapolated:
+                    self._boundary_push(total, kb_total, dt, True)
             else:
                 total[:n] = 0.0
                 kb_total[:] = 0.0
@@ -964,8 +977,8 @@ class SPHFluid:
             if (converged and it >= 1) or it >= self.max_iterations:
                 break
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True, self._mirror)
-            if self._mls:
-                self._mls_push(F.kappa, kb_total, dt, False)
+            if self._extrapolated:
+                self._boundary_push(F.kappa, kb_total, dt, False)
             it += 1
         return it, err, big, converged
 
@@ -1018,11 +1031,14 @@ class SPHFluid:
         self._nbn, _ = self._neighbour_lists(self._B.x, self._b_start, False, self._nbn)
         nf, nb, B = self._nf, self._nbn, self._B
         self.stats["neighbours_per_particle"] = pairs / max(n, 1)
-        if self._mls:
-            self._mls_weights()
+        if self._extrapolated:
+            self._boundary_lists()
         t0 = self._tick("neighbours", t0)
         # 3. density
-        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._mirror)
+        # the factor's boundary weight: 2 when the boundary particles carry the fluid's pressure
+        # (mirror; extrapolated: k_b ~ k_i next to the wall), 1 for Akinci's single term
+        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps,
+                                   2.0 if self._extrapolated else self._mirror)
         t0 = self._tick("density", t0)
         # 4. dt
         self._K.speed_squared(F.v, n, self._tmp1)
@@ -1062,7 +1078,7 @@ class SPHFluid:
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
         if self._hydrostatic_wall:   # mirrored boundary pressure: the wall's hydrostatic share (Adami et al. 2012)
-            self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor)
+            self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor, self._b_normal)
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
         if self.xsph > 0:
@@ -1085,8 +1101,8 @@ class SPHFluid:
         else:
             self._K.tait_pressure(F, n, self.rest_density, self.tait_stiffness, TAIT_EXPONENT)
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.k_dens, F.k_dens, False, self._mirror)
-            if self._mls:
-                self._mls_push(F.k_dens, self._kb_dens, dt, True)
+            if self._extrapolated:
+                self._boundary_push(F.k_dens, self._kb_dens, dt, True)
             np.subtract(F.rho[:n], self.rest_density, out=self._tmp1[:n])
             np.maximum(self._tmp1[:n], 0.0, out=self._tmp1[:n])
             self.stats["density_error"] = self._reduce(self._tmp1, n)[0] / max(n, 1) / self.rest_density
@@ -1097,8 +1113,8 @@ class SPHFluid:
                            self.body_torque, self._mirror)
             if self._hydrostatic_wall:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
                 _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
-                                           self.body_torque)
-            if self._mls:   # the boundary particles' extrapolated pressure (Band et al. 2018)
+                                           self.body_torque, self._b_normal)
+            if self._extrapolated:   # the boundary particles' extrapolated pressure (Adami et al. 2012)
                 np.add(self._kb_dens, self._kb_div, out=self._kb_sum)
                 _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_sum, self.body_force,
                                                  self.body_torque)

@@ -442,8 +442,20 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque, bfac):
             torque[body, 2] += px * fy - py * fx
 
 
+@njit(cache=True, inline="always")
+def _wall_body_force_share(gravity, bx, fx, b, i, normal):
+    # the wall-normal part of g . (x_b - x_i): (g . n_b)(n_b . (x_b - x_i)) (see boundary_hydrostatic_kick)
+    dim = fx.shape[1]
+    gn = gravity[0] * normal[b, 0] + gravity[1] * normal[b, 1]
+    dn = normal[b, 0] * (bx[b, 0] - fx[i, 0]) + normal[b, 1] * (bx[b, 1] - fx[i, 1])
+    if dim == 3:
+        gn += gravity[2] * normal[b, 2]
+        dn += normal[b, 2] * (bx[b, 2] - fx[i, 2])
+    return gn * dn
+
+
 @njit(cache=True, parallel=True)
-def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
+def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor, normal):
     """The hydrostatic part of the boundary pressure (Adami, Hu & Adams 2012, "A generalized wall
     boundary condition for smoothed particle hydrodynamics", J. Comput. Phys. 231: the wall
     pressure extrapolated from the fluid with the body force; here taken pairwise, without the
@@ -473,9 +485,7 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
         az = 0.0
         for k in range(nb.start[i], nb.start[i + 1]):
             b = nb.j[k]
-            hyd = gravity[0] * (B.x[b, 0] - F_x[i, 0]) + gravity[1] * (B.x[b, 1] - F_x[i, 1])
-            if dim == 3:
-                hyd += gravity[2] * (B.x[b, 2] - F_x[i, 2])
+            hyd = _wall_body_force_share(gravity, B.x, F_x, b, i, normal)
             h_ib = hyd / F_rho[i]
             if ki <= 0.0 and h_ib < 0.0:
                 h_ib = 0.0
@@ -491,7 +501,7 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
 
 
 @njit(cache=True)
-def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque):
+def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque, normal):
     """Adds to force, torque (nbody, 3) the reaction of ``boundary_hydrostatic_kick`` on the
     bodies' particles: f_b = m psi_b h_ib g_ib (h_ib as there, from k_floor), torque
     (x_b - com) x f_b (serial, fixed order; the positions, densities and k_floor of the kick of
@@ -503,9 +513,7 @@ def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, tor
             body = B.body[b]
             if body < 0:
                 continue
-            hyd = gravity[0] * (B.x[b, 0] - F.x[i, 0]) + gravity[1] * (B.x[b, 1] - F.x[i, 1])
-            if dim == 3:
-                hyd += gravity[2] * (B.x[b, 2] - F.x[i, 2])
+            hyd = _wall_body_force_share(gravity, B.x, F.x, b, i, normal)
             h_ib = hyd / F.rho[i]
             if k_floor[i] <= 0.0 and h_ib < 0.0:
                 h_ib = 0.0
@@ -697,20 +705,23 @@ def cg_direction(n, beta, z, p):
 _PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_update", "cg_direction")
 
 
-# --------------------------------------------------------------------------- MLS boundary pressure
-# Band, S., Gissler, C., Peer, A. & Teschner, M. (2018), "MLS pressure boundaries for divergence-free
-# and viscous SPH fluids", Computers & Graphics 76: every boundary particle b carries the pressure of
-# the linear moving-least-squares fit of the fluid pressure around it, evaluated at x_b:
-#     p_b = sum_f beta_bf p_f,  beta_bf = W_bf (c_0 + c . (x_f - x_b) / h),  M c = e_0,
-#     M = sum_f W_bf [1, r_f / h] [1, r_f / h]^T  (r_f = x_f - x_b),
-# and the fluid's pressure acceleration takes it into the symmetric sum,
-#     a_i = -sum_j m (k_i + k_j) g_ij - sum_b psi_b (k_i + k_b) g_ib,  k_b = p_b / rho0^2.
-# A linear pressure field (hydrostatics) is reproduced exactly at the wall, so the fluid row on a wall
-# feels the same pressure gradient as a row inside the fluid. Where the fit is degenerate (fewer than
-# D + 1 fluid neighbours, or all of them on one line/plane: a one-row film) the weights fall back to
-# the Shepard average beta_bf = W_bf / sum_f W_bf (constant extrapolation). p_b >= 0 (no suction).
-# The DFSPH solves carry it incrementally: each iteration extrapolates the fluid increments kappa
-# (``boundary_mls_pressure``) and pushes with them (``boundary_pressure_kick``).
+# --------------------------------------------------------------------------- extrapolated boundary pressure
+# Adami, S., Hu, X. Y. & Adams, N. A. (2012), "A generalized wall boundary condition for smoothed particle
+# hydrodynamics", J. Comput. Phys. 231: every boundary particle b carries the pressure extrapolated from
+# the fluid around it, the Shepard average plus the body force's share along the wall normal n_b,
+#     p_b = sum_f W_bf (p_f + rho_f (g . n_b) (n_b . (x_b - x_f))) / sum_f W_bf,   p_b >= 0,
+# (Adami et al. use the full offset x_b - x_f; only its normal part is implied by the momentum balance at
+# a wall, and the tangential part pushed the fluid up a vertical wall in the dam break), and the fluid's
+# pressure acceleration takes it into the symmetric sum,
+#     a_i = -sum_j m (k_i + k_j) g_ij - sum_b psi_b (k_i + k_b) g_ib,  k_b = p_b / rho0^2,
+# so that the fluid row on a wall feels the pressure gradient of a row inside the fluid (Band, Gissler,
+# Peer & Teschner 2018, "MLS pressure boundaries for divergence-free and viscous SPH fluids", C&G 76,
+# extrapolate with a linear MLS fit instead: with the cubic spline at h = dx a boundary particle sees
+# one row of fluid, the fit is degenerate or nearly so, and it ran away in the hydrostatic column).
+# The DFSPH solves carry p_b incrementally: at the (warm) start of a solve from the fluid's total k with
+# the body-force share (``boundary_extrapolated_pressure`` from_total), then each iteration's increment
+# kappa as a Shepard average (a convex combination: no amplification, the relaxed Jacobi stays stable),
+# each pushed with ``boundary_pressure_kick``.
 
 
 @njit(cache=True)
@@ -737,128 +748,41 @@ def boundary_transpose(nb, n, nbound, bt_start, bt_i, bt_w):
 
 
 @njit(cache=True, parallel=True)
-def boundary_mls_weights(F, B, grid, nbound, bt_start, bt_i, bt_w, h, beta, scratch):
-    """beta_bf of the linear MLS extrapolation to every boundary particle (see the section comment);
-    scratch (nbound, 4, 5) holds each particle's augmented moment matrix (no allocation). The fit
-    is degenerate when a pivot of the (normalised) moment matrix falls below 1e-3 of M_00: then
-    the Shepard weights."""
-    F_x = F.x
-    dim = F_x.shape[1]
-    m = dim + 1
-    for b in prange(nbound):
-        a0 = bt_start[b]
-        a1 = bt_start[b + 1]
-        if a1 == a0:
-            continue
-        A = scratch[b]
-        for r in range(m):
-            for c in range(m + 1):
-                A[r, c] = 0.0
-        wsum = 0.0
-        for q in range(a0, a1):
-            f = bt_i[q]
-            w = bt_w[q]
-            wsum += w
-            e0 = 1.0
-            e1 = _min_image(F_x[f, 0] - B.x[b, 0], 0, grid) / h
-            e2 = _min_image(F_x[f, 1] - B.x[b, 1], 1, grid) / h
-            e3 = _min_image(F_x[f, 2] - B.x[b, 2], 2, grid) / h if dim == 3 else 0.0
-            for r in range(m):
-                er = e0 if r == 0 else (e1 if r == 1 else (e2 if r == 2 else e3))
-                for c in range(m):
-                    ec = e0 if c == 0 else (e1 if c == 1 else (e2 if c == 2 else e3))
-                    A[r, c] += w * er * ec
-        A[0, m] = 1.0
-        scale = A[0, 0]
-        ok = a1 - a0 >= m
-        # Gaussian elimination with partial pivoting on [M | e_0]
-        for c in range(m):
-            if not ok:
-                break
-            p = c
-            for r in range(c + 1, m):
-                if abs(A[r, c]) > abs(A[p, c]):
-                    p = r
-            if abs(A[p, c]) < 1e-3 * scale:
-                ok = False
-                break
-            if p != c:
-                for k in range(m + 1):
-                    t = A[c, k]
-                    A[c, k] = A[p, k]
-                    A[p, k] = t
-            for r in range(c + 1, m):
-                fac = A[r, c] / A[c, c]
-                for k in range(c, m + 1):
-                    A[r, k] -= fac * A[c, k]
-        if ok:
-            for r in range(m - 1, -1, -1):  # back substitution: the solution into column m
-                s = A[r, m]
-                for k in range(r + 1, m):
-                    s -= A[r, k] * A[k, m]
-                A[r, m] = s / A[r, r]
-            for q in range(a0, a1):
-                f = bt_i[q]
-                s = A[0, m]
-                s += A[1, m] * _min_image(F_x[f, 0] - B.x[b, 0], 0, grid) / h
-                s += A[2, m] * _min_image(F_x[f, 1] - B.x[b, 1], 1, grid) / h
-                if dim == 3:
-                    s += A[3, m] * _min_image(F_x[f, 2] - B.x[b, 2], 2, grid) / h
-                beta[q] = bt_w[q] * s
-        else:
-            for q in range(a0, a1):
-                beta[q] = bt_w[q] / wsum
-
-
-@njit(cache=True, parallel=True)
-def boundary_mls_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, beta, k_fluid, rho0, gravity, from_total, kb_total,
-                          kb_step):
-    """Boundary k_b = p_b / rho0^2 from the fluid's k (p_f = k_f rho_f^2) by the MLS weights.
-    from_total: k_fluid is a running total; kb_total = max(0, extrapolation), kb_step = kb_total.
-    Otherwise k_fluid is an increment (a DFSPH iteration's kappa): kb_total += the extrapolated
-    increment, clamped so that kb_total stays >= 0, and kb_step = the change of kb_total (what
+def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, normal, k_fluid, rho0, gravity,
+                                   from_total, kb_total, kb_step):
+    """Boundary k_b = p_b / rho0^2 from the fluid's k (p_f = k_f rho_f^2), see the section comment.
+    from_total: k_fluid is a running total; kb_total = max(0, Shepard(p_f + body-force share)),
+    kb_step = kb_total. Otherwise k_fluid is an iteration's increment kappa: kb_total += its
+    Shepard average, clamped so that kb_total stays >= 0; kb_step = the change of kb_total (what
     ``boundary_pressure_kick`` applies)."""
     F_rho = F.rho
+    F_x = F.x
+    dim = F_x.shape[1]
     inv = 1.0 / (rho0 * rho0)
     for b in prange(nbound):
+        gn = gravity[0] * normal[b, 0] + gravity[1] * normal[b, 1]
+        if dim == 3:
+            gn += gravity[2] * normal[b, 2]
         p = 0.0
-        if from_total == 1:   # the MLS fit (Band et al. 2018)
-            for q in range(bt_start[b], bt_start[b + 1]):
-                f = bt_i[q]
-                p += beta[q] * k_fluid[f] * F_rho[f] * F_rho[f]
-        elif from_total == 3:   # Shepard average plus the body force's share (Adami et al. 2012)
-            wsum = 0.0
-            dim = F.x.shape[1]
-            for q in range(bt_start[b], bt_start[b + 1]):
-                f = bt_i[q]
-                hyd = gravity[0] * _min_image(B.x[b, 0] - F.x[f, 0], 0, grid)
-                hyd += gravity[1] * _min_image(B.x[b, 1] - F.x[f, 1], 1, grid)
+        wsum = 0.0
+        for q in range(bt_start[b], bt_start[b + 1]):
+            f = bt_i[q]
+            pf = k_fluid[f] * F_rho[f] * F_rho[f]
+            if from_total:
+                dn = normal[b, 0] * _min_image(B.x[b, 0] - F_x[f, 0], 0, grid)
+                dn += normal[b, 1] * _min_image(B.x[b, 1] - F_x[f, 1], 1, grid)
                 if dim == 3:
-                    hyd += gravity[2] * _min_image(B.x[b, 2] - F.x[f, 2], 2, grid)
-                p += bt_w[q] * (k_fluid[f] * F_rho[f] * F_rho[f] + F_rho[f] * hyd)
-                wsum += bt_w[q]
-            if wsum > 0.0:
-                p /= wsum
-        else:            # an iteration's increment: the Shepard average (a convex combination)
-            wsum = 0.0
-            for q in range(bt_start[b], bt_start[b + 1]):
-                f = bt_i[q]
-                p += bt_w[q] * k_fluid[f] * F_rho[f] * F_rho[f]
-                wsum += bt_w[q]
-            if wsum > 0.0:
-                p /= wsum
-        if from_total:
-            k = p * inv
-            if k < 0.0:
-                k = 0.0
-            kb_total[b] = k
-            kb_step[b] = k
-        else:
-            k = kb_total[b] + p * inv
-            if k < 0.0:
-                k = 0.0
-            kb_step[b] = k - kb_total[b]
-            kb_total[b] = k
+                    dn += normal[b, 2] * _min_image(B.x[b, 2] - F_x[f, 2], 2, grid)
+                pf += F_rho[f] * gn * dn
+            p += bt_w[q] * pf
+            wsum += bt_w[q]
+        if wsum > 0.0:
+            p /= wsum
+        k = p * inv if from_total else kb_total[b] + p * inv
+        if k < 0.0:
+            k = 0.0
+        kb_step[b] = k if from_total else k - kb_total[b]
+        kb_total[b] = k
 
 
 @njit(cache=True, parallel=True)
@@ -911,4 +835,20 @@ def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb, force, torque):
             torque[body, 2] += px * fy - py * fx
 
 
-_PARALLEL_KERNELS = _PARALLEL_KERNELS + ("boundary_mls_weights", "boundary_mls_pressure", "boundary_pressure_kick")
+_PARALLEL_KERNELS = _PARALLEL_KERNELS + ("boundary_extrapolated_pressure", "boundary_pressure_kick")
+
+
+@njit(cache=True)
+def rotate_boundary_normals(nrest, body, body_rot, normal):
+    """World normals of the boundary particles: body particles n = R n_local, static ones n_rest."""
+    nb, dim = normal.shape
+    for b in range(nb):
+        k = body[b]
+        for d in range(dim):
+            if k < 0:
+                normal[b, d] = nrest[b, d]
+            else:
+                s = 0.0
+                for e in range(dim):
+                    s += body_rot[k, d, e] * nrest[b, e]
+                normal[b, d] = s
