@@ -1035,10 +1035,10 @@ class SPHFluid:
             self._boundary_lists()
         t0 = self._tick("neighbours", t0)
         # 3. density
-        # the factor's boundary weight: 2 when the boundary particles carry the fluid's pressure
-        # (mirror; extrapolated: k_b ~ k_i next to the wall), 1 for Akinci's single term
-        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps,
-                                   2.0 if self._extrapolated else self._mirror)
+        # the factor's boundary weight (extrapolated: 1, |a + b|^2 + s >= s > 0; with 2, the exact
+        # diagonal if k_b = k_i, the cross term b . (a + b) can cancel it in a film between a body and
+        # the floor, and the Jacobi iteration diverged: the dense box of test_fluid)
+        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._mirror)
         t0 = self._tick("density", t0)
         # 4. dt
         self._K.speed_squared(F.v, n, self._tmp1)
