@@ -338,6 +338,9 @@ class SPHFluid:
             raise ValueError(f"boundary_pressure must be one of {sorted(BOUNDARY_PRESSURE)}; got {boundary_pressure!r}")
         self.boundary_pressure = boundary_pressure
         self._mirror = BOUNDARY_PRESSURE[boundary_pressure]
+        # "extrapolated": the warm-start totals push with k_i + the extrapolated k_b (bfac 1 plus
+        # boundary_pressure_kick), the solver's increments with the mirror (bfac 2, exact diagonal)
+        self._bfac_iter = 2.0 if boundary_pressure == "extrapolated" else self._mirror
         self._g3 = np.zeros(3)
         self._g3[:dim] = self.gravity
         self._hydrostatic_wall = boundary_pressure == "mirror"   # Adami et al.'s wall share comes with the mirror
@@ -829,8 +832,9 @@ class SPHFluid:
         self._bt = self._alloc_transpose(max(16, 4 * nbnd))
         self._kb_dens = np.zeros(nbnd)   # k_b of the density solve's total (WCSPH: of the Tait pressure)
         self._kb_div = np.zeros(nbnd)    # k_b of the divergence solve's total
-        self._kb_step = np.zeros(nbnd)   # the change applied by the last boundary_pressure_kick
         self._kb_sum = np.zeros(nbnd)
+        self._k0_dens = np.zeros(self.capacity)   # k_dens / k_div at the start of this step's solves
+        self._k0_div = np.zeros(self.capacity)
         self._bodies_moved = bool(self._bodies)
         self._sort_boundary()
 
@@ -845,14 +849,13 @@ class SPHFluid:
             self._bt = self._alloc_transpose(int(pairs * 1.25) + 16)
         _k.boundary_transpose(self._nbn, self._n, nbnd, self._bt_start, self._bt[0], self._bt[1])
 
-    def _boundary_push(self, k_fluid, kb_total, dt, from_total):
-        """Extrapolate k_fluid (a total or an iteration's increment) to the boundary particles and
-        push the fluid with their share of the pressure term (Adami et al. 2012)."""
+    def _boundary_push(self, k_fluid, kb, dt):
+        """Extrapolate the fluid's k (a solve's total) to the boundary particles (into kb) and push
+        the fluid with their share of the pressure term (Adami et al. 2012)."""
         nbnd = self._B.x.shape[0]
         self._K.boundary_extrapolated_pressure(self._F, self._B, self.grid, nbnd, self._bt_start, self._bt[0],
-                                               self._bt[1], self._b_normal, k_fluid, self.rest_density, self._g3,
-                                               from_total, kb_total, self._kb_step)
-        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, self._kb_step)
+                                               self._bt[1], self._b_normal, k_fluid, self.rest_density, self._g3, kb)
+        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, kb)
 
     def _sort_boundary(self):
         B = self._B
@@ -941,23 +944,25 @@ class SPHFluid:
         ``local_density_tolerance``; the divergence solve on the mean only (as the paper)."""
         F, nf, nb, B, n, m = self._F, self._nf, self._nbn, self._B, self._n, self.mass
         total = F.k_dens if density_mode else F.k_div
-        kb_total = self._kb_dens if density_mode else self._kb_div
+        kb = self._kb_dens if density_mode else self._kb_div
         if density_mode:
             # warm start with the previous step's pressure (Bender & Koschier 2017, sec. 4.3):
             # the constant-density solve balances the same forces (gravity) every step
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
             if self._extrapolated:
-                self._boundary_push(total, kb_total, dt, True)
+                self._boundary_push(total, kb, dt)
         else:
             # optional warm start of the divergence solve (Bender & Koschier 2017): at rest it
             # then carries part of the hydrostatic load (see warm_start_divergence)
             if self.warm_start_divergence:
                 self._K.apply_pressure(F, nf, nb, B, n, m, dt, total, total, False, self._mirror)
                 if self._extrapolated:
-                    self._boundary_push(total, kb_total, dt, True)
+                    self._boundary_push(total, kb, dt)
             else:
                 total[:n] = 0.0
-                kb_total[:] = 0.0
+                kb[:] = 0.0
+        if self._extrapolated:   # the mirrored increments of this solve are total - k0 (body wrench)
+            (self._k0_dens if density_mode else self._k0_div)[:n] = total[:n]
         scale = 1.0 / self.rest_density * (1.0 if density_mode else dt)
         local = self.local_density_tolerance if density_mode else math.inf
         # compression present at the start of a step shorter than the CFL step at the flow's
@@ -976,9 +981,7 @@ class SPHFluid:
             converged = err <= tolerance and big <= local
             if (converged and it >= 1) or it >= self.max_iterations:
                 break
-            self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True, self._mirror)
-            if self._extrapolated:
-                self._boundary_push(F.kappa, kb_total, dt, False)
+            self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.kappa, total, True, self._bfac_iter)
             it += 1
         return it, err, big, converged
 
@@ -1035,10 +1038,8 @@ class SPHFluid:
             self._boundary_lists()
         t0 = self._tick("neighbours", t0)
         # 3. density
-        # the factor's boundary weight (extrapolated: 1, |a + b|^2 + s >= s > 0; with 2, the exact
-        # diagonal if k_b = k_i, the cross term b . (a + b) can cancel it in a film between a body and
-        # the floor, and the Jacobi iteration diverged: the dense box of test_fluid)
-        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._mirror)
+        # the factor's boundary weight: that of the solver's increments (mirror and extrapolated: 2)
+        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._bfac_iter)
         t0 = self._tick("density", t0)
         # 4. dt
         self._K.speed_squared(F.v, n, self._tmp1)
@@ -1102,7 +1103,8 @@ class SPHFluid:
             self._K.tait_pressure(F, n, self.rest_density, self.tait_stiffness, TAIT_EXPONENT)
             self._K.apply_pressure(F, nf, nb, B, n, m, dt, F.k_dens, F.k_dens, False, self._mirror)
             if self._extrapolated:
-                self._boundary_push(F.k_dens, self._kb_dens, dt, True)
+                self._boundary_push(F.k_dens, self._kb_dens, dt)
+                self._k0_dens[:n] = F.k_dens[:n]   # no solver increments (body wrench)
             np.subtract(F.rho[:n], self.rest_density, out=self._tmp1[:n])
             np.maximum(self._tmp1[:n], 0.0, out=self._tmp1[:n])
             self.stats["density_error"] = self._reduce(self._tmp1, n)[0] / max(n, 1) / self.rest_density
@@ -1116,8 +1118,8 @@ class SPHFluid:
                                            self.body_torque, self._b_normal)
             if self._extrapolated:   # the boundary particles' extrapolated pressure (Adami et al. 2012)
                 np.add(self._kb_dens, self._kb_div, out=self._kb_sum)
-                _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_sum, self.body_force,
-                                                 self.body_torque)
+                _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_sum, self._k0_dens,
+                                                 self._k0_div, self.body_force, self.body_torque)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)

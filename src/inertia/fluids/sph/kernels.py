@@ -718,10 +718,12 @@ _PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_u
 # Peer & Teschner 2018, "MLS pressure boundaries for divergence-free and viscous SPH fluids", C&G 76,
 # extrapolate with a linear MLS fit instead: with the cubic spline at h = dx a boundary particle sees
 # one row of fluid, the fit is degenerate or nearly so, and it ran away in the hydrostatic column).
-# The DFSPH solves carry p_b incrementally: at the (warm) start of a solve from the fluid's total k with
-# the body-force share (``boundary_extrapolated_pressure`` from_total), then each iteration's increment
-# kappa as a Shepard average (a convex combination: no amplification, the relaxed Jacobi stays stable),
-# each pushed with ``boundary_pressure_kick``.
+# In the DFSPH solves the extrapolated p_b enters with the warm start (the previous step's total,
+# ``boundary_extrapolated_pressure`` and ``boundary_pressure_kick``); the solver's increments kappa are
+# mirrored, k_b = k_i (``apply_pressure`` with bfac = 2, whose diagonal the factor has exactly). Extrapolated
+# increments (a Shepard average of the neighbours' kappa) are not in the Jacobi diagonal: in the film
+# between a sinking body and the floor that iteration diverged. At rest the increments vanish and the
+# walls carry the extrapolated pressure; the divergence solve (not warm-started) is mirrored throughout.
 
 
 @njit(cache=True)
@@ -748,13 +750,10 @@ def boundary_transpose(nb, n, nbound, bt_start, bt_i, bt_w):
 
 
 @njit(cache=True, parallel=True)
-def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, normal, k_fluid, rho0, gravity,
-                                   from_total, kb_total, kb_step):
-    """Boundary k_b = p_b / rho0^2 from the fluid's k (p_f = k_f rho_f^2), see the section comment.
-    from_total: k_fluid is a running total; kb_total = max(0, Shepard(p_f + body-force share)),
-    kb_step = kb_total. Otherwise k_fluid is an iteration's increment kappa: kb_total += its
-    Shepard average, clamped so that kb_total stays >= 0; kb_step = the change of kb_total (what
-    ``boundary_pressure_kick`` applies)."""
+def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, normal, k_fluid, rho0, gravity, kb):
+    """kb_b = p_b / rho0^2 from the fluid's k (p_f = k_f rho_f^2): the Shepard average of
+    p_f + rho_f (g . n_b)(n_b . (x_b - x_f)) over the fluid neighbours, clamped at 0 (see the
+    section comment); 0 for boundary particles without fluid neighbours."""
     F_rho = F.rho
     F_x = F.x
     dim = F_x.shape[1]
@@ -767,22 +766,14 @@ def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, nor
         wsum = 0.0
         for q in range(bt_start[b], bt_start[b + 1]):
             f = bt_i[q]
-            pf = k_fluid[f] * F_rho[f] * F_rho[f]
-            if from_total:
-                dn = normal[b, 0] * _min_image(B.x[b, 0] - F_x[f, 0], 0, grid)
-                dn += normal[b, 1] * _min_image(B.x[b, 1] - F_x[f, 1], 1, grid)
-                if dim == 3:
-                    dn += normal[b, 2] * _min_image(B.x[b, 2] - F_x[f, 2], 2, grid)
-                pf += F_rho[f] * gn * dn
-            p += bt_w[q] * pf
+            dn = normal[b, 0] * _min_image(B.x[b, 0] - F_x[f, 0], 0, grid)
+            dn += normal[b, 1] * _min_image(B.x[b, 1] - F_x[f, 1], 1, grid)
+            if dim == 3:
+                dn += normal[b, 2] * _min_image(B.x[b, 2] - F_x[f, 2], 2, grid)
+            p += bt_w[q] * (k_fluid[f] * F_rho[f] * F_rho[f] + F_rho[f] * gn * dn)
             wsum += bt_w[q]
-        if wsum > 0.0:
-            p /= wsum
-        k = p * inv if from_total else kb_total[b] + p * inv
-        if k < 0.0:
-            k = 0.0
-        kb_step[b] = k if from_total else k - kb_total[b]
-        kb_total[b] = k
+        k = p / wsum * inv if wsum > 0.0 else 0.0
+        kb[b] = k if k > 0.0 else 0.0
 
 
 @njit(cache=True, parallel=True)
@@ -810,17 +801,21 @@ def boundary_pressure_kick(F, nb, B, n, dt, kb):
 
 
 @njit(cache=True)
-def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb, force, torque):
-    """Adds to force, torque (nbody, 3) the reaction of ``boundary_pressure_kick`` on the bodies'
-    particles: f_b = m psi_b kb_b g_ib, torque (x_b - com) x f_b (serial, fixed order)."""
+def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb, k0_dens, k0_div, force, torque):
+    """Adds to force, torque (nbody, 3) the reaction of the boundary particles' own pressure on the
+    bodies' particles in the "extrapolated" mode: f_b = m psi_b (kb_b + k_i - k0_i) g_ib, kb the
+    extrapolated warm-start totals (``boundary_pressure_kick``), k_i - k0_i the solves' mirrored
+    increments (k_dens + k_div now minus at the start of the solves); torque (x_b - com) x f_b
+    (serial, fixed order). The k_i share itself is in ``body_wrench`` (bfac = 1)."""
     dim = F.x.shape[1]
     for i in range(n):
+        inc = F.k_dens[i] + F.k_div[i] - k0_dens[i] - k0_div[i]
         for k in range(nb.start[i], nb.start[i + 1]):
             b = nb.j[k]
             body = B.body[b]
             if body < 0:
                 continue
-            s = mass * B.psi[b] * kb[b]
+            s = mass * B.psi[b] * (kb[b] + inc)
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
             fz = s * nb.g[k, 2] if dim == 3 else 0.0
