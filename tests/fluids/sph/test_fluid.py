@@ -208,7 +208,8 @@ def test_dfsph_hydrostatic_column_holds_without_drift():
     # below it (18 of 20 rows; the two surface rows have a truncated kernel), with the DEFAULT
     # boundary pressure ("extrapolated": the wall particles carry the Shepard average of the fluid's
     # pressure plus the wall-normal body-force share, Adami et al. 2012), no divergence warm start.
-    # Measured 0.975-1.032 in rows 0-17 (floor row 1.002), load 0.976 of M g, drift -0.1 spacing.
+    # Measured 0.984-1.036 in rows 0-17 (floor row 0.992), floor load 0.960 of M g (the side
+    # walls' bands reach below the floor and carry the corners' share), drift -0.15 spacing.
     # Before: Akinci's single term left the floor row at 1.7x (next test); the mirror needed the
     # warm-started divergence solve (1.01-1.045). (Starting from zero pressure, the first steps need
     # up to ~300 iterations, hence max_iterations=400.)

@@ -720,7 +720,7 @@ _PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_u
 # one row of fluid, the fit is degenerate or nearly so, and it ran away in the hydrostatic column).
 # In the DFSPH solves the extrapolated p_b enters with the warm start (the previous step's total,
 # ``boundary_extrapolated_pressure`` and ``boundary_pressure_kick``); the solver's increments kappa are
-# mirrored, k_b = k_i (``apply_pressure`` with bfac = 2, whose diagonal the factor has exactly). Extrapolated
+# mirrored, k_b = k_i (``apply_pressure`` with bfac = 2; the factor keeps Akinci's diagonal). Extrapolated
 # increments (a Shepard average of the neighbours' kappa) are not in the Jacobi diagonal: in the film
 # between a sinking body and the floor that iteration diverged. At rest the increments vanish and the
 # walls carry the extrapolated pressure; the divergence solve (not warm-started) is mirrored throughout.
