@@ -205,17 +205,14 @@ def test_dfsph_hydrostatic_column_holds_without_drift():
     # Hydrostatics layer by layer: the pressure of each row of particles (one spacing thick,
     # away from the side walls), time-averaged with the step lengths over 1-10 s, within 5 % of
     # rho0 g (H - y), H the measured free surface, in every row deeper than one kernel support
-    # below it (18 of 20 rows; the two surface rows have a truncated kernel), with the DEFAULT
-    # boundary pressure ("extrapolated": the wall particles carry the Shepard average of the fluid's
-    # pressure plus the wall-normal body-force share, Adami et al. 2012), no divergence warm start.
-    # Measured 0.984-1.036 in rows 0-17 (floor row 0.992), floor load 0.960 of M g (the side
-    # walls' bands reach below the floor and carry the corners' share), drift -0.15 spacing.
-    # Before: Akinci's single term left the floor row at 1.7x (next test); the mirror needed the
-    # warm-started divergence solve (1.01-1.045). (Starting from zero pressure, the first steps need
-    # up to ~300 iterations, hence max_iterations=400.)
+    # below it (18 of 20 rows; the two surface rows have a truncated kernel), with the mirrored
+    # boundary pressure and the warm-started divergence solve (measured 1.01-1.045). Before the pressure mirroring, the divergence warm
+    # start and counting the divergence solve's share: 0.78-0.93 (floor row 1.48).
+    # (Starting from zero pressure, the first steps need up to ~300 iterations, hence
+    # max_iterations=400.)
     dx, width, height = 0.02, 0.3, 0.4
-    fluid = _column("dfsph", dx, width, height, viscosity=0.01, xsph=0.05, max_iterations=400)
-    assert fluid.boundary_pressure == "extrapolated"
+    fluid = _column("dfsph", dx, width, height, viscosity=0.01, xsph=0.05, max_iterations=400,
+                    boundary_pressure="mirror", warm_start_divergence=True)
     weight = fluid.mass * fluid.particle_count * G
     rows = int(round(height / dx))
     ratio_sum, weight_sum = np.zeros(rows), 0.0
@@ -251,14 +248,13 @@ def test_dfsph_hydrostatic_column_holds_without_drift():
 
 
 def test_dfsph_hydrostatic_rows_with_akinci_boundary_pressure():
-    # boundary_pressure="akinci" (Akinci et al. 2012: the wall pushes with k_i alone, half the
-    # mirrored push; the default before the extrapolated wall pressure), warm-started divergence
-    # solve: the same column over 1-3 s. Rows 2-16 within 5 % of rho0 g (H - y) (measured
-    # 0.96-1.03); the floor row carries the wall's missing half: above 1.4x (measured 1.7x), which
-    # is what the default boundary pressure removes (previous test).
+    # The default boundary pressure (Akinci et al. 2012: the wall pushes with k_i alone, half the
+    # mirrored push), warm-started divergence solve: the same column over 1-3 s. Rows 2-16 within 5 % of rho0 g (H - y)
+    # (measured 0.96-1.03); the floor row carries the wall's missing half: above 1.4x (measured
+    # 1.7x), which is what boundary_pressure="mirror" removes (previous test).
     dx, width, height = 0.02, 0.3, 0.4
     fluid = _column("dfsph", dx, width, height, viscosity=0.01, xsph=0.05, max_iterations=400,
-                    warm_start_divergence=True, boundary_pressure="akinci")
+                    warm_start_divergence=True)
     rows = int(round(height / dx))
     ratio_sum, weight_sum = np.zeros(rows), 0.0
     while fluid.time < 3.0:

@@ -18,11 +18,14 @@ impulse sum_steps F dt (linear) and sum_steps T dt (angular, about the centre of
 ``body_qd`` (``inertia.dynamics.particle_coupling.apply_body_impulses``: dv = J / m, dw = I_world^-1 L;
 dynamic bodies only).
 
-The force on a boundary particle is the reaction of the fluid's pressure acceleration on it: the
-boundary pressure is the fluid particle's mirrored into the symmetric SPH sum, m (k_i + k_b) with
-k_b = k_i (Akinci et al. 2012), plus the wall's hydrostatic share k_b - k_i = g . (x_b - x_i) / rho_i
-(Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput. Phys. 231),
-``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``. With k_i alone (the earlier
+The force on a boundary particle is the reaction of the fluid's pressure acceleration on it, with the
+boundary particle's own pressure k_b in the symmetric SPH sum m (k_i + k_b) (``SPHFluid(boundary_pressure=
+...)``): "extrapolated" (default) the Shepard average of the fluid pressures plus the wall-normal
+body-force share (Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput.
+Phys. 231; ``kernels.boundary_extrapolated_pressure`` / ``body_boundary_pressure_wrench``), "mirror"
+k_b = k_i (Akinci et al. 2012) plus the wall-normal hydrostatic share (g . n_b)(n_b . (x_b - x_i)) /
+rho_i (``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``). The normals n_b are the
+unit gradients of the shapes' signed distances at the sample points (``sample_model``). With k_i alone (the earlier
 form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
 submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).
 
@@ -34,9 +37,11 @@ Limitations
   counts twice in the density near the joint).
 - Explicit coupling: the rigid step integrates the fluid impulse of the previous world step
   (first-order splitting; light bodies need the fluid's viscosity/XSPH to settle). During the fluid
-  sub-steps of one world step the bodies move with their velocity (poses extrapolated). Light,
-  wide floating boxes can roll over although upright is stable (metacentric height > 0): the
-  added-mass instability of explicit (partitioned) coupling, worse with long world steps.
+  sub-steps of one world step the bodies move with their velocity (poses extrapolated). (A free
+  square box of density 0.5 rolling over is physics, not this: a square floats upright only for
+  density ratios s < (3 - sqrt 3)/6 = 0.211 or s > 0.789, Delbourgo 1987, "The floating plank",
+  Am. J. Phys. 55; the 0.4 m box of the tests at s = 0.5 has GM = KB + BM - KG = 0.1 + 0.067 - 0.2
+  = -0.033 m. Whether free light bodies are also destabilised by the explicit coupling is open.)
 - The wall's hydrostatic share uses gravity only, not the body's acceleration (Adami's g - a_w).
 """
 

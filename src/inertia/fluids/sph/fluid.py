@@ -203,10 +203,11 @@ class SPHFluid:
         (rho* - rho0)+ / rho0 is below it; WCSPH sets its sound speed from it
         (c = max_speed / sqrt(tolerance)).
     divergence_tolerance : float, default 1e-3: DFSPH divergence solve, mean (drho/dt)+ dt / rho0.
-    max_iterations : int, default 300 (per DFSPH solve; 2 minimum). The start of a tall column
-        from rest needs ~100-300 iterations for a few steps with the extrapolated boundary
-        pressure (full-strength walls); with 100 the unconverged solves halved the step and the
-        overshooting warm start lifted the 20 000-particle dam break's column (front 30 % ahead).
+    max_iterations : int, default 100 (per DFSPH solve; 2 minimum). With the extrapolated
+        boundary pressure the start of a tall column from rest needs ~100-300 iterations for a
+        few steps (full-strength walls); with 100 the unconverged solves halved the step and the
+        overshooting warm start lifted the 20 000-particle dam break's column (front 30 % ahead):
+        pass 300 there.
     max_speed : float [m/s], WCSPH only: the largest expected flow speed; default
         sqrt(2 |g| H) with H the fluid's initial extent along gravity.
     dt : float [s] or None: fixed step (checked against the CFL/viscosity/acoustic limits
@@ -251,9 +252,9 @@ class SPHFluid:
     def __init__(self, positions, *, spacing, domain, method="dfsph", kernel="cubic_spline",
                  smoothing_length=None, velocities=None, rest_density=1000.0, gravity=None,
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
-                 divergence_tolerance=1e-3, max_iterations=300, max_speed=None, dt=None, cfl=0.4,
+                 divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
                  dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
-                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="extrapolated",
+                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="akinci",
                  warm_start_divergence=False):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
@@ -844,7 +845,6 @@ class SPHFluid:
         self._bt = self._alloc_transpose(max(16, 4 * nbnd))
         self._kb_dens = np.zeros(nbnd)   # k_b of the density solve's total (WCSPH: of the Tait pressure)
         self._kb_div = np.zeros(nbnd)    # k_b of the divergence solve's total
-        self._kb_sum = np.zeros(nbnd)
         self._k0_dens = np.zeros(self.capacity)   # k_dens / k_div at the start of this step's solves
         self._k0_div = np.zeros(self.capacity)
         self._bodies_moved = bool(self._bodies)
@@ -867,7 +867,7 @@ class SPHFluid:
         nbnd = self._B.x.shape[0]
         self._K.boundary_extrapolated_pressure(self._F, self._B, self.grid, nbnd, self._bt_start, self._bt[0],
                                                self._bt[1], self._b_normal, k_fluid, self.rest_density, self._g3, kb)
-        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, kb)
+        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, kb, k_fluid, self._g3, self._b_normal)
 
     def _sort_boundary(self):
         B = self._B
@@ -1131,9 +1131,9 @@ class SPHFluid:
                 _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
                                            self.body_torque, self._b_normal)
             if self._extrapolated:   # the boundary particles' extrapolated pressure (Adami et al. 2012)
-                np.add(self._kb_dens, self._kb_div, out=self._kb_sum)
-                _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_sum, self._k0_dens,
-                                                 self._k0_div, self.body_force, self.body_torque)
+                _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_dens, self._kb_div,
+                                                 self._k0_dens, self._k0_div, g3, self._b_normal, self.body_force,
+                                                 self.body_torque)
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)

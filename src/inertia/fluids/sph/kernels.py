@@ -776,12 +776,26 @@ def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, nor
         kb[b] = k if k > 0.0 else 0.0
 
 
+@njit(cache=True, inline="always")
+def _kb_seen_by(kb_b, k_i, rho_i, gravity, normal, bx, fx, b, i):
+    # the extrapolated k_b as fluid particle i sees it: at most the mirror's k_i + the wall-normal
+    # hydrostatic share (and >= 0). The Shepard average smears the pressure along a wall over a
+    # support, so a wall beside the free surface carried the pressure of the rows below and pushed
+    # the top particles up the wall (the coarse dam break's water clung 0.06 x 2a high at T = 3).
+    lim = k_i + _wall_body_force_share(gravity, bx, fx, b, i, normal) / rho_i
+    if lim < 0.0:
+        lim = 0.0
+    return kb_b if kb_b < lim else lim
+
+
 @njit(cache=True, parallel=True)
-def boundary_pressure_kick(F, nb, B, n, dt, kb):
-    """v_i -= dt sum_b psi_b kb_b g_ib: the boundary particles' own pressure share of the symmetric
-    sum (the k_i share is in ``apply_pressure`` with bfac = 1)."""
+def boundary_pressure_kick(F, nb, B, n, dt, kb, k_fluid, gravity, normal):
+    """v_i -= dt sum_b psi_b k_ib g_ib: the boundary particles' own pressure share of the symmetric
+    sum (the k_i share is in ``apply_pressure`` with bfac = 1), k_ib = min(kb_b, k_i + the
+    wall-normal hydrostatic share) (``_kb_seen_by``; k_fluid the total kb was extrapolated from)."""
     F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
     F_x = F.x
+    F_rho = F.rho
     dim = F_x.shape[1]
     for i in prange(n):
         ax = 0.0
@@ -789,7 +803,7 @@ def boundary_pressure_kick(F, nb, B, n, dt, kb):
         az = 0.0
         for k in range(nb.start[i], nb.start[i + 1]):
             b = nb.j[k]
-            s = B.psi[b] * kb[b]
+            s = B.psi[b] * _kb_seen_by(kb[b], k_fluid[i], F_rho[i], gravity, normal, B.x, F_x, b, i)
             ax -= s * nb.g[k, 0]
             ay -= s * nb.g[k, 1]
             if dim == 3:
@@ -801,10 +815,12 @@ def boundary_pressure_kick(F, nb, B, n, dt, kb):
 
 
 @njit(cache=True)
-def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb, k0_dens, k0_div, force, torque):
+def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb_dens, kb_div, k0_dens, k0_div, gravity, normal, force,
+                                  torque):
     """Adds to force, torque (nbody, 3) the reaction of the boundary particles' own pressure on the
-    bodies' particles in the "extrapolated" mode: f_b = m psi_b (kb_b + k_i - k0_i) g_ib, kb the
-    extrapolated warm-start totals (``boundary_pressure_kick``), k_i - k0_i the solves' mirrored
+    bodies' particles in the "extrapolated" mode: f_b = m psi_b (k_ib + k_i - k0_i) g_ib, k_ib the
+    extrapolated warm-start totals as i saw them (``boundary_pressure_kick``, from k0 of both
+    solves; kb_div is 0 without the divergence warm start), k_i - k0_i the solves' mirrored
     increments (k_dens + k_div now minus at the start of the solves); torque (x_b - com) x f_b
     (serial, fixed order). The k_i share itself is in ``body_wrench`` (bfac = 1)."""
     dim = F.x.shape[1]
@@ -815,7 +831,10 @@ def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb, k0_dens, k0_div, f
             body = B.body[b]
             if body < 0:
                 continue
-            s = mass * B.psi[b] * (kb[b] + inc)
+            kib = _kb_seen_by(kb_dens[b], k0_dens[i], F.rho[i], gravity, normal, B.x, F.x, b, i)
+            if kb_div[b] > 0.0:
+                kib += _kb_seen_by(kb_div[b], k0_div[i], F.rho[i], gravity, normal, B.x, F.x, b, i)
+            s = mass * B.psi[b] * (kib + inc)
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
             fz = s * nb.g[k, 2] if dim == 3 else 0.0
