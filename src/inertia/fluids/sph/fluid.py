@@ -871,7 +871,8 @@ class SPHFluid:
         nbnd = self._B.x.shape[0]
         self._K.boundary_extrapolated_pressure(self._F, self._B, self.grid, nbnd, self._bt_start, self._bt[0],
                                                self._bt[1], self._b_normal, k_fluid, self.rest_density, self._g3, kb)
-        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self._n, dt, kb, k_fluid, self._g3, self._b_normal)
+        self._K.boundary_pressure_kick(self._F, self._nbn, self._B, self.grid, self._n, dt, kb, k_fluid, self._g3,
+                                       self._b_normal)
 
     def _sort_boundary(self):
         B = self._B
@@ -1097,7 +1098,7 @@ class SPHFluid:
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
         if self._hydrostatic_wall:   # mirrored boundary pressure: the wall's hydrostatic share (Adami et al. 2012)
-            self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor, self._b_normal)
+            self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor)
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
         if self.xsph > 0:
@@ -1133,9 +1134,9 @@ class SPHFluid:
                            self.body_torque, self._mirror)
             if self._hydrostatic_wall:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
                 _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
-                                           self.body_torque, self._b_normal)
+                                           self.body_torque)
             if self._extrapolated:   # the boundary particles' extrapolated pressure (Adami et al. 2012)
-                _k.body_boundary_pressure_wrench(F, nb, B, n, m, self._body_x, self._kb_dens, self._kb_div,
+                _k.body_boundary_pressure_wrench(F, nb, B, self.grid, n, m, self._body_x, self._kb_dens, self._kb_div,
                                                  self._k0_dens, self._k0_div, g3, self._b_normal, self.body_force,
                                                  self.body_torque)
         t0 = self._tick("bodies", t0)

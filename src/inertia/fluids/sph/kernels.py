@@ -443,19 +443,19 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque, bfac):
 
 
 @njit(cache=True, inline="always")
-def _wall_body_force_share(gravity, bx, fx, b, i, normal):
-    # the wall-normal part of g . (x_b - x_i): (g . n_b)(n_b . (x_b - x_i)) (see boundary_hydrostatic_kick)
+def _wall_body_force_share(gravity, bx, fx, b, i, normal, grid):
+    # the wall-normal part of g . (x_b - x_i): (g . n_b)(n_b . (x_b - x_i)) (extrapolated mode)
     dim = fx.shape[1]
     gn = gravity[0] * normal[b, 0] + gravity[1] * normal[b, 1]
-    dn = normal[b, 0] * (bx[b, 0] - fx[i, 0]) + normal[b, 1] * (bx[b, 1] - fx[i, 1])
+    dn = normal[b, 0] * _min_image(bx[b, 0] - fx[i, 0], 0, grid) + normal[b, 1] * _min_image(bx[b, 1] - fx[i, 1], 1, grid)
     if dim == 3:
         gn += gravity[2] * normal[b, 2]
-        dn += normal[b, 2] * (bx[b, 2] - fx[i, 2])
+        dn += normal[b, 2] * _min_image(bx[b, 2] - fx[i, 2], 2, grid)
     return gn * dn
 
 
 @njit(cache=True, parallel=True)
-def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor, normal):
+def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
     """The hydrostatic part of the boundary pressure (Adami, Hu & Adams 2012, "A generalized wall
     boundary condition for smoothed particle hydrodynamics", J. Comput. Phys. 231: the wall
     pressure extrapolated from the fluid with the body force; here taken pairwise, without the
@@ -485,7 +485,9 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor, normal):
         az = 0.0
         for k in range(nb.start[i], nb.start[i + 1]):
             b = nb.j[k]
-            hyd = _wall_body_force_share(gravity, B.x, F_x, b, i, normal)
+            hyd = gravity[0] * (B.x[b, 0] - F_x[i, 0]) + gravity[1] * (B.x[b, 1] - F_x[i, 1])
+            if dim == 3:
+                hyd += gravity[2] * (B.x[b, 2] - F_x[i, 2])
             h_ib = hyd / F_rho[i]
             if ki <= 0.0 and h_ib < 0.0:
                 h_ib = 0.0
@@ -501,7 +503,7 @@ def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor, normal):
 
 
 @njit(cache=True)
-def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque, normal):
+def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, torque):
     """Adds to force, torque (nbody, 3) the reaction of ``boundary_hydrostatic_kick`` on the
     bodies' particles: f_b = m psi_b h_ib g_ib (h_ib as there, from k_floor), torque
     (x_b - com) x f_b (serial, fixed order; the positions, densities and k_floor of the kick of
@@ -513,7 +515,9 @@ def body_hydrostatic_wrench(F, nb, B, n, mass, com, gravity, k_floor, force, tor
             body = B.body[b]
             if body < 0:
                 continue
-            hyd = _wall_body_force_share(gravity, B.x, F.x, b, i, normal)
+            hyd = gravity[0] * (B.x[b, 0] - F.x[i, 0]) + gravity[1] * (B.x[b, 1] - F.x[i, 1])
+            if dim == 3:
+                hyd += gravity[2] * (B.x[b, 2] - F.x[i, 2])
             h_ib = hyd / F.rho[i]
             if k_floor[i] <= 0.0 and h_ib < 0.0:
                 h_ib = 0.0
@@ -777,19 +781,19 @@ def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, nor
 
 
 @njit(cache=True, inline="always")
-def _kb_seen_by(kb_b, k_i, rho_i, gravity, normal, bx, fx, b, i):
+def _kb_seen_by(kb_b, k_i, rho_i, gravity, normal, bx, fx, b, i, grid):
     # the extrapolated k_b as fluid particle i sees it: at most the mirror's k_i + the wall-normal
     # hydrostatic share (and >= 0). The Shepard average smears the pressure along a wall over a
     # support, so a wall beside the free surface carried the pressure of the rows below and pushed
     # the top particles up the wall (the coarse dam break's water clung 0.06 x 2a high at T = 3).
-    lim = k_i + _wall_body_force_share(gravity, bx, fx, b, i, normal) / rho_i
+    lim = k_i + _wall_body_force_share(gravity, bx, fx, b, i, normal, grid) / rho_i
     if lim < 0.0:
         lim = 0.0
     return kb_b if kb_b < lim else lim
 
 
 @njit(cache=True, parallel=True)
-def boundary_pressure_kick(F, nb, B, n, dt, kb, k_fluid, gravity, normal):
+def boundary_pressure_kick(F, nb, B, grid, n, dt, kb, k_fluid, gravity, normal):
     """v_i -= dt sum_b psi_b k_ib g_ib: the boundary particles' own pressure share of the symmetric
     sum (the k_i share is in ``apply_pressure`` with bfac = 1), k_ib = min(kb_b, k_i + the
     wall-normal hydrostatic share) (``_kb_seen_by``; k_fluid the total kb was extrapolated from)."""
@@ -803,7 +807,7 @@ def boundary_pressure_kick(F, nb, B, n, dt, kb, k_fluid, gravity, normal):
         az = 0.0
         for k in range(nb.start[i], nb.start[i + 1]):
             b = nb.j[k]
-            s = B.psi[b] * _kb_seen_by(kb[b], k_fluid[i], F_rho[i], gravity, normal, B.x, F_x, b, i)
+            s = B.psi[b] * _kb_seen_by(kb[b], k_fluid[i], F_rho[i], gravity, normal, B.x, F_x, b, i, grid)
             ax -= s * nb.g[k, 0]
             ay -= s * nb.g[k, 1]
             if dim == 3:
@@ -815,8 +819,8 @@ def boundary_pressure_kick(F, nb, B, n, dt, kb, k_fluid, gravity, normal):
 
 
 @njit(cache=True)
-def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb_dens, kb_div, k0_dens, k0_div, gravity, normal, force,
-                                  torque):
+def body_boundary_pressure_wrench(F, nb, B, grid, n, mass, com, kb_dens, kb_div, k0_dens, k0_div, gravity, normal,
+                                  force, torque):
     """Adds to force, torque (nbody, 3) the reaction of the boundary particles' own pressure on the
     bodies' particles in the "extrapolated" mode: f_b = m psi_b (k_ib + k_i - k0_i) g_ib, k_ib the
     extrapolated warm-start totals as i saw them (``boundary_pressure_kick``, from k0 of both
@@ -831,9 +835,9 @@ def body_boundary_pressure_wrench(F, nb, B, n, mass, com, kb_dens, kb_div, k0_de
             body = B.body[b]
             if body < 0:
                 continue
-            kib = _kb_seen_by(kb_dens[b], k0_dens[i], F.rho[i], gravity, normal, B.x, F.x, b, i)
+            kib = _kb_seen_by(kb_dens[b], k0_dens[i], F.rho[i], gravity, normal, B.x, F.x, b, i, grid)
             if kb_div[b] > 0.0:
-                kib += _kb_seen_by(kb_div[b], k0_div[i], F.rho[i], gravity, normal, B.x, F.x, b, i)
+                kib += _kb_seen_by(kb_div[b], k0_div[i], F.rho[i], gravity, normal, B.x, F.x, b, i, grid)
             s = mass * B.psi[b] * (kib + inc)
             fx = s * nb.g[k, 0]
             fy = s * nb.g[k, 1]
