@@ -43,6 +43,9 @@ Limitations
   Am. J. Phys. 55; the 0.4 m box of the tests at s = 0.5 has GM = KB + BM - KG = 0.1 + 0.067 - 0.2
   = -0.033 m. Whether free light bodies are also destabilised by the explicit coupling is open.)
 - The wall's hydrostatic share uses gravity only, not the body's acceleration (Adami's g - a_w).
+- Boundary normals (used by the "extrapolated" boundary pressure) are the gradients of the closed
+  shape's signed distance: a body spanning a periodic axis (the 2-D slabs) gets normals towards its
+  faces on that axis, which are not walls (its body-force share is then lost there).
 """
 
 from __future__ import annotations
