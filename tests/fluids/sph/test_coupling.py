@@ -197,10 +197,11 @@ def test_floating_box_reaches_the_archimedes_draft(relative_density):
     # water weighs what the box weighs). Drafts of 8 and 12.8 spacings: the boundary's offsets
     # are a few tenths of a spacing (the box floats ~0.2 spacing high; the fitted box lattice
     # removed another 0.2), so 5 % needs drafts of several spacings (at 4.8 spacings the draft was
-    # 0.93-0.95 of Archimedes). The box runs on a vertical guide (its rotation is held): free, a
-    # light wide box rolls over after ~2 s although upright is stable (metacentric height > 0),
-    # the added-mass instability of the explicit coupling (coupling.py, limitations; the roll
-    # moment itself: test_tilted_half_submerged_box_buoyancy_moment). Mean over 1.5-3 s (past the
+    # 0.93-0.95 of Archimedes). The box runs on a vertical guide (its rotation is held): free, the
+    # square box of s = 0.5 rolls over, as it must (metacentric height KB + BM - KG = 0.1 + 0.067
+    # - 0.2 = -0.033 m < 0: a floating square is stable upright only for s < 0.211 or s > 0.789,
+    # Delbourgo 1987, Am. J. Phys. 55; the roll moment itself:
+    # test_tilted_half_submerged_box_buoyancy_moment). Mean over 1.5-3 s (past the
     # first heave periods). Measured: volume draft 0.976 of s h (s = 0.5), 0.985 (s = 0.8);
     # percentile draft 0.961 and 0.978. Checked: volume draft within 5 % of s h, percentile
     # within 7 %.

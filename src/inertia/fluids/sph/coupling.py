@@ -18,11 +18,14 @@ impulse sum_steps F dt (linear) and sum_steps T dt (angular, about the centre of
 ``body_qd`` (``inertia.dynamics.particle_coupling.apply_body_impulses``: dv = J / m, dw = I_world^-1 L;
 dynamic bodies only).
 
-The force on a boundary particle is the reaction of the fluid's pressure acceleration on it: the
-boundary pressure is the fluid particle's mirrored into the symmetric SPH sum, m (k_i + k_b) with
-k_b = k_i (Akinci et al. 2012), plus the wall's hydrostatic share k_b - k_i = g . (x_b - x_i) / rho_i
-(Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput. Phys. 231),
-``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``. With k_i alone (the earlier
+The force on a boundary particle is the reaction of the fluid's pressure acceleration on it, with the
+boundary particle's own pressure k_b in the symmetric SPH sum m (k_i + k_b) (``SPHFluid(boundary_pressure=
+...)``): "extrapolated" (default) the Shepard average of the fluid pressures plus the wall-normal
+body-force share (Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput.
+Phys. 231; ``kernels.boundary_extrapolated_pressure`` / ``body_boundary_pressure_wrench``), "mirror"
+k_b = k_i (Akinci et al. 2012) plus the wall-normal hydrostatic share (g . n_b)(n_b . (x_b - x_i)) /
+rho_i (``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``). The normals n_b are the
+unit gradients of the shapes' signed distances at the sample points (``sample_model``). With k_i alone (the earlier
 form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
 submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).
 
@@ -34,10 +37,15 @@ Limitations
   counts twice in the density near the joint).
 - Explicit coupling: the rigid step integrates the fluid impulse of the previous world step
   (first-order splitting; light bodies need the fluid's viscosity/XSPH to settle). During the fluid
-  sub-steps of one world step the bodies move with their velocity (poses extrapolated). Light,
-  wide floating boxes can roll over although upright is stable (metacentric height > 0): the
-  added-mass instability of explicit (partitioned) coupling, worse with long world steps.
+  sub-steps of one world step the bodies move with their velocity (poses extrapolated). (A free
+  square box of density 0.5 rolling over is physics, not this: a square floats upright only for
+  density ratios s < (3 - sqrt 3)/6 = 0.211 or s > 0.789, Delbourgo 1987, "The floating plank",
+  Am. J. Phys. 55; the 0.4 m box of the tests at s = 0.5 has GM = KB + BM - KG = 0.1 + 0.067 - 0.2
+  = -0.033 m. Whether free light bodies are also destabilised by the explicit coupling is open.)
 - The wall's hydrostatic share uses gravity only, not the body's acceleration (Adami's g - a_w).
+- Boundary normals (used by the "extrapolated" boundary pressure) are the gradients of the closed
+  shape's signed distance: a body spanning a periodic axis (the 2-D slabs) gets normals towards its
+  faces on that axis, which are not walls (its body-force share is then lost there).
 """
 
 from __future__ import annotations
@@ -150,9 +158,10 @@ def _inverse_transform(pose, p):
 
 
 def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, world_origin):
-    """Boundary bands of every shape row. Returns a list of (points (M, 3), body, local (M, 3)):
-    body -1 with world points for static geometry; the rigid body index with body-frame points
-    (``local``) and their world positions at ``body_q`` for dynamic/kinematic bodies.
+    """Boundary bands of every shape row. Returns a list of (points (M, 3), body, local (M, 3),
+    normal (M, 3)): body -1 with world points and normals for static geometry; the rigid body
+    index with body-frame points (``local``) and normals and their world positions at ``body_q``
+    for dynamic/kinematic bodies. The normal is the unit gradient of the signed distance.
     ``lattice(lo, hi, spacing, origin)`` makes lattice points (``fluid._lattice``)."""
     parts = []
     types = np.asarray(model.shape_type)
@@ -182,14 +191,30 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
             keep = (sd < 0) & (sd >= -support)
             in_body = _transform(local_pose, pts[keep])
             world = _transform(np.asarray(body_q[body], float), in_body)
-            parts.append((world, body, in_body))
+            normal = _surface_normal(st, params, pts[keep], verts, spacing) @ quat_to_matrices(local_pose[3:7])[0].T
+            parts.append((world, body, in_body, normal))
         else:
             pose = local_pose if body < 0 else _compose(np.asarray(body_q[body], float), local_pose)
             pts = lattice(world_lo, world_hi, spacing, world_origin)
-            sd = shape_signed_distance(st, params, _inverse_transform(pose, pts), verts)
+            local = _inverse_transform(pose, pts)
+            sd = shape_signed_distance(st, params, local, verts)
             keep = (sd < 0) & (sd >= -support)
-            parts.append((pts[keep], -1, np.zeros((int(keep.sum()), 3))))
+            normal = _surface_normal(st, params, local[keep], verts, spacing) @ quat_to_matrices(pose[3:7])[0].T
+            parts.append((pts[keep], -1, np.zeros((int(keep.sum()), 3)), normal))
     return parts
+
+
+def _surface_normal(shape_type, params, p, verts, spacing):
+    """(M, 3) unit gradient of the signed distance at p (shape frame; central differences of
+    1e-3 spacing): the outward normal of the nearest surface point."""
+    eps = 1e-3 * spacing
+    g = np.empty((p.shape[0], 3))
+    for d in range(3):
+        e = np.zeros(3)
+        e[d] = eps
+        g[:, d] = shape_signed_distance(shape_type, params, p + e, verts) - shape_signed_distance(
+            shape_type, params, p - e, verts)
+    return g / np.maximum(np.linalg.norm(g, axis=1, keepdims=True), 1e-300)
 
 
 def _compose(a, b):

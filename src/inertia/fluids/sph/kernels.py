@@ -442,6 +442,18 @@ def body_wrench(F, nb, B, n, mass, rho0, h, com, force, torque, bfac):
             torque[body, 2] += px * fy - py * fx
 
 
+@njit(cache=True, inline="always")
+def _wall_body_force_share(gravity, bx, fx, b, i, normal, grid):
+    # the wall-normal part of g . (x_b - x_i): (g . n_b)(n_b . (x_b - x_i)) (extrapolated mode)
+    dim = fx.shape[1]
+    gn = gravity[0] * normal[b, 0] + gravity[1] * normal[b, 1]
+    dn = normal[b, 0] * _min_image(bx[b, 0] - fx[i, 0], 0, grid) + normal[b, 1] * _min_image(bx[b, 1] - fx[i, 1], 1, grid)
+    if dim == 3:
+        gn += gravity[2] * normal[b, 2]
+        dn += normal[b, 2] * _min_image(bx[b, 2] - fx[i, 2], 2, grid)
+    return gn * dn
+
+
 @njit(cache=True, parallel=True)
 def boundary_hydrostatic_kick(F, nb, B, n, dt, gravity, k_floor):
     """The hydrostatic part of the boundary pressure (Adami, Hu & Adams 2012, "A generalized wall
@@ -695,3 +707,166 @@ def cg_direction(n, beta, z, p):
 
 
 _PARALLEL_KERNELS = _PARALLEL_KERNELS + ("viscosity_operator", "dot_rows", "cg_update", "cg_direction")
+
+
+# --------------------------------------------------------------------------- extrapolated boundary pressure
+# Adami, S., Hu, X. Y. & Adams, N. A. (2012), "A generalized wall boundary condition for smoothed particle
+# hydrodynamics", J. Comput. Phys. 231: every boundary particle b carries the pressure extrapolated from
+# the fluid around it, the Shepard average plus the body force's share along the wall normal n_b,
+#     p_b = sum_f W_bf (p_f + rho_f (g . n_b) (n_b . (x_b - x_f))) / sum_f W_bf,   p_b >= 0,
+# (Adami et al. use the full offset x_b - x_f; only its normal part is implied by the momentum balance at
+# a wall, and the tangential part pushed the fluid up a vertical wall in the dam break), and the fluid's
+# pressure acceleration takes it into the symmetric sum,
+#     a_i = -sum_j m (k_i + k_j) g_ij - sum_b psi_b (k_i + k_b) g_ib,  k_b = p_b / rho0^2,
+# so that the fluid row on a wall feels the pressure gradient of a row inside the fluid (Band, Gissler,
+# Peer & Teschner 2018, "MLS pressure boundaries for divergence-free and viscous SPH fluids", C&G 76,
+# extrapolate with a linear MLS fit instead: with the cubic spline at h = dx a boundary particle sees
+# one row of fluid, the fit is degenerate or nearly so, and it ran away in the hydrostatic column).
+# In the DFSPH solves the extrapolated p_b enters with the warm start (the previous step's total,
+# ``boundary_extrapolated_pressure`` and ``boundary_pressure_kick``); the solver's increments kappa are
+# mirrored, k_b = k_i (``apply_pressure`` with bfac = 2; the factor keeps Akinci's diagonal). Extrapolated
+# increments (a Shepard average of the neighbours' kappa) are not in the Jacobi diagonal: in the film
+# between a sinking body and the floor that iteration diverged. At rest the increments vanish and the
+# walls carry the extrapolated pressure; the divergence solve (not warm-started) is mirrored throughout.
+
+
+@njit(cache=True)
+def boundary_transpose(nb, n, nbound, bt_start, bt_i, bt_w):
+    """The boundary->fluid lists from the fluid->boundary CSR ``nb`` (serial, fixed order:
+    deterministic): fluid neighbours of boundary particle b are bt_i[bt_start[b]:bt_start[b+1]]
+    (ascending fluid index) with W_bf in bt_w. bt_start (nbound + 1,) int64."""
+    for b in range(nbound + 1):
+        bt_start[b] = 0
+    for k in range(nb.start[0], nb.start[n]):
+        bt_start[nb.j[k] + 1] += 1
+    for b in range(nbound):
+        bt_start[b + 1] += bt_start[b]
+    for i in range(n):
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            q = bt_start[b]
+            bt_i[q] = i
+            bt_w[q] = nb.w[k]
+            bt_start[b] = q + 1
+    for b in range(nbound, 0, -1):  # the fill advanced every start to its end: shift back
+        bt_start[b] = bt_start[b - 1]
+    bt_start[0] = 0
+
+
+@njit(cache=True, parallel=True)
+def boundary_extrapolated_pressure(F, B, grid, nbound, bt_start, bt_i, bt_w, normal, k_fluid, rho0, gravity, kb):
+    """kb_b = p_b / rho0^2 from the fluid's k (p_f = k_f rho_f^2): the Shepard average of
+    p_f + rho_f (g . n_b)(n_b . (x_b - x_f)) over the fluid neighbours, clamped at 0 (see the
+    section comment); 0 for boundary particles without fluid neighbours."""
+    F_rho = F.rho
+    F_x = F.x
+    dim = F_x.shape[1]
+    inv = 1.0 / (rho0 * rho0)
+    for b in prange(nbound):
+        gn = gravity[0] * normal[b, 0] + gravity[1] * normal[b, 1]
+        if dim == 3:
+            gn += gravity[2] * normal[b, 2]
+        p = 0.0
+        wsum = 0.0
+        for q in range(bt_start[b], bt_start[b + 1]):
+            f = bt_i[q]
+            dn = normal[b, 0] * _min_image(B.x[b, 0] - F_x[f, 0], 0, grid)
+            dn += normal[b, 1] * _min_image(B.x[b, 1] - F_x[f, 1], 1, grid)
+            if dim == 3:
+                dn += normal[b, 2] * _min_image(B.x[b, 2] - F_x[f, 2], 2, grid)
+            p += bt_w[q] * (k_fluid[f] * F_rho[f] * F_rho[f] + F_rho[f] * gn * dn)
+            wsum += bt_w[q]
+        k = p / wsum * inv if wsum > 0.0 else 0.0
+        kb[b] = k if k > 0.0 else 0.0
+
+
+@njit(cache=True, inline="always")
+def _kb_seen_by(kb_b, k_i, rho_i, gravity, normal, bx, fx, b, i, grid):
+    # the extrapolated k_b as fluid particle i sees it: at most the mirror's k_i + the wall-normal
+    # hydrostatic share (and >= 0). The Shepard average smears the pressure along a wall over a
+    # support, so a wall beside the free surface carried the pressure of the rows below and pushed
+    # the top particles up the wall (the coarse dam break's water clung 0.06 x 2a high at T = 3).
+    lim = k_i + _wall_body_force_share(gravity, bx, fx, b, i, normal, grid) / rho_i
+    if lim < 0.0:
+        lim = 0.0
+    return kb_b if kb_b < lim else lim
+
+
+@njit(cache=True, parallel=True)
+def boundary_pressure_kick(F, nb, B, grid, n, dt, kb, k_fluid, gravity, normal):
+    """v_i -= dt sum_b psi_b k_ib g_ib: the boundary particles' own pressure share of the symmetric
+    sum (the k_i share is in ``apply_pressure`` with bfac = 1), k_ib = min(kb_b, k_i + the
+    wall-normal hydrostatic share) (``_kb_seen_by``; k_fluid the total kb was extrapolated from)."""
+    F_v = F.v  # unpacked: Numba drops writes through a named tuple inside prange
+    F_x = F.x
+    F_rho = F.rho
+    dim = F_x.shape[1]
+    for i in prange(n):
+        ax = 0.0
+        ay = 0.0
+        az = 0.0
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            s = B.psi[b] * _kb_seen_by(kb[b], k_fluid[i], F_rho[i], gravity, normal, B.x, F_x, b, i, grid)
+            ax -= s * nb.g[k, 0]
+            ay -= s * nb.g[k, 1]
+            if dim == 3:
+                az -= s * nb.g[k, 2]
+        F_v[i, 0] += dt * ax
+        F_v[i, 1] += dt * ay
+        if dim == 3:
+            F_v[i, 2] += dt * az
+
+
+@njit(cache=True)
+def body_boundary_pressure_wrench(F, nb, B, grid, n, mass, com, kb_dens, kb_div, k0_dens, k0_div, gravity, normal,
+                                  force, torque):
+    """Adds to force, torque (nbody, 3) the reaction of the boundary particles' own pressure on the
+    bodies' particles in the "extrapolated" mode: f_b = m psi_b (k_ib + k_i - k0_i) g_ib, k_ib the
+    extrapolated warm-start totals as i saw them (``boundary_pressure_kick``, from k0 of both
+    solves; kb_div is 0 without the divergence warm start), k_i - k0_i the solves' mirrored
+    increments (k_dens + k_div now minus at the start of the solves); torque (x_b - com) x f_b
+    (serial, fixed order). The k_i share itself is in ``body_wrench`` (bfac = 1)."""
+    dim = F.x.shape[1]
+    for i in range(n):
+        inc = F.k_dens[i] + F.k_div[i] - k0_dens[i] - k0_div[i]
+        for k in range(nb.start[i], nb.start[i + 1]):
+            b = nb.j[k]
+            body = B.body[b]
+            if body < 0:
+                continue
+            kib = _kb_seen_by(kb_dens[b], k0_dens[i], F.rho[i], gravity, normal, B.x, F.x, b, i, grid)
+            if kb_div[b] > 0.0:
+                kib += _kb_seen_by(kb_div[b], k0_div[i], F.rho[i], gravity, normal, B.x, F.x, b, i, grid)
+            s = mass * B.psi[b] * (kib + inc)
+            fx = s * nb.g[k, 0]
+            fy = s * nb.g[k, 1]
+            fz = s * nb.g[k, 2] if dim == 3 else 0.0
+            px = B.x[b, 0] - com[body, 0]
+            py = B.x[b, 1] - com[body, 1]
+            pz = (B.x[b, 2] - com[body, 2]) if dim == 3 else 0.0
+            force[body, 0] += fx
+            force[body, 1] += fy
+            force[body, 2] += fz
+            torque[body, 0] += py * fz - pz * fy
+            torque[body, 1] += pz * fx - px * fz
+            torque[body, 2] += px * fy - py * fx
+
+
+_PARALLEL_KERNELS = _PARALLEL_KERNELS + ("boundary_extrapolated_pressure", "boundary_pressure_kick")
+
+
+@njit(cache=True)
+def rotate_boundary_normals(nrest, body, body_rot, normal):
+    """World normals of the boundary particles: body particles n = R n_local, static ones n_rest."""
+    nb, dim = normal.shape
+    for b in range(nb):
+        k = body[b]
+        for d in range(dim):
+            if k < 0:
+                normal[b, d] = nrest[b, d]
+            else:
+                s = 0.0
+                for e in range(dim):
+                    s += body_rot[k, d, e] * nrest[b, e]
+                normal[b, d] = s
