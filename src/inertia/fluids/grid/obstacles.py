@@ -31,6 +31,22 @@ def low_cell(axis, i, j, k):
 
 
 @njit(cache=True, inline="always")
+def add_axis_impulse(lin, ang, b, axis, J, x, y, z):
+    """Accumulate an impulse J along axis ``axis`` applied at r = (x, y, z) from body ``b``'s centre:
+    lin[b, axis] += J and ang[b] += r x (J e_axis)."""
+    lin[b, axis] += J
+    if axis == 0:      # r x (J e_x) = (0, z J, -y J)
+        ang[b, 1] += z * J
+        ang[b, 2] -= y * J
+    elif axis == 1:    # r x (J e_y) = (-z J, 0, x J)
+        ang[b, 0] -= z * J
+        ang[b, 2] += x * J
+    else:              # r x (J e_z) = (y J, -x J, 0)
+        ang[b, 0] += y * J
+        ang[b, 1] -= x * J
+
+
+@njit(cache=True, inline="always")
 def face_cells(f, axis, nx, ny, nz):
     """The cells on either side of face ``f`` (flat index into the (nx+[axis==0], ny+[axis==1],
     nz+[axis==2]) face array of ``axis``): (i, j, k) the high side, (il, jl, kl) the low side, and

@@ -80,7 +80,7 @@ from ...errors import SimulationDiverged
 from . import kernels as K
 from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
-from .obstacles import face_cells, face_fractions, nearest_obstacle, obstacle_fractions, rigid_shape_obstacles
+from .obstacles import add_axis_impulse, face_cells, face_fractions, nearest_obstacle, obstacle_fractions, rigid_shape_obstacles
 from .pressure import SOLVERS, PoissonSolver
 
 ADVECTION = ("semi-lagrangian", "maccormack")
@@ -1026,13 +1026,4 @@ def _pressure_impulses(phi, faces, open_frac, body, axis, h, origin, rho, body_q
         x = origin[0] + (i + (0.0 if axis == 0 else 0.5)) * h - body_q[b, 0]
         y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
         z = origin[2] + (k + (0.0 if axis == 2 else 0.5)) * h - body_q[b, 2]
-        lin[b, axis] += J
-        if axis == 0:      # r x (J e_x) = (0, z J, -y J)
-            ang[b, 1] += z * J
-            ang[b, 2] -= y * J
-        elif axis == 1:    # r x (J e_y) = (-z J, 0, x J)
-            ang[b, 0] -= z * J
-            ang[b, 2] += x * J
-        else:              # r x (J e_z) = (y J, -x J, 0)
-            ang[b, 0] += y * J
-            ang[b, 1] -= x * J
+        add_axis_impulse(lin, ang, b, axis, J, x, y, z)

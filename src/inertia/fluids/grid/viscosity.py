@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit, prange
 
 from .kernels import DIRICHLET, PERIODIC
+from .obstacles import add_axis_impulse
 
 # Node kinds of the implicit viscosity solve (one int8 per face node, per velocity component):
 # Node kinds of the implicit viscosity solve (one int8 per face node, per velocity component):
@@ -200,16 +201,7 @@ def wall_shear_impulses(x, kind, sdf, wall, owner, slot, scale, g, ref, lin, ang
                             p1 += step
                         else:
                             p2 += step
-                        lin[o, slot] += J
-                        if slot == 0:      # r x (J e_x) = (0, z J, -y J)
-                            ang[o, 1] += p2 * J
-                            ang[o, 2] -= p1 * J
-                        elif slot == 1:    # r x (J e_y) = (-z J, 0, x J)
-                            ang[o, 0] -= p2 * J
-                            ang[o, 2] += p0 * J
-                        else:              # r x (J e_z) = (y J, -x J, 0)
-                            ang[o, 0] += p1 * J
-                            ang[o, 1] -= p0 * J
+                        add_axis_impulse(lin, ang, o, slot, J, p0, p1, p2)
 
 
 def solve_component(kv, kk, x, kind, sdf, wall, slot, coef, g, cg, partial, rel_tol=1e-10,
