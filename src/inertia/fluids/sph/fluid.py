@@ -915,8 +915,8 @@ class SPHFluid:
         converged = False
         while True:
             self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total,
-                                       beta)
-            s, mx = self._reduce(F.err, n)
+                                       beta, self._partial, self._red)
+            s, mx = float(self._red[0]), float(self._red[1])
             err, big = s / max(n, 1) * scale, mx * scale
             converged = err <= tolerance and big <= local
             if (converged and it >= 1) or it >= self.max_iterations:

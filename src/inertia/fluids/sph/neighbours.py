@@ -113,16 +113,37 @@ def _min_image(r, d, grid):
     return r
 
 
-@njit(cache=True)
-def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, write, slot, limit, nbr, w_out, g_out):
+@njit(cache=True, inline="always")
+def _row_segments(cx, n, periodic):
+    # the cells cx-1, cx, cx+1 of one row as at most 3 ranges [a, b) of consecutive cells:
+    # one range unless the row wraps around a periodic axis (then in the order cx-1, cx, cx+1 too)
+    a0 = cx - 1
+    b0 = cx + 2
+    if not periodic:
+        return max(a0, 0), min(b0, n), 0, 0, 0, 0
+    if a0 >= 0 and b0 <= n:
+        return a0, b0, 0, 0, 0, 0
+    if a0 < 0:  # cells n-1 | 0, 1
+        return n - 1, n, 0, b0, 0, 0
+    return a0, n, 0, b0 - n, 0, 0  # cells n-2, n-1 | 0
+
+
+@njit(cache=True, inline="always")
+def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, write, slot, limit, nbr, w_out, g_out,
+           wrap):
     # gather (count, or write into slot.. at most limit entries) the particles of set t within the
-    # support of point xi; returns the full count
+    # support of point xi; returns the full count. The 3 (3 x 3 in 3D) rows of neighbour cells are
+    # walked as contiguous particle ranges (the cells of a row are consecutive in the sorted
+    # arrays), in the order cell by cell, particle by particle within a cell; wrap: any periodic
+    # axis (minimum-image displacements), else plain differences.
     dim = xt.shape[1]
     support2 = 4.0 * h * h
     zr = 1 if dim == 3 else 0
-    cx = min(max(int(np.floor((x0 - grid.lo[0]) * grid.inv_cell[0])), -1), grid.dims[0])
+    nx = grid.dims[0]
+    cx = min(max(int(np.floor((x0 - grid.lo[0]) * grid.inv_cell[0])), -1), nx)
     cy = min(max(int(np.floor((x1 - grid.lo[1]) * grid.inv_cell[1])), -1), grid.dims[1])
     cz = min(max(int(np.floor((x2 - grid.lo[2]) * grid.inv_cell[2])), -1), grid.dims[2]) if dim == 3 else 0
+    a1, b1, a2, b2, _, _ = _row_segments(cx, nx, grid.periodic[0])
     count = 0
     for dz in range(-zr, zr + 1):
         z = cz + dz
@@ -136,19 +157,23 @@ def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 
                 y %= grid.dims[1]
             elif y < 0 or y >= grid.dims[1]:
                 continue
-            for dx in range(-1, 2):
-                xc = cx + dx
-                if grid.periodic[0]:
-                    xc %= grid.dims[0]
-                elif xc < 0 or xc >= grid.dims[0]:
+            row = nx * (y + grid.dims[1] * z)
+            for seg in range(2):
+                a = a1 if seg == 0 else a2
+                b = b1 if seg == 0 else b2
+                if a >= b:
                     continue
-                c = xc + grid.dims[0] * (y + grid.dims[1] * z)
-                for j in range(cell_start[c], cell_start[c + 1]):
+                for j in range(cell_start[row + a], cell_start[row + b]):
                     if exclude_self and j == i:
                         continue
-                    rx = _min_image(x0 - xt[j, 0], 0, grid)
-                    ry = _min_image(x1 - xt[j, 1], 1, grid)
-                    rz = _min_image(x2 - xt[j, 2], 2, grid) if dim == 3 else 0.0
+                    if wrap:
+                        rx = _min_image(x0 - xt[j, 0], 0, grid)
+                        ry = _min_image(x1 - xt[j, 1], 1, grid)
+                        rz = _min_image(x2 - xt[j, 2], 2, grid) if dim == 3 else 0.0
+                    else:
+                        rx = x0 - xt[j, 0]
+                        ry = x1 - xt[j, 1]
+                        rz = x2 - xt[j, 2] if dim == 3 else 0.0
                     r2 = rx * rx + ry * ry + rz * rz
                     if r2 >= support2:
                         continue
@@ -173,13 +198,14 @@ def count_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, count)
     the support 2h of fluid particle i < n."""
     dim = x.shape[1]
     sigma = kernel_norm(kernel, dim, h)
+    wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
     dummy_i = np.zeros(1, np.int32)
     dummy_w = np.zeros(1)
     dummy_g = np.zeros((1, dim))
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
         count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, False, 0, 0,
-                          dummy_i, dummy_w, dummy_g)
+                          dummy_i, dummy_w, dummy_g, wrap)
 
 
 @njit(cache=True, parallel=True)
@@ -188,10 +214,11 @@ def fill_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, start, 
     w_out (W_ij) and g_out (grad_i W_ij, (M, D))."""
     dim = x.shape[1]
     sigma = kernel_norm(kernel, dim, h)
+    wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
         _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True, start[i],
-               start[i + 1] - start[i], nbr, w_out, g_out)
+               start[i + 1] - start[i], nbr, w_out, g_out, wrap)
 
 
 @njit(cache=True, parallel=True)
@@ -201,10 +228,11 @@ def fill_strided(x, n, xt, cell_start, grid, kernel, h, exclude_self, stride, co
     count above stride means the rows are incomplete: the caller falls back to fill_neighbours)."""
     dim = x.shape[1]
     sigma = kernel_norm(kernel, dim, h)
+    wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
         count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True,
-                          i * stride, stride, nbr, w_out, g_out)
+                          i * stride, stride, nbr, w_out, g_out, wrap)
 
 
 @njit(cache=True, parallel=True)
