@@ -852,15 +852,15 @@ class SPHFluid:
         K = self._K
         args = (F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self)
         stride = self._stride
-        sj, sw, sg = self._strided
-        K.fill_strided(*args, stride, self._count, sj, sw, sg)
+        sj = self._strided
+        K.fill_strided(F.x, n, xt, start_t, self.grid, self.h, exclude_self, stride, self._count, sj)
         total = _nb.exclusive_scan(self._count, n, nl.start)
         if total > nl.j.shape[0]:
             nl = self._alloc_neighbours(self.capacity, int(total * 1.25) + 16)
             _nb.exclusive_scan(self._count, n, nl.start)
         widest = int(self._count[:n].max()) if n else 0
         if widest <= stride:
-            K.compact(n, stride, nl.start, sj, sw, sg, nl.j, nl.w, nl.g)
+            K.compact(F.x, n, xt, self.grid, self.kernel, self.h, stride, nl.start, sj, nl.j, nl.w, nl.g)
         else:  # a row overflowed its stride: the two-pass fill, and a wider stride from now on
             K.fill_neighbours(*args, nl.start, nl.j, nl.w, nl.g)
             self._stride = int(widest * 1.25) + 4
@@ -869,7 +869,7 @@ class SPHFluid:
 
     def _alloc_strided(self, stride):
         cap = self.capacity
-        return np.zeros(cap * stride, np.int32), np.zeros(cap * stride), np.zeros((cap * stride, self.dim))
+        return np.zeros(cap * stride, np.int32)
 
     def _dt_limit(self, vmax):
         # CFL with gravity: (vmax + |g| dt) dt <= cfl dx; explicit viscosity; WCSPH acoustic CFL

@@ -595,15 +595,24 @@ _PARALLEL_KERNELS = ("chunk_sum_max", "speed_squared", "density_and_factor", "pr
 _SETS = {}
 
 
+# An SPH pass does 10-40 pair interactions per particle (2D-3D), and a step ~25 passes: about 16
+# times the work per element of the flat particle kernels ``inertia._jit.SERIAL_BELOW`` (elements)
+# was measured on, so the SPH kernels go parallel from SERIAL_BELOW / SPH_WORK_PER_ELEMENT
+# particles (8192 by default: the 20 000-particle 2D dam break runs on both cores, the test scenes
+# of a few thousand particles serially; INERTIA_SERIAL_BELOW=0 still means always parallel).
+SPH_WORK_PER_ELEMENT = 16
+
+
 def kernel_set(n: int):
     """The kernels to run for n particles: the parallel ones, or their serial twins (same code,
-    compiled without ``parallel``; see ``inertia._jit``) below ``SERIAL_BELOW`` particles, where
-    launching a parallel region costs more than the work. Twins compile on first use."""
+    compiled without ``parallel``; see ``inertia._jit``) below ``SERIAL_BELOW /
+    SPH_WORK_PER_ELEMENT`` particles, where launching a parallel region costs more than the
+    work. Twins compile on first use."""
     from types import SimpleNamespace
 
     from ..._jit import SERIAL_BELOW, serial_twin
     from . import neighbours as nb
-    serial = n < SERIAL_BELOW
+    serial = n < SERIAL_BELOW // SPH_WORK_PER_ELEMENT
     if serial not in _SETS:
         g = globals()
         ns = {name: (serial_twin(g[name]) if serial else g[name]) for name in _PARALLEL_KERNELS}

@@ -12,14 +12,17 @@ Each step (``SPHFluid._neighbours``):
    same at any thread count) and ``broadphase.gather``: the fluid arrays are *reordered* into
    cell order and stay in that order ("sorted space"): neighbours become neighbours in memory.
    ``SPHFluid.particle_id`` follows the particles through the reordering.
-3. ``fill_strided`` / ``exclusive_scan`` / ``compact`` (one distance pass into fixed-stride rows,
-   then a copy into CSR; ``count_neighbours`` / ``fill_neighbours`` when a row overflows its
-   stride, which then grows): every particle i records *all*
+3. ``fill_strided`` / ``exclusive_scan`` / ``compact`` (one distance pass writing the neighbour
+   indices into fixed-stride rows, then ``compact`` evaluates W and grad W of each pair into
+   CSR; ``count_neighbours`` / ``fill_neighbours`` when a row overflows its stride, which then
+   grows): every particle i records *all*
    its neighbours j (fluid-fluid, excluding itself) and b (fluid-boundary) within the support,
    in CSR form, with the kernel value ``W_ij`` and gradient ``grad W_ij`` of each pair. Each
    particle writes only its own slice, so both passes are parallel and write-disjoint; every
    later SPH pass is a gather over these lists (the solver iterates ~10-40 times per step over
-   the same pairs, so the kernel is evaluated once per pair and step).
+   the same pairs, so the kernel is evaluated once per pair and step). The 3 cells of a row of
+   the 3 x 3 (x 3) block around a particle are consecutive in the sorted arrays and are walked as
+   one particle range.
 
 Why not the collision layer's pair list: ``broadphase.count_pairs`` records each pair once
 (p > q) for a coloured, scatter-style contact solver; SPH sums over the full neighbourhood of
@@ -114,6 +117,19 @@ def _min_image(r, d, grid):
 
 
 @njit(cache=True, inline="always")
+def _store_pair(k, rx, ry, rz, r2, kernel, h, sigma, w_out, g_out):
+    # W and grad_i W of the pair at displacement (rx, ry, rz) = x_i - x_j, |.|^2 = r2, into row k
+    r = np.sqrt(r2)
+    w, dw = w_and_dwdr(kernel, r, h, sigma)
+    w_out[k] = w
+    f = dw / r if r > 0.0 else 0.0
+    g_out[k, 0] = f * rx
+    g_out[k, 1] = f * ry
+    if g_out.shape[1] == 3:
+        g_out[k, 2] = f * rz
+
+
+@njit(cache=True, inline="always")
 def _row_segments(cx, n, periodic):
     # the cells cx-1, cx, cx+1 of one row as at most 3 ranges [a, b) of consecutive cells:
     # one range unless the row wraps around a periodic axis (then in the order cx-1, cx, cx+1 too)
@@ -131,8 +147,8 @@ def _row_segments(cx, n, periodic):
 @njit(cache=True, inline="always")
 def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, write, slot, limit, nbr, w_out, g_out,
            wrap):
-    # gather (count, or write into slot.. at most limit entries) the particles of set t within the
-    # support of point xi; returns the full count. The 3 (3 x 3 in 3D) rows of neighbour cells are
+    # gather the particles of set t within the support of point xi (write 0: count only; 1: their
+    # indices into nbr[slot..], at most limit; 2: also W and grad W); returns the full count. The 3 (3 x 3 in 3D) rows of neighbour cells are
     # walked as contiguous particle ranges (the cells of a row are consecutive in the sorted
     # arrays), in the order cell by cell, particle by particle within a cell; wrap: any periodic
     # axis (minimum-image displacements), else plain differences.
@@ -177,17 +193,11 @@ def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 
                     r2 = rx * rx + ry * ry + rz * rz
                     if r2 >= support2:
                         continue
-                    if write and count < limit:
-                        r = np.sqrt(r2)
-                        w, dw = w_and_dwdr(kernel, r, h, sigma)
+                    if write > 0 and count < limit:
                         k = slot + count
                         nbr[k] = j
-                        w_out[k] = w
-                        f = dw / r if r > 0.0 else 0.0
-                        g_out[k, 0] = f * rx
-                        g_out[k, 1] = f * ry
-                        if dim == 3:
-                            g_out[k, 2] = f * rz
+                        if write == 2:
+                            _store_pair(k, rx, ry, rz, r2, kernel, h, sigma, w_out, g_out)
                     count += 1
     return count
 
@@ -204,7 +214,7 @@ def count_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, count)
     dummy_g = np.zeros((1, dim))
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
-        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, False, 0, 0,
+        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 0, 0, 0,
                           dummy_i, dummy_w, dummy_g, wrap)
 
 
@@ -217,38 +227,53 @@ def fill_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, start, 
     wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
-        _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True, start[i],
+        _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 2, start[i],
                start[i + 1] - start[i], nbr, w_out, g_out, wrap)
 
 
 @njit(cache=True, parallel=True)
-def fill_strided(x, n, xt, cell_start, grid, kernel, h, exclude_self, stride, count, nbr, w_out, g_out):
-    """One pass instead of count + fill: the neighbours of particle i go to rows
-    i * stride .. of the scratch buffers (at most ``stride``), count[i] gets the full count (a
-    count above stride means the rows are incomplete: the caller falls back to fill_neighbours)."""
+def fill_strided(x, n, xt, cell_start, grid, h, exclude_self, stride, count, nbr):
+    """One search pass instead of count + fill: the neighbour indices of particle i go to rows
+    i * stride .. of the scratch nbr (at most ``stride``), count[i] gets the full count (a count
+    above stride means the rows are incomplete: the caller falls back to fill_neighbours). The
+    kernel is evaluated by ``compact`` (the search pass writes 4 bytes per pair, not 28)."""
+    dim = x.shape[1]
+    wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
+    dummy_w = np.zeros(1)
+    dummy_g = np.zeros((1, dim))
+    for i in prange(n):
+        x2 = x[i, 2] if dim == 3 else 0.0
+        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, 0, h, 0.0, exclude_self, 1,
+                          i * stride, stride, nbr, dummy_w, dummy_g, wrap)
+
+
+@njit(cache=True, parallel=True)
+def compact(x, n, xt, grid, kernel, h, stride, start, nbr_s, nbr, w_out, g_out):
+    """The CSR lists (start from exclusive_scan) from the strided indices of fill_strided, with
+    W_ij and grad_i W_ij evaluated here: the same lists, values and order as count_neighbours +
+    fill_neighbours (the same displacement arithmetic)."""
     dim = x.shape[1]
     sigma = kernel_norm(kernel, dim, h)
     wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
     for i in prange(n):
-        x2 = x[i, 2] if dim == 3 else 0.0
-        count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, True,
-                          i * stride, stride, nbr, w_out, g_out, wrap)
-
-
-@njit(cache=True, parallel=True)
-def compact(n, stride, start, nbr_s, w_s, g_s, nbr, w_out, g_out):
-    """Copy the strided rows of fill_strided into CSR form (start from exclusive_scan): the same
-    lists, in the same order, as count_neighbours + fill_neighbours."""
-    dim = g_s.shape[1]
-    for i in prange(n):
         a = start[i]
         c = start[i + 1] - a
         b = i * stride
+        x0 = x[i, 0]
+        x1 = x[i, 1]
+        x2 = x[i, 2] if dim == 3 else 0.0
         for k in range(c):
-            nbr[a + k] = nbr_s[b + k]
-            w_out[a + k] = w_s[b + k]
-            for d in range(dim):
-                g_out[a + k, d] = g_s[b + k, d]
+            j = nbr_s[b + k]
+            if wrap:
+                rx = _min_image(x0 - xt[j, 0], 0, grid)
+                ry = _min_image(x1 - xt[j, 1], 1, grid)
+                rz = _min_image(x2 - xt[j, 2], 2, grid) if dim == 3 else 0.0
+            else:
+                rx = x0 - xt[j, 0]
+                ry = x1 - xt[j, 1]
+                rz = x2 - xt[j, 2] if dim == 3 else 0.0
+            nbr[a + k] = j
+            _store_pair(a + k, rx, ry, rz, rx * rx + ry * ry + rz * rz, kernel, h, sigma, w_out, g_out)
 
 
 @njit(cache=True)
