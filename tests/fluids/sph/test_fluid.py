@@ -431,7 +431,7 @@ _DETERMINISM_SCENE = textwrap.dedent("""
         h.update(np.ascontiguousarray(arr).tobytes())
     print(h.hexdigest()[:16], fluid.step_count)
 """)
-GOLDEN_HASH = "697839f90ce8ca10"  # 2026-11-25: local density tolerance, compression-removal rate (was a90767fc4097e94b)
+GOLDEN_HASH = "ebaee7bb82c53ed8"  # 2026-11-25: cells of half a support (neighbour order; was 697839f90ce8ca10)
 
 
 def _hash_at(threads):

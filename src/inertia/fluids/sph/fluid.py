@@ -354,14 +354,15 @@ class SPHFluid:
         lo3[:dim] = lo
         length[:dim] = hi - lo
         for d in range(dim):
-            cells = max(1, int(math.floor(length[d] / self.support + 1e-9)))
-            if periodic[d] and cells < 3:
+            # cells at least support / REACH wide (a block of 2 REACH + 1 cells holds the support)
+            if periodic[d] and length[d] < 3 * self.support * (1 - 1e-9):
                 raise ValueError(f"periodic axis {d} must be at least 3 kernel supports long "
                                  f"({3 * self.support:g} m); the domain is {length[d]:g} m")
+            cells = max(1, int(math.floor(length[d] * _nb.REACH / self.support + 1e-9)))
             dims[d] = cells if periodic[d] else cells + 1
             cell[d] = length[d] / cells
         if int(np.prod(dims)) > MAX_CELLS:
-            raise ValueError(f"domain holds {int(np.prod(dims))} grid cells of {self.support:g} m, more than "
+            raise ValueError(f"domain holds {int(np.prod(dims))} grid cells of {self.support / _nb.REACH:g} m, more than "
                              f"{MAX_CELLS}; shrink the domain or increase spacing")
         self.grid = _nb.Grid(lo3, length, 1.0 / cell, dims, np.concatenate([periodic, np.zeros(3 - dim, bool)]))
         self._ncells = int(np.prod(dims))

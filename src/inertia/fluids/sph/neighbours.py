@@ -3,8 +3,8 @@
 Each step (``SPHFluid._neighbours``):
 
 1. ``bin_cells``: the cell of every active fluid particle in a dense grid over the domain, cells
-   at least one kernel support wide (on a periodic axis the cell is ``L / floor(L / support)``
-   so that the cells tile the period). A fluid particle more than one support outside the
+   at least half a kernel support wide (``REACH`` = 2 cells per support; on a periodic axis the
+   cell is ``L / floor(2 L / support)`` so that the cells tile the period). A fluid particle more than one support outside the
    domain on a non-periodic axis gets cell -1 and is dropped by the sort (this is how outflow
    works; closer ones, e.g. pressed into a wall's band, are clamped into the edge cells, as
    every boundary particle is).
@@ -20,8 +20,8 @@ Each step (``SPHFluid._neighbours``):
    in CSR form, with the kernel value ``W_ij`` and gradient ``grad W_ij`` of each pair. Each
    particle writes only its own slice, so both passes are parallel and write-disjoint; every
    later SPH pass is a gather over these lists (the solver iterates ~10-40 times per step over
-   the same pairs, so the kernel is evaluated once per pair and step). The 3 cells of a row of
-   the 3 x 3 (x 3) block around a particle are consecutive in the sorted arrays and are walked as
+   the same pairs, so the kernel is evaluated once per pair and step). The 5 cells of a row of
+   the 5 x 5 (x 5) block around a particle are consecutive in the sorted arrays and are walked as
    one particle range.
 
 Why not the collision layer's pair list: ``broadphase.count_pairs`` records each pair once
@@ -41,7 +41,7 @@ Limitations
 -----------
 - The grid covers the (fixed) domain box densely: a domain much larger than the fluid wastes
   memory on empty cells (``dims`` product is capped, see ``SPHFluid``).
-- Periodic axes need at least three cells (a period of three kernel supports).
+- Periodic axes need a period of at least three kernel supports (six cells).
 """
 
 from __future__ import annotations
@@ -52,6 +52,13 @@ import numpy as np
 from numba import njit, prange
 
 from .smoothing import kernel_norm, w_and_dwdr
+
+
+# Cells per kernel support: cells at least support / REACH wide, blocks of 2 REACH + 1 cells per
+# axis around a particle. REACH = 2 (cells of h) scans 25 h^2 around a 2D particle instead of
+# the 36 h^2 of 3 x 3 cells of 2h (125 h^3 instead of 216 h^3 in 3D) for the pi 4 h^2 (33.5 h^3)
+# that hold its neighbours.
+REACH = 2
 
 
 class Grid(NamedTuple):
@@ -131,35 +138,37 @@ def _store_pair(k, rx, ry, rz, r2, kernel, h, sigma, w_out, g_out):
 
 @njit(cache=True, inline="always")
 def _row_segments(cx, n, periodic):
-    # the cells cx-1, cx, cx+1 of one row as at most 3 ranges [a, b) of consecutive cells:
-    # one range unless the row wraps around a periodic axis (then in the order cx-1, cx, cx+1 too)
-    a0 = cx - 1
-    b0 = cx + 2
+    # the cells cx-REACH .. cx+REACH of one row as at most 2 ranges [a, b) of consecutive cells:
+    # one range unless the row wraps around a periodic axis (then in the order cx-REACH, ..,
+    # cx+REACH too)
+    a0 = cx - REACH
+    b0 = cx + REACH + 1
     if not periodic:
-        return max(a0, 0), min(b0, n), 0, 0, 0, 0
+        return max(a0, 0), min(b0, n), 0, 0
     if a0 >= 0 and b0 <= n:
-        return a0, b0, 0, 0, 0, 0
-    if a0 < 0:  # cells n-1 | 0, 1
-        return n - 1, n, 0, b0, 0, 0
-    return a0, n, 0, b0 - n, 0, 0  # cells n-2, n-1 | 0
+        return a0, b0, 0, 0
+    if a0 < 0:  # cells n+a0 .. n-1 | 0 .. b0-1
+        return n + a0, n, 0, b0
+    return a0, n, 0, b0 - n  # cells a0 .. n-1 | 0 .. b0-n-1
 
 
 @njit(cache=True, inline="always")
 def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, write, slot, limit, nbr, w_out, g_out,
            wrap):
     # gather the particles of set t within the support of point xi (write 0: count only; 1: their
-    # indices into nbr[slot..], at most limit; 2: also W and grad W); returns the full count. The 3 (3 x 3 in 3D) rows of neighbour cells are
-    # walked as contiguous particle ranges (the cells of a row are consecutive in the sorted
-    # arrays), in the order cell by cell, particle by particle within a cell; wrap: any periodic
-    # axis (minimum-image displacements), else plain differences.
+    # indices into nbr[slot..], at most limit; 2: also W and grad W); returns the full count. The
+    # 2 REACH + 1 rows ((2 REACH + 1)^2 in 3D) of the block of cells around xi are walked as
+    # contiguous particle ranges (the cells of a row are consecutive in the sorted arrays), in the
+    # order cell by cell, particle by particle within a cell; wrap: any periodic axis
+    # (minimum-image displacements), else plain differences.
     dim = xt.shape[1]
     support2 = 4.0 * h * h
-    zr = 1 if dim == 3 else 0
+    zr = REACH if dim == 3 else 0
     nx = grid.dims[0]
     cx = min(max(int(np.floor((x0 - grid.lo[0]) * grid.inv_cell[0])), -1), nx)
     cy = min(max(int(np.floor((x1 - grid.lo[1]) * grid.inv_cell[1])), -1), grid.dims[1])
     cz = min(max(int(np.floor((x2 - grid.lo[2]) * grid.inv_cell[2])), -1), grid.dims[2]) if dim == 3 else 0
-    a1, b1, a2, b2, _, _ = _row_segments(cx, nx, grid.periodic[0])
+    a1, b1, a2, b2 = _row_segments(cx, nx, grid.periodic[0])
     count = 0
     for dz in range(-zr, zr + 1):
         z = cz + dz
@@ -167,7 +176,7 @@ def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 
             z %= grid.dims[2]
         elif z < 0 or z >= grid.dims[2]:
             continue
-        for dy in range(-1, 2):
+        for dy in range(-REACH, REACH + 1):
             y = cy + dy
             if grid.periodic[1]:
                 y %= grid.dims[1]
