@@ -362,8 +362,8 @@ class SPHFluid:
             dims[d] = cells if periodic[d] else cells + 1
             cell[d] = length[d] / cells
         if int(np.prod(dims)) > MAX_CELLS:
-            raise ValueError(f"domain holds {int(np.prod(dims))} grid cells of {self.support / _nb.REACH:g} m, more than "
-                             f"{MAX_CELLS}; shrink the domain or increase spacing")
+            raise ValueError(f"domain holds {int(np.prod(dims))} grid cells of {self.support / _nb.REACH:g} m, "
+                             f"more than {MAX_CELLS}; shrink the domain or increase spacing")
         self.grid = _nb.Grid(lo3, length, 1.0 / cell, dims, np.concatenate([periodic, np.zeros(3 - dim, bool)]))
         self._ncells = int(np.prod(dims))
 

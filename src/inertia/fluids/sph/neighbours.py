@@ -4,10 +4,10 @@ Each step (``SPHFluid._neighbours``):
 
 1. ``bin_cells``: the cell of every active fluid particle in a dense grid over the domain, cells
    at least half a kernel support wide (``REACH`` = 2 cells per support; on a periodic axis the
-   cell is ``L / floor(2 L / support)`` so that the cells tile the period). A fluid particle more than one support outside the
-   domain on a non-periodic axis gets cell -1 and is dropped by the sort (this is how outflow
-   works; closer ones, e.g. pressed into a wall's band, are clamped into the edge cells, as
-   every boundary particle is).
+   cell is ``L / floor(2 L / support)`` so that the cells tile the period). A fluid particle
+   more than one support outside the domain on a non-periodic axis gets cell -1 and is dropped
+   by the sort (this is how outflow works; closer ones, e.g. pressed into a wall's band, are
+   clamped into the edge cells, as every boundary particle is).
 2. ``inertia.collision.broadphase.counting_sort`` (reused: serial, stable, so the order is the
    same at any thread count) and ``broadphase.gather``: the fluid arrays are *reordered* into
    cell order and stay in that order ("sorted space"): neighbours become neighbours in memory.
