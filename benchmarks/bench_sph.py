@@ -21,6 +21,14 @@ machine, 2026-11-23: ``pip install pysplishsplash`` installs the 2.19.0 wheel; `
 builds from source and did not finish within a 400 s timeout under load.) Their figures from
 ``BASELINES.md`` (same kind of 2-core machine, measured separately) are printed too, marked as such.
 
+Same rules on both sides (docs/fluids-sph.md, "Speed"): CFL 0.4 spacing per step at the
+largest speed (SPlisHSPlasH cflFactor 1), steps of at most 5 ms, mean density error 0.1 % (2D) /
+0.05 % (3D), divergence 0.1 %. The step counts still differ: SPlisHSPlasH's scene carries its
+viscosity 0.01, which slows the surge and lengthens its CFL steps; Inertia's water is inviscid.
+Under load, parallel regions of both (Numba's OpenMP layer, SPlisHSPlasH's OpenMP) wait for
+descheduled threads: alternate the cases (``--cases dfsph:2d splishsplash:2d dfsph:2d ...``), or
+compare one thread each (``NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1``), and re-measure idle.
+
 Scaling: a 2D block 100 spacings tall (dx = 0.01) and 10^4, 10^5 (10^6 with ``--million``)
 particles wide: ms per step and ns per particle and solver pass over ``--scale-steps`` steps
 after 5 warm-up steps.

@@ -488,7 +488,7 @@ _DETERMINISM_SCENE = textwrap.dedent("""
     import hashlib, numpy as np, inertia as ia
     from inertia.fluids.sph import SPHFluid, sample_block
     dx = 0.01
-    x = sample_block((0.0, 0.0), (0.48, 0.48), dx)          # 2304 particles: the parallel kernels
+    x = sample_block((0.0, 0.0), (0.48, 0.48), dx)          # 2304 particles
     fluid = SPHFluid(x, spacing=dx, domain=((0.0, 0.0), (1.0, 0.8)), viscosity=1e-3, xsph=0.02,
                      surface_tension=0.1)
     fluid.add_boundary(ia.colliders.Container(center=(0.5, 0.4), half_extents=(0.5, 0.4)))
@@ -500,11 +500,13 @@ _DETERMINISM_SCENE = textwrap.dedent("""
         h.update(np.ascontiguousarray(arr).tobytes())
     print(h.hexdigest()[:16], fluid.step_count)
 """)
-GOLDEN_HASH = "697839f90ce8ca10"  # 2026-11-25: local density tolerance, compression-removal rate (was a90767fc4097e94b)
+GOLDEN_HASH = "ebaee7bb82c53ed8"  # 2026-11-25: cells of half a support (neighbour order; was 697839f90ce8ca10)
 
 
-def _hash_at(threads):
+def _hash_at(threads, serial_below=None):
     env = dict(os.environ, NUMBA_NUM_THREADS=str(threads))
+    if serial_below is not None:
+        env["INERTIA_SERIAL_BELOW"] = str(serial_below)
     out = subprocess.run([sys.executable, "-c", _DETERMINISM_SCENE], env=env, capture_output=True, text=True,
                          timeout=900, check=True)
     return out.stdout.split()[0]
@@ -513,8 +515,10 @@ def _hash_at(threads):
 def test_same_state_hash_at_one_and_two_threads():
     # Parallel passes only gather (each particle writes its own row); the sort is serial and
     # stable; reductions use fixed chunks; body wrenches are summed serially: the state is
-    # bit-identical at any thread count, and equal to the stored golden hash.
-    one, two = _hash_at(1), _hash_at(2)
+    # bit-identical at any thread count, and equal to the stored golden hash. The scene is small
+    # enough for the serial twins (kernels.kernel_set); the 2-thread run forces the parallel
+    # kernels (INERTIA_SERIAL_BELOW=0), the ones large scenes run.
+    one, two = _hash_at(1), _hash_at(2, serial_below=0)
     assert one == two
     assert one == GOLDEN_HASH
 

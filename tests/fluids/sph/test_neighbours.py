@@ -16,15 +16,20 @@ def _brute(x, support, length, periodic):
     return [set(np.flatnonzero(row < support)) for row in r]
 
 
-@pytest.mark.parametrize("dim,periodic,stride", [(2, (False, False), None), (2, (True, False), None),
-                                                 (3, (True, True, True), None), (2, (False, False), 3)])
-def test_neighbour_lists_match_brute_force(dim, periodic, stride):
+@pytest.mark.parametrize("dim,periodic,stride,spacing", [(2, (False, False), None, 0.05),
+                                                         (2, (True, False), None, 0.05),
+                                                         (3, (True, True, True), None, 0.05),
+                                                         (2, (False, False), 3, 0.05),
+                                                         (2, (True, True), None, 1 / 6)])
+def test_neighbour_lists_match_brute_force(dim, periodic, stride, spacing):
     # stride=3: the one-pass rows overflow (random points have up to ~15 neighbours here), so
-    # the two-pass fill runs and the stride grows past the widest row
+    # the two-pass fill runs and the stride grows past the widest row. spacing 1/6: the
+    # shortest period allowed (3 supports = 6 cells of half a support), where every block of
+    # 5 x 5 cells wraps around on both axes (neighbours.REACH)
     rng = np.random.default_rng(3)
     lo, hi = np.zeros(dim), np.full(dim, 1.0)
     x = rng.uniform(0.0, 1.0, size=(400 if dim == 2 else 600, dim))
-    fluid = SPHFluid(x, spacing=0.05, domain=(lo, hi), periodic=periodic, gravity=np.zeros(dim))
+    fluid = SPHFluid(x, spacing=spacing, domain=(lo, hi), periodic=periodic, gravity=np.zeros(dim))
     fluid._finalize_boundary()
     from inertia.fluids.sph import kernels as K
     fluid._K = K.kernel_set(fluid.particle_count)

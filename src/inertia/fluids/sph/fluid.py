@@ -383,15 +383,16 @@ class SPHFluid:
         lo3[:dim] = lo
         length[:dim] = hi - lo
         for d in range(dim):
-            cells = max(1, int(math.floor(length[d] / self.support + 1e-9)))
-            if periodic[d] and cells < 3:
+            # cells at least support / REACH wide (a block of 2 REACH + 1 cells holds the support)
+            if periodic[d] and length[d] < 3 * self.support * (1 - 1e-9):
                 raise ValueError(f"periodic axis {d} must be at least 3 kernel supports long "
                                  f"({3 * self.support:g} m); the domain is {length[d]:g} m")
+            cells = max(1, int(math.floor(length[d] * _nb.REACH / self.support + 1e-9)))
             dims[d] = cells if periodic[d] else cells + 1
             cell[d] = length[d] / cells
         if int(np.prod(dims)) > MAX_CELLS:
-            raise ValueError(f"domain holds {int(np.prod(dims))} grid cells of {self.support:g} m, more than "
-                             f"{MAX_CELLS}; shrink the domain or increase spacing")
+            raise ValueError(f"domain holds {int(np.prod(dims))} grid cells of {self.support / _nb.REACH:g} m, "
+                             f"more than {MAX_CELLS}; shrink the domain or increase spacing")
         self.grid = _nb.Grid(lo3, length, 1.0 / cell, dims, np.concatenate([periodic, np.zeros(3 - dim, bool)]))
         self._ncells = int(np.prod(dims))
 
@@ -921,15 +922,15 @@ class SPHFluid:
         K = self._K
         args = (F.x, n, xt, start_t, self.grid, self.kernel, self.h, exclude_self)
         stride = self._stride
-        sj, sw, sg = self._strided
-        K.fill_strided(*args, stride, self._count, sj, sw, sg)
+        sj = self._strided
+        K.fill_strided(F.x, n, xt, start_t, self.grid, self.h, exclude_self, stride, self._count, sj)
         total = _nb.exclusive_scan(self._count, n, nl.start)
         if total > nl.j.shape[0]:
             nl = self._alloc_neighbours(self.capacity, int(total * 1.25) + 16)
             _nb.exclusive_scan(self._count, n, nl.start)
         widest = int(self._count[:n].max()) if n else 0
         if widest <= stride:
-            K.compact(n, stride, nl.start, sj, sw, sg, nl.j, nl.w, nl.g)
+            K.compact(F.x, n, xt, self.grid, self.kernel, self.h, stride, nl.start, sj, nl.j, nl.w, nl.g)
         else:  # a row overflowed its stride: the two-pass fill, and a wider stride from now on
             K.fill_neighbours(*args, nl.start, nl.j, nl.w, nl.g)
             self._stride = int(widest * 1.25) + 4
@@ -938,7 +939,7 @@ class SPHFluid:
 
     def _alloc_strided(self, stride):
         cap = self.capacity
-        return np.zeros(cap * stride, np.int32), np.zeros(cap * stride), np.zeros((cap * stride, self.dim))
+        return np.zeros(cap * stride, np.int32)
 
     def _dt_limit(self, vmax):
         # CFL with gravity: (vmax + |g| dt) dt <= cfl dx; explicit viscosity; WCSPH acoustic CFL
@@ -992,8 +993,8 @@ class SPHFluid:
         converged = False
         while True:
             self._K.pressure_increment(F, nf, nb, B, n, m, self.rest_density, dt, density_mode, RELAXATION, total,
-                                       beta)
-            s, mx = self._reduce(F.err, n)
+                                       beta, self._partial, self._red)
+            s, mx = float(self._red[0]), float(self._red[1])
             err, big = s / max(n, 1) * scale, mx * scale
             converged = err <= tolerance and big <= local
             if (converged and it >= 1) or it >= self.max_iterations:

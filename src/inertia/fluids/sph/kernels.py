@@ -144,25 +144,8 @@ def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps, bfac):
         F_factor[i] = 1.0 / denom if denom > factor_eps else 0.0
 
 
-@njit(cache=True, inline="always")
-def _density_rate(F, nf, nb, B, i, mass):
-    # d rho_i / dt = sum_j m (v_i - v_j) . g_ij + sum_b psi_b (v_i - v_b) . g_ib
-    dim = F.x.shape[1]
-    rate = 0.0
-    for k in range(nf.start[i], nf.start[i + 1]):
-        j = nf.j[k]
-        for d in range(dim):
-            rate += mass * (F.v[i, d] - F.v[j, d]) * nf.g[k, d]
-    for k in range(nb.start[i], nb.start[i + 1]):
-        b = nb.j[k]
-        psi = B.psi[b]
-        for d in range(dim):
-            rate += psi * (F.v[i, d] - B.v[b, d]) * nb.g[k, d]
-    return rate
-
-
 @njit(cache=True, parallel=True)
-def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total, beta):
+def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total, beta, partial, out):
     """One DFSPH iteration, first half (Bender & Koschier 2017, algorithms 2 and 3).
 
     density_mode: predicted density rho*_i = rho_i + dt drho_i/dt must reach rho0:
@@ -179,24 +162,72 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
     checkerboard mode grow when iterated to convergence; omega = 0.5 is the relaxed Jacobi of
     Ihmsen et al. (2014), "Implicit incompressible SPH", IEEE TVCG 20(3), and converges.
     The pressure stays non-negative (free surfaces): kappa_i is projected so that the running
-    total (k_dens or k_div, passed as ``total``, added to by apply_pressure) stays >= 0."""
+    total (k_dens or k_div, passed as ``total``, added to by apply_pressure) stays >= 0.
+    Fused with the reduction of err (``chunk_sum_max``'s fixed chunks, the same bits): out[0] =
+    sum(err[:n]), out[1] = max(err[:n]); partial (REDUCE_CHUNKS, 2) scratch. One parallel
+    region per half-iteration instead of two (each region is a barrier)."""
     F_err = F.err  # unpacked: Numba drops writes through a named tuple inside prange
     F_factor = F.factor
     F_kappa = F.kappa
     F_rho = F.rho
-    for i in prange(n):
-        rate = _density_rate(F, nf, nb, B, i, mass)
-        if density_mode:
-            e = beta * (F_rho[i] - rho0) + dt * rate
-            kap = relaxation * e * F_factor[i] / (dt * dt)
-        else:
-            e = rate
-            kap = relaxation * e * F_factor[i] / dt
-        # complementarity residual: compressed particles, and pressurised ones in either sign
-        F_err[i] = abs(e) if (e > 0.0 or total[i] > 0.0) else 0.0
-        if total[i] + kap < 0.0:
-            kap = -total[i]
-        F_kappa[i] = kap
+    F_v = F.v
+    dim = F_v.shape[1]
+    f_start = nf.start
+    f_j = nf.j
+    f_g = nf.g
+    b_start = nb.start
+    b_j = nb.j
+    b_g = nb.g
+    B_psi = B.psi
+    B_v = B.v
+    chunk = (n + REDUCE_CHUNKS - 1) // REDUCE_CHUNKS
+    for c in prange(REDUCE_CHUNKS):
+        s_err = 0.0
+        m_err = 0.0
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            # d rho_i / dt = sum_j m (v_i - v_j) . g_ij + sum_b psi_b (v_i - v_b) . g_ib (one running
+            # sum in the order of a loop over the axes)
+            vix = F_v[i, 0]
+            viy = F_v[i, 1]
+            viz = F_v[i, 2] if dim == 3 else 0.0
+            rate = 0.0
+            for k in range(f_start[i], f_start[i + 1]):
+                j = f_j[k]
+                rate += mass * (vix - F_v[j, 0]) * f_g[k, 0]
+                rate += mass * (viy - F_v[j, 1]) * f_g[k, 1]
+                if dim == 3:
+                    rate += mass * (viz - F_v[j, 2]) * f_g[k, 2]
+            for k in range(b_start[i], b_start[i + 1]):
+                b = b_j[k]
+                psi = B_psi[b]
+                rate += psi * (vix - B_v[b, 0]) * b_g[k, 0]
+                rate += psi * (viy - B_v[b, 1]) * b_g[k, 1]
+                if dim == 3:
+                    rate += psi * (viz - B_v[b, 2]) * b_g[k, 2]
+            if density_mode:
+                e = beta * (F_rho[i] - rho0) + dt * rate
+                kap = relaxation * e * F_factor[i] / (dt * dt)
+            else:
+                e = rate
+                kap = relaxation * e * F_factor[i] / dt
+            # complementarity residual: compressed particles, and pressurised ones in either sign
+            ei = abs(e) if (e > 0.0 or total[i] > 0.0) else 0.0
+            F_err[i] = ei
+            s_err += ei
+            if ei > m_err:
+                m_err = ei
+            if total[i] + kap < 0.0:
+                kap = -total[i]
+            F_kappa[i] = kap
+        partial[c, 0] = s_err
+        partial[c, 1] = m_err
+    s_err = 0.0
+    m_err = 0.0
+    for c in range(REDUCE_CHUNKS):
+        s_err += partial[c, 0]
+        m_err = max(m_err, partial[c, 1])
+    out[0] = s_err
+    out[1] = m_err
 
 
 @njit(cache=True, parallel=True)
@@ -576,15 +607,24 @@ _PARALLEL_KERNELS = ("chunk_sum_max", "speed_squared", "density_and_factor", "pr
 _SETS = {}
 
 
+# An SPH pass does 10-40 pair interactions per particle (2D-3D), and a step ~25 passes: about 16
+# times the work per element of the flat particle kernels ``inertia._jit.SERIAL_BELOW`` (elements)
+# was measured on, so the SPH kernels go parallel from SERIAL_BELOW / SPH_WORK_PER_ELEMENT
+# particles (8192 by default: the 20 000-particle 2D dam break runs on both cores, the test scenes
+# of a few thousand particles serially; INERTIA_SERIAL_BELOW=0 still means always parallel).
+SPH_WORK_PER_ELEMENT = 16
+
+
 def kernel_set(n: int):
     """The kernels to run for n particles: the parallel ones, or their serial twins (same code,
-    compiled without ``parallel``; see ``inertia._jit``) below ``SERIAL_BELOW`` particles, where
-    launching a parallel region costs more than the work. Twins compile on first use."""
+    compiled without ``parallel``; see ``inertia._jit``) below ``SERIAL_BELOW /
+    SPH_WORK_PER_ELEMENT`` particles, where launching a parallel region costs more than the
+    work. Twins compile on first use."""
     from types import SimpleNamespace
 
     from ..._jit import SERIAL_BELOW, serial_twin
     from . import neighbours as nb
-    serial = n < SERIAL_BELOW
+    serial = n < SERIAL_BELOW // SPH_WORK_PER_ELEMENT
     if serial not in _SETS:
         g = globals()
         ns = {name: (serial_twin(g[name]) if serial else g[name]) for name in _PARALLEL_KERNELS}
