@@ -154,6 +154,35 @@ EPA_MAX_ITERATIONS = 128
 EPA_TOLERANCE = 1e-10       # relative gap between the closest face and the support along its normal
 _EPA_MAX_VERTS = EPA_MAX_ITERATIONS + 8
 _EPA_MAX_FACES = 8 * _EPA_MAX_VERTS
+_EPA_MAX_EDGES = 6 * _EPA_MAX_VERTS + 12          # horizon: <= 3 x alive faces <= 6 nv
+
+
+class GjkScratch(NamedTuple):
+    """Work arrays of GJK and EPA, allocated once (per run of pairs in the narrow phase, per call in the
+    public wrappers) and reused: only the entries a call writes are read back."""
+    pw: np.ndarray      # (_EPA_MAX_VERTS, 3) simplex / polytope vertices on A - B (GJK uses the first 4)
+    pa: np.ndarray      # (_EPA_MAX_VERTS, 3) their support points on A
+    pb: np.ndarray      # (_EPA_MAX_VERTS, 3) their support points on B
+    lam: np.ndarray     # (4,) barycentric weights of GJK's closest point
+    bl: np.ndarray      # (4,) weights of the best tetrahedron face in the simplex reduction
+    faces: np.ndarray   # (_EPA_MAX_FACES, 3) int64 polytope faces (vertex indices)
+    face_n: np.ndarray  # (_EPA_MAX_FACES, 3) their outward unit normals
+    face_d: np.ndarray  # (_EPA_MAX_FACES,) their distances from the origin
+    alive: np.ndarray   # (_EPA_MAX_FACES,) bool face still on the polytope
+    edges: np.ndarray   # (_EPA_MAX_EDGES, 2) int64 horizon edges
+    axes: np.ndarray    # (6, 3) the +-coordinate axes (constant)
+    tri: np.ndarray     # (4, 3) int64 faces of the initial tetrahedron (constant)
+
+
+@njit(cache=True)
+def new_gjk_scratch():
+    """A `GjkScratch` for one run of GJK/EPA calls."""
+    axes = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
+    tri = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]], dtype=np.int64)
+    return GjkScratch(np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)),
+                      np.zeros(4), np.zeros(4), np.empty((_EPA_MAX_FACES, 3), dtype=np.int64),
+                      np.empty((_EPA_MAX_FACES, 3)), np.empty(_EPA_MAX_FACES), np.zeros(_EPA_MAX_FACES, dtype=np.bool_),
+                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri)
 
 
 @njit(cache=True)
@@ -285,7 +314,7 @@ def _barycentric(a, b, c, p):
 
 
 @njit(cache=True)
-def _reduce_simplex(sw, sa, sb, n, lam):
+def _reduce_simplex(sw, sa, sb, n, lam, bl):
     """Closest point of the simplex sw[:n] to the origin; keeps only the vertices that support it (their
     weights in lam) and returns the new count; count 4 means the origin is inside the tetrahedron."""
     if n == 1:
@@ -313,7 +342,7 @@ def _reduce_simplex(sw, sa, sb, n, lam):
         return _compact(sw, sa, sb, 3, lam)
     # tetrahedron: the origin is outside a face when it lies on the other side from the opposite vertex
     best = np.inf
-    bl = np.zeros(4)
+    bl[:] = 0.0
     inside = True
     faces = ((0, 1, 2, 3), (0, 1, 3, 2), (0, 2, 3, 1), (1, 2, 3, 0))
     # a flat tetrahedron (support ties of flat shapes put four points on one plane) encloses nothing:
@@ -360,12 +389,13 @@ def _compact(sw, sa, sb, n, lam):
 
 @njit(cache=True)
 def _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-         with_radius, sw, sa, sb):
+         with_radius, sw, sa, sb, lam, bl):
     """GJK (Gilbert, Johnson and Keerthi 1988; van den Bergen 1999 termination) on A - B.
 
     Returns (distance, count, lam): distance between the shapes (0 when they overlap), the final simplex
-    size (4 = origin enclosed) with vertices sw (A - B), sa, sb and weights lam."""
-    lam = np.zeros(4)
+    size (4 = origin enclosed) with vertices sw (A - B), sa, sb and weights lam (all given, written here;
+    bl is the reduction's work array)."""
+    lam[:] = 0.0
     d = pose_b[0:3] - pose_a[0:3]
     if d[0] == 0.0 and d[1] == 0.0 and d[2] == 0.0:
         d[0] = 1.0
@@ -396,7 +426,7 @@ def _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
         sa[n] = pa
         sb[n] = pb
         n += 1
-        n = _reduce_simplex(sw, sa, sb, n, lam)
+        n = _reduce_simplex(sw, sa, sb, n, lam, bl)
         if n == 4:
             return 0.0, 4, lam
         v[:] = 0.0
@@ -415,11 +445,17 @@ def gjk_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, p
     negative distance (shallow overlap of the rounded parts) is still exact.  Returns
     (distance, witness_a (3,), witness_b (3,), normal (3,), separated) where ``separated`` is False when the
     cores overlap (then distance = 0 and the witnesses are meaningless: call ``epa_penetration``)."""
-    sw = np.zeros((4, 3))
-    sa = np.zeros((4, 3))
-    sb = np.zeros((4, 3))
+    return gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
+                                count_b, verts, new_gjk_scratch())
+
+
+@njit(cache=True)
+def gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
+                         count_b, verts, scr):
+    """``gjk_distance`` working in the `GjkScratch` ``scr`` (no work arrays allocated)."""
+    sw, sa, sb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                        count_b, verts, False, sw, sa, sb)
+                        count_b, verts, False, sw, sa, sb, scr.lam, scr.bl)
     normal = np.zeros(3)
     pa = np.zeros(3)
     pb = np.zeros(3)
@@ -457,29 +493,27 @@ def epa_penetration(type_a, params_a, pose_a, start_a, count_a, type_b, params_b
     expanding polytope algorithm on the whole shapes (see ``_epa``; ``shape_distance`` is usually better: it
     runs EPA on the cores of spheres and capsules and adds their radii, which is exact)."""
     return _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-                True)
+                True, new_gjk_scratch())
 
 
 @njit(cache=True)
 def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-         with_radius):
+         with_radius, scr):
     """Penetration depth, witness points and unit normal from A to B of two overlapping convex shapes by the
     expanding polytope algorithm (van den Bergen 2001) on the Minkowski difference A - B.
 
     Returns (depth, witness_a, witness_b, normal, ok): translating B by depth * normal separates the shapes
     (touching); witness_a is A's deepest point inside B, witness_b B's deepest inside A.  ok is False when
-    the shapes do not overlap (use ``gjk_distance``) or the polytope degenerated."""
-    # scratch: only the entries below nv / nf are ever read
-    pw = np.empty((_EPA_MAX_VERTS, 3))
-    pa = np.empty((_EPA_MAX_VERTS, 3))
-    pb = np.empty((_EPA_MAX_VERTS, 3))
+    the shapes do not overlap (use ``gjk_distance``) or the polytope degenerated.  Works in the
+    `GjkScratch` ``scr``: only the entries below nv / nf are ever read."""
+    pw, pa, pb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                        count_b, verts, with_radius, pw, pa, pb)
+                        count_b, verts, with_radius, pw, pa, pb, scr.lam, scr.bl)
     zero = np.zeros(3)
     if dist > 1e-12:
         return 0.0, zero, zero, zero, False
     # grow the GJK simplex into a tetrahedron (or bipyramid) that encloses the origin
-    axes = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
+    axes = scr.axes
     nv = n
     if nv == 1:
         for a in range(6):
@@ -525,17 +559,15 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
         if best_height <= 1e-12 * np.sum(nrm ** 2):
             return 0.0, zero, zero, zero, False
         nv = 4
-    faces = np.empty((_EPA_MAX_FACES, 3), dtype=np.int64)
-    face_n = np.empty((_EPA_MAX_FACES, 3))
-    face_d = np.empty(_EPA_MAX_FACES)
-    alive = np.zeros(_EPA_MAX_FACES, dtype=np.bool_)
+    faces, face_n, face_d, alive = scr.faces, scr.face_n, scr.face_d, scr.alive
+    alive[:] = False
     nf = 0
     # initial faces, each oriented away from the polytope's interior point
     centre = np.zeros(3)
     for i in range(nv):
         centre += pw[i]
     centre /= nv
-    tri = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+    tri = scr.tri
     for t in range(tri.shape[0]):
         i, j, k = tri[t, 0], tri[t, 1], tri[t, 2]
         nrm = _m.cross(pw[j] - pw[i], pw[k] - pw[i])
@@ -545,7 +577,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
             return 0.0, zero, zero, zero, False
         alive[nf] = True
         nf += 1
-    edges = np.empty((6 * _EPA_MAX_VERTS + 12, 2), dtype=np.int64)  # horizon: <= 3 x alive faces <= 6 nv
+    edges = scr.edges
     best = 0
     for _ in range(EPA_MAX_ITERATIONS):
         # the face closest to the origin
@@ -692,8 +724,9 @@ def shape_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b,
     GJK on the cores (spheres: points, capsules: segments) gives separated and shallow cases exactly; when
     the cores overlap, EPA runs on the cores and the radii are added (exact for polytopes, spheres and
     capsules; cylinders converge to ``EPA_TOLERANCE`` or the iteration cap)."""
-    d, wa, wb, nrm, separated = gjk_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b,
-                                             pose_b, start_b, count_b, verts)
+    scr = new_gjk_scratch()
+    d, wa, wb, nrm, separated = gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b,
+                                                     params_b, pose_b, start_b, count_b, verts, scr)
     if separated:
         return d, wa, wb, nrm
     rounded_a = type_a == SPHERE or type_a == CAPSULE
@@ -701,7 +734,7 @@ def shape_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b,
     if rounded_a and rounded_b:
         return _rounded_core_overlap(type_a, params_a, pose_a, type_b, params_b, pose_b)
     depth, wa, wb, nrm, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
-                                  start_b, count_b, verts, False)
+                                  start_b, count_b, verts, False, scr)
     ra = core_radius(type_a, params_a)
     rb = core_radius(type_b, params_b)
     return -(depth + ra + rb), wa + ra * nrm, wb - rb * nrm, nrm

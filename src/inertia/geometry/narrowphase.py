@@ -704,10 +704,11 @@ def _polygon_normal(pts, m, d):
 
 
 @njit(cache=True)
-def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
     """Any two convex shapes: GJK on the cores (exact distance when separated), EPA when the cores overlap,
     then the manifold by clipping the incident support feature against the reference feature's side
-    planes (Gregorius 2015), reduced to four points. Normal A -> B."""
+    planes (Gregorius 2015), reduced to four points. Normal A -> B. GJK/EPA work in the `GjkScratch`
+    ``gscr`` of the run (no work arrays allocated per pair)."""
     verts = shapes.geom_vertices
     par_a, par_b = shapes.shape_params[sa], shapes.shape_params[sb]
     pose_a, pose_b = pose[sa], pose[sb]
@@ -715,14 +716,14 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
     vs_b, vc_b = shapes.shape_vert_start[sb], shapes.shape_vert_count[sb]
     ra = CV.core_radius(ta, par_a)
     rb = CV.core_radius(tb, par_b)
-    dist, wa, wb, nrm, separated = CV.gjk_distance(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b,
-                                                   verts)
+    dist, wa, wb, nrm, separated = CV.gjk_distance_scratch(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b,
+                                                           vs_b, vc_b, verts, gscr)
     if separated:
         if dist > spec:
             return 0
     else:
         depth, wa, wb, nrm, ok = CV._epa(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts,
-                                         False)
+                                         False, gscr)
         if not ok:
             return 0
         dist = -(depth + ra + rb)
@@ -1001,6 +1002,7 @@ def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius,
 def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
     """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents."""
     scr = new_scratch()
+    gscr = CV.new_gjk_scratch()         # GJK/EPA work arrays, once per run
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
@@ -1012,7 +1014,7 @@ def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radiu
             continue
         spec = _speculative_distance(shape_body[sa], shape_body[sb], shape_margin[sa], shape_margin[sb], body_qd,
                                      body_bound_radius, dt)
-        contact_point_count[i] = _convex_general(out, i, ta, tb, sa, sb, shapes, pose, spec, scr)
+        contact_point_count[i] = _convex_general(out, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr)
         _tangents(i, contact_normal, contact_tangent)
 
 
