@@ -172,6 +172,8 @@ class GjkScratch(NamedTuple):
     edges: np.ndarray   # (_EPA_MAX_EDGES, 2) int64 horizon edges
     axes: np.ndarray    # (6, 3) the +-coordinate axes (constant)
     tri: np.ndarray     # (4, 3) int64 faces of the initial tetrahedron (constant)
+    vec: np.ndarray     # (6, 3) 3-vectors: search direction, local direction, local support, GJK's v,
+                        # the support points on A and on B of the current iteration
 
 
 @njit(cache=True)
@@ -182,7 +184,7 @@ def new_gjk_scratch():
     return GjkScratch(np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)),
                       np.zeros(4), np.zeros(4), np.empty((_EPA_MAX_FACES, 3), dtype=np.int64),
                       np.empty((_EPA_MAX_FACES, 3)), np.empty(_EPA_MAX_FACES), np.zeros(_EPA_MAX_FACES, dtype=np.bool_),
-                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri)
+                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((6, 3)))
 
 
 @njit(cache=True)
@@ -197,8 +199,17 @@ def core_radius(shape_type, params):
 @njit(cache=True)
 def support_core_local(shape_type, params, verts, vert_start, vert_count, direction):
     """Farthest point of the shape's core (the shape minus ``core_radius``) along ``direction``, local frame."""
-    dx, dy, dz = direction[0], direction[1], direction[2]
     out = np.zeros(3)
+    return _support_core_local_into(shape_type, params, verts, vert_start, vert_count, direction, out)
+
+
+@njit(cache=True)
+def _support_core_local_into(shape_type, params, verts, vert_start, vert_count, direction, out):
+    """``support_core_local`` written into ``out`` (3,), which is returned."""
+    dx, dy, dz = direction[0], direction[1], direction[2]
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
     if shape_type == SPHERE:
         return out
     if shape_type == CAPSULE:
@@ -259,11 +270,45 @@ def _support_world(shape_type, params, pose, verts, vert_start, vert_count, dire
 
 
 @njit(cache=True)
+def _support_world_into(shape_type, params, pose, verts, vert_start, vert_count, direction, sign, with_radius,
+                        out, scr):
+    """``_support_world`` along ``sign * direction`` (sign +-1) written into ``out`` (3,), no allocation
+    (same arithmetic, so the same bits); uses rows 0-2 of ``scr.vec``."""
+    dvec, dloc, p = scr.vec[0], scr.vec[1], scr.vec[2]
+    for k in range(3):
+        dvec[k] = sign * direction[k]
+    _m.quat_rotate_inv_into(pose[3:7], dvec, dloc)
+    _support_core_local_into(shape_type, params, verts, vert_start, vert_count, dloc, p)
+    if with_radius:
+        r = core_radius(shape_type, params)
+        if r > 0.0:
+            n = math.sqrt(dloc[0] ** 2 + dloc[1] ** 2 + dloc[2] ** 2)
+            if n > 0.0:
+                for k in range(3):
+                    p[k] += r * dloc[k] / n
+            else:
+                p[0] += r
+    _m.quat_rotate_into(pose[3:7], p, out)
+    out[0] += pose[0]
+    out[1] += pose[1]
+    out[2] += pose[2]
+
+
+@njit(cache=True)
 def _closest_on_triangle(a, b, c):
     """Barycentric weights (u, v, w) of the point of triangle abc closest to the origin (Ericson 2005,
     Real-Time Collision Detection, 5.1.5: Voronoi regions of vertices, edges, face)."""
-    ab = b - a
-    ac = c - a
+    return _closest_on_triangle_xyz(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2])
+
+
+@njit(cache=True)
+def _closest_on_triangle_xyz(a0, a1, a2, b0, b1, b2, c0, c1, c2):
+    """``_closest_on_triangle`` of the corners given by coordinates (no arrays)."""
+    a = (a0, a1, a2)
+    b = (b0, b1, b2)
+    c = (c0, c1, c2)
+    ab = (b0 - a0, b1 - a1, b2 - a2)
+    ac = (c0 - a0, c1 - a1, c2 - a2)
     d1 = -(ab[0] * a[0] + ab[1] * a[1] + ab[2] * a[2])
     d2 = -(ac[0] * a[0] + ac[1] * a[1] + ac[2] * a[2])
     if d1 <= 0.0 and d2 <= 0.0:
@@ -321,23 +366,25 @@ def _reduce_simplex(sw, sa, sb, n, lam, bl):
         lam[0] = 1.0
         return 1
     if n == 2:
-        e = sw[1] - sw[0]
+        e = (sw[1, 0] - sw[0, 0], sw[1, 1] - sw[0, 1], sw[1, 2] - sw[0, 2])
         ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
         t = -(e[0] * sw[0, 0] + e[1] * sw[0, 1] + e[2] * sw[0, 2]) / ee if ee > 0.0 else 0.0
         if t <= 0.0:
             lam[0] = 1.0
             return 1
         if t >= 1.0:
-            sw[0] = sw[1]
-            sa[0] = sa[1]
-            sb[0] = sb[1]
+            for k in range(3):
+                sw[0, k] = sw[1, k]
+                sa[0, k] = sa[1, k]
+                sb[0, k] = sb[1, k]
             lam[0] = 1.0
             return 1
         lam[0] = 1.0 - t
         lam[1] = t
         return 2
     if n == 3:
-        u, v, w = _closest_on_triangle(sw[0], sw[1], sw[2])
+        u, v, w = _closest_on_triangle_xyz(sw[0, 0], sw[0, 1], sw[0, 2], sw[1, 0], sw[1, 1], sw[1, 2],
+                                           sw[2, 0], sw[2, 1], sw[2, 2])
         lam[0], lam[1], lam[2] = u, v, w
         return _compact(sw, sa, sb, 3, lam)
     # tetrahedron: the origin is outside a face when it lies on the other side from the opposite vertex
@@ -379,9 +426,10 @@ def _compact(sw, sa, sb, n, lam):
     m = 0
     for i in range(n):
         if lam[i] > 0.0:
-            sw[m] = sw[i]
-            sa[m] = sa[i]
-            sb[m] = sb[i]
+            for k in range(3):
+                sw[m, k] = sw[i, k]
+                sa[m, k] = sa[i, k]
+                sb[m, k] = sb[i, k]
             lam[m] = lam[i]
             m += 1
     return m
@@ -389,49 +437,56 @@ def _compact(sw, sa, sb, n, lam):
 
 @njit(cache=True)
 def _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-         with_radius, sw, sa, sb, lam, bl):
+         with_radius, sw, sa, sb, scr):
     """GJK (Gilbert, Johnson and Keerthi 1988; van den Bergen 1999 termination) on A - B.
 
     Returns (distance, count, lam): distance between the shapes (0 when they overlap), the final simplex
-    size (4 = origin enclosed) with vertices sw (A - B), sa, sb and weights lam (all given, written here;
-    bl is the reduction's work array)."""
+    size (4 = origin enclosed) with vertices sw (A - B), sa, sb and weights lam (``scr.lam``).  Works in
+    the `GjkScratch` ``scr``: allocates nothing."""
+    lam, bl = scr.lam, scr.bl
     lam[:] = 0.0
-    d = pose_b[0:3] - pose_a[0:3]
+    d, v, qa, qb = scr.vec[3], scr.vec[3], scr.vec[4], scr.vec[5]
+    for k in range(3):
+        d[k] = pose_b[k] - pose_a[k]
     if d[0] == 0.0 and d[1] == 0.0 and d[2] == 0.0:
         d[0] = 1.0
     # first vertex: support of A - B along the direction from B to A
-    pa = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, -d, with_radius)
-    pb = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, d, with_radius)
-    sa[0] = pa
-    sb[0] = pb
-    sw[0] = pa - pb
+    _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, d, -1.0, with_radius, qa, scr)
+    _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, d, 1.0, with_radius, qb, scr)
+    for k in range(3):
+        sa[0, k] = qa[k]
+        sb[0, k] = qb[k]
+        sw[0, k] = qa[k] - qb[k]
     n = 1
     lam[0] = 1.0
-    v = sw[0].copy()
+    for k in range(3):
+        v[k] = sw[0, k]
     for _ in range(GJK_MAX_ITERATIONS):
         vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
         if vv <= 1e-30:
             return 0.0, n, lam
-        pa = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, -v, with_radius)
-        pb = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, v, with_radius)
-        w = pa - pb
+        _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, v, -1.0, with_radius, qa, scr)
+        _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, v, 1.0, with_radius, qb, scr)
+        w0, w1, w2 = qa[0] - qb[0], qa[1] - qb[1], qa[2] - qb[2]
         # no progress: v is the closest point (within the relative tolerance)
-        if vv - (v[0] * w[0] + v[1] * w[1] + v[2] * w[2]) <= GJK_REL_TOLERANCE * vv:
+        if vv - (v[0] * w0 + v[1] * w1 + v[2] * w2) <= GJK_REL_TOLERANCE * vv:
             return math.sqrt(vv), n, lam
         # a repeated vertex also means no progress
         for i in range(n):
-            if sw[i, 0] == w[0] and sw[i, 1] == w[1] and sw[i, 2] == w[2]:
+            if sw[i, 0] == w0 and sw[i, 1] == w1 and sw[i, 2] == w2:
                 return math.sqrt(vv), n, lam
-        sw[n] = w
-        sa[n] = pa
-        sb[n] = pb
+        sw[n, 0], sw[n, 1], sw[n, 2] = w0, w1, w2
+        for k in range(3):
+            sa[n, k] = qa[k]
+            sb[n, k] = qb[k]
         n += 1
         n = _reduce_simplex(sw, sa, sb, n, lam, bl)
         if n == 4:
             return 0.0, 4, lam
         v[:] = 0.0
         for i in range(n):
-            v += lam[i] * sw[i]
+            for k in range(3):
+                v[k] += lam[i] * sw[i, k]
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), n, lam
 
 
@@ -455,7 +510,7 @@ def gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, par
     """``gjk_distance`` working in the `GjkScratch` ``scr`` (no work arrays allocated)."""
     sw, sa, sb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                        count_b, verts, False, sw, sa, sb, scr.lam, scr.bl)
+                        count_b, verts, False, sw, sa, sb, scr)
     normal = np.zeros(3)
     pa = np.zeros(3)
     pb = np.zeros(3)
@@ -508,7 +563,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     `GjkScratch` ``scr``: only the entries below nv / nf are ever read."""
     pw, pa, pb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                        count_b, verts, with_radius, pw, pa, pb, scr.lam, scr.bl)
+                        count_b, verts, with_radius, pw, pa, pb, scr)
     zero = np.zeros(3)
     if dist > 1e-12:
         return 0.0, zero, zero, zero, False
