@@ -528,16 +528,22 @@ def gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, par
 @njit(cache=True)
 def _epa_face(pw, i, j, k, faces, face_n, face_d, f):
     """Store face (i, j, k) with its outward unit normal and distance from the origin; False if degenerate."""
-    nrm = _m.cross(pw[j] - pw[i], pw[k] - pw[i])
-    ln = math.sqrt(nrm[0] ** 2 + nrm[1] ** 2 + nrm[2] ** 2)
+    a0, a1, a2 = pw[j, 0] - pw[i, 0], pw[j, 1] - pw[i, 1], pw[j, 2] - pw[i, 2]
+    b0, b1, b2 = pw[k, 0] - pw[i, 0], pw[k, 1] - pw[i, 1], pw[k, 2] - pw[i, 2]
+    n0 = a1 * b2 - a2 * b1
+    n1 = a2 * b0 - a0 * b2
+    n2 = a0 * b1 - a1 * b0
+    ln = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
     if ln <= 1e-300:
         return False
-    nrm /= ln
+    n0 /= ln
+    n1 /= ln
+    n2 /= ln
     faces[f, 0] = i
     faces[f, 1] = j
     faces[f, 2] = k
-    face_n[f] = nrm
-    face_d[f] = nrm[0] * pw[i, 0] + nrm[1] * pw[i, 1] + nrm[2] * pw[i, 2]
+    face_n[f, 0], face_n[f, 1], face_n[f, 2] = n0, n1, n2
+    face_d[f] = n0 * pw[i, 0] + n1 * pw[i, 1] + n2 * pw[i, 2]
     return True
 
 
@@ -618,15 +624,23 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     alive[:] = False
     nf = 0
     # initial faces, each oriented away from the polytope's interior point
-    centre = np.zeros(3)
+    c0, c1, c2 = 0.0, 0.0, 0.0
     for i in range(nv):
-        centre += pw[i]
-    centre /= nv
+        c0 += pw[i, 0]
+        c1 += pw[i, 1]
+        c2 += pw[i, 2]
+    c0 /= nv
+    c1 /= nv
+    c2 /= nv
     tri = scr.tri
     for t in range(tri.shape[0]):
         i, j, k = tri[t, 0], tri[t, 1], tri[t, 2]
-        nrm = _m.cross(pw[j] - pw[i], pw[k] - pw[i])
-        if _m.dot(nrm, pw[i] - centre) < 0.0:
+        a0, a1, a2 = pw[j, 0] - pw[i, 0], pw[j, 1] - pw[i, 1], pw[j, 2] - pw[i, 2]
+        b0, b1, b2 = pw[k, 0] - pw[i, 0], pw[k, 1] - pw[i, 1], pw[k, 2] - pw[i, 2]
+        n0 = a1 * b2 - a2 * b1
+        n1 = a2 * b0 - a0 * b2
+        n2 = a0 * b1 - a1 * b0
+        if n0 * (pw[i, 0] - c0) + n1 * (pw[i, 1] - c1) + n2 * (pw[i, 2] - c2) < 0.0:
             j, k = k, j
         if not _epa_face(pw, i, j, k, faces, face_n, face_d, nf):
             return 0.0, zero, zero, zero, False
@@ -644,21 +658,28 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
                 best = f
         if best < 0:
             return 0.0, zero, zero, zero, False
-        nrm = face_n[best].copy()
-        p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, nrm, with_radius)
-        p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -nrm, with_radius)
-        w = p1 - p2
-        gap = _m.dot(w, nrm) - bd
+        nrm, p1, p2 = scr.vec[3], scr.vec[4], scr.vec[5]
+        for k in range(3):
+            nrm[k] = face_n[best, k]
+        _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, nrm, 1.0, with_radius, p1, scr)
+        _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, nrm, -1.0, with_radius, p2, scr)
+        w0, w1, w2 = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+        gap = (w0 * nrm[0] + w1 * nrm[1] + w2 * nrm[2]) - bd
         if gap <= EPA_TOLERANCE * max(1.0, abs(bd)) or nv >= _EPA_MAX_VERTS or nf + 2 * nv >= _EPA_MAX_FACES:
             break
-        pw[nv], pa[nv], pb[nv] = w, p1, p2
+        pw[nv, 0], pw[nv, 1], pw[nv, 2] = w0, w1, w2
+        for k in range(3):
+            pa[nv, k] = p1[k]
+            pb[nv, k] = p2[k]
         # remove the faces the new vertex sees; their unshared edges form the horizon
         # (a tolerance keeps faces coplanar with w: removing only some of a flat patch, by rounding, would
         # leave a horizon that is not a simple loop and fold the polytope)
         ne = 0
-        see_tol = 1e-10 * max(1.0, math.sqrt(_m.dot(w, w)))
+        see_tol = 1e-10 * max(1.0, math.sqrt(w0 * w0 + w1 * w1 + w2 * w2))
         for f in range(nf):
-            if alive[f] and _m.dot(face_n[f], w - pw[faces[f, 0]]) > see_tol:
+            g0 = faces[f, 0]
+            if alive[f] and (face_n[f, 0] * (w0 - pw[g0, 0]) + face_n[f, 1] * (w1 - pw[g0, 1])
+                             + face_n[f, 2] * (w2 - pw[g0, 2])) > see_tol:
                 alive[f] = False
                 for e in range(3):
                     u = faces[f, e]
