@@ -172,8 +172,9 @@ class GjkScratch(NamedTuple):
     edges: np.ndarray   # (_EPA_MAX_EDGES, 2) int64 horizon edges
     axes: np.ndarray    # (6, 3) the +-coordinate axes (constant)
     tri: np.ndarray     # (4, 3) int64 faces of the initial tetrahedron (constant)
-    vec: np.ndarray     # (6, 3) 3-vectors: search direction, local direction, local support, GJK's v,
-                        # the support points on A and on B of the current iteration
+    vec: np.ndarray     # (9, 3) 3-vectors: search direction, local direction, local support, GJK's v,
+                        # the support points on A and on B of the current iteration; results: witness on
+                        # A, witness on B, unit normal A -> B
 
 
 @njit(cache=True)
@@ -184,7 +185,7 @@ def new_gjk_scratch():
     return GjkScratch(np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)),
                       np.zeros(4), np.zeros(4), np.empty((_EPA_MAX_FACES, 3), dtype=np.int64),
                       np.empty((_EPA_MAX_FACES, 3)), np.empty(_EPA_MAX_FACES), np.zeros(_EPA_MAX_FACES, dtype=np.bool_),
-                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((6, 3)))
+                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((9, 3)))
 
 
 @njit(cache=True)
@@ -359,6 +360,25 @@ def _barycentric(a, b, c, p):
 
 
 @njit(cache=True)
+def _barycentric_rows(pw, ia, ib, ic, p0, p1, p2):
+    """``_barycentric`` of the triangle of rows ia, ib, ic of ``pw`` and the point (p0, p1, p2), no arrays."""
+    v0 = (pw[ib, 0] - pw[ia, 0], pw[ib, 1] - pw[ia, 1], pw[ib, 2] - pw[ia, 2])
+    v1 = (pw[ic, 0] - pw[ia, 0], pw[ic, 1] - pw[ia, 1], pw[ic, 2] - pw[ia, 2])
+    v2 = (p0 - pw[ia, 0], p1 - pw[ia, 1], p2 - pw[ia, 2])
+    d00 = _m.dot(v0, v0)
+    d01 = _m.dot(v0, v1)
+    d11 = _m.dot(v1, v1)
+    d20 = _m.dot(v2, v0)
+    d21 = _m.dot(v2, v1)
+    den = d00 * d11 - d01 * d01
+    if den <= 0.0:
+        return -np.inf, -np.inf, -np.inf
+    v = (d11 * d20 - d01 * d21) / den
+    w = (d00 * d21 - d01 * d20) / den
+    return 1.0 - v - w, v, w
+
+
+@njit(cache=True)
 def _reduce_simplex(sw, sa, sb, n, lam, bl):
     """Closest point of the simplex sw[:n] to the origin; keeps only the vertices that support it (their
     weights in lam) and returns the new count; count 4 means the origin is inside the tetrahedron."""
@@ -500,29 +520,37 @@ def gjk_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, p
     negative distance (shallow overlap of the rounded parts) is still exact.  Returns
     (distance, witness_a (3,), witness_b (3,), normal (3,), separated) where ``separated`` is False when the
     cores overlap (then distance = 0 and the witnesses are meaningless: call ``epa_penetration``)."""
-    return gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                                count_b, verts, new_gjk_scratch())
+    scr = new_gjk_scratch()
+    dist, separated = gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
+                                           start_b, count_b, verts, scr)
+    return dist, scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy(), separated
 
 
 @njit(cache=True)
 def gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
                          count_b, verts, scr):
-    """``gjk_distance`` working in the `GjkScratch` ``scr`` (no work arrays allocated)."""
+    """``gjk_distance`` working in the `GjkScratch` ``scr``, allocating nothing: returns (distance,
+    separated) and writes witness_a, witness_b and the normal into ``scr.vec[6]``, ``[7]``, ``[8]``."""
     sw, sa, sb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
                         count_b, verts, False, sw, sa, sb, scr)
-    normal = np.zeros(3)
-    pa = np.zeros(3)
-    pb = np.zeros(3)
+    pa, pb, normal = scr.vec[6], scr.vec[7], scr.vec[8]
+    pa[:] = 0.0
+    pb[:] = 0.0
+    normal[:] = 0.0
     if n == 4 or dist <= 1e-12:
-        return 0.0, pa, pb, normal, False
+        return 0.0, False
     for i in range(n):
-        pa += lam[i] * sa[i]
-        pb += lam[i] * sb[i]
-    normal = (pb - pa) / dist
+        for k in range(3):
+            pa[k] += lam[i] * sa[i, k]
+            pb[k] += lam[i] * sb[i, k]
     ra = core_radius(type_a, params_a)
     rb = core_radius(type_b, params_b)
-    return dist - ra - rb, pa + ra * normal, pb - rb * normal, normal, True
+    for k in range(3):
+        normal[k] = (pb[k] - pa[k]) / dist
+        pa[k] = pa[k] + ra * normal[k]
+        pb[k] = pb[k] - rb * normal[k]
+    return dist - ra - rb, True
 
 
 @njit(cache=True)
@@ -553,8 +581,10 @@ def epa_penetration(type_a, params_a, pose_a, start_a, count_a, type_b, params_b
     """Penetration depth, witness points and unit normal from A to B of two overlapping convex shapes by the
     expanding polytope algorithm on the whole shapes (see ``_epa``; ``shape_distance`` is usually better: it
     runs EPA on the cores of spheres and capsules and adds their radii, which is exact)."""
-    return _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-                True, new_gjk_scratch())
+    scr = new_gjk_scratch()
+    depth, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b,
+                     verts, True, scr)
+    return depth, scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy(), ok
 
 
 @njit(cache=True)
@@ -563,16 +593,20 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     """Penetration depth, witness points and unit normal from A to B of two overlapping convex shapes by the
     expanding polytope algorithm (van den Bergen 2001) on the Minkowski difference A - B.
 
-    Returns (depth, witness_a, witness_b, normal, ok): translating B by depth * normal separates the shapes
+    Returns (depth, ok) and writes witness_a, witness_b, normal into ``scr.vec[6]``, ``[7]``, ``[8]``
+    (zeros when not ok): translating B by depth * normal separates the shapes
     (touching); witness_a is A's deepest point inside B, witness_b B's deepest inside A.  ok is False when
     the shapes do not overlap (use ``gjk_distance``) or the polytope degenerated.  Works in the
     `GjkScratch` ``scr``: only the entries below nv / nf are ever read."""
     pw, pa, pb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
                         count_b, verts, with_radius, pw, pa, pb, scr)
-    zero = np.zeros(3)
+    wa, wb, normal = scr.vec[6], scr.vec[7], scr.vec[8]
+    wa[:] = 0.0
+    wb[:] = 0.0
+    normal[:] = 0.0
     if dist > 1e-12:
-        return 0.0, zero, zero, zero, False
+        return 0.0, False
     # grow the GJK simplex into a tetrahedron (or bipyramid) that encloses the origin
     axes = scr.axes
     nv = n
@@ -618,7 +652,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
                 best_height = height
                 pw[3], pa[3], pb[3] = w, p1, p2
         if best_height <= 1e-12 * np.sum(nrm ** 2):
-            return 0.0, zero, zero, zero, False
+            return 0.0, False
         nv = 4
     faces, face_n, face_d, alive = scr.faces, scr.face_n, scr.face_d, scr.alive
     alive[:] = False
@@ -643,7 +677,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
         if n0 * (pw[i, 0] - c0) + n1 * (pw[i, 1] - c1) + n2 * (pw[i, 2] - c2) < 0.0:
             j, k = k, j
         if not _epa_face(pw, i, j, k, faces, face_n, face_d, nf):
-            return 0.0, zero, zero, zero, False
+            return 0.0, False
         alive[nf] = True
         nf += 1
     edges = scr.edges
@@ -657,7 +691,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
                 bd = face_d[f]
                 best = f
         if best < 0:
-            return 0.0, zero, zero, zero, False
+            return 0.0, False
         nrm, p1, p2 = scr.vec[3], scr.vec[4], scr.vec[5]
         for k in range(3):
             nrm[k] = face_n[best, k]
@@ -705,22 +739,25 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     # neighbours tie with it (face-face contacts split a polygon into triangles); take the one whose
     # triangle holds the foot point, else the closest point of the best face
     depth = face_d[best]
-    proj = depth * face_n[best]
+    p0, p1, p2 = depth * face_n[best, 0], depth * face_n[best, 1], depth * face_n[best, 2]
     chosen = best
     best_margin = -np.inf
     for f in range(nf):
         if alive[f] or f == best:
             if abs(face_d[f] - depth) <= 1e-9 * max(1.0, abs(depth)) and _m.dot(face_n[f], face_n[best]) > 0.999999:
-                b0, b1, b2 = _barycentric(pw[faces[f, 0]], pw[faces[f, 1]], pw[faces[f, 2]], proj)
+                b0, b1, b2 = _barycentric_rows(pw, faces[f, 0], faces[f, 1], faces[f, 2], p0, p1, p2)
                 margin = min(b0, min(b1, b2))
                 if margin > best_margin:
                     best_margin = margin
                     chosen = f
     i, j, k = faces[chosen, 0], faces[chosen, 1], faces[chosen, 2]
-    u, v, w3 = _closest_on_triangle(pw[i] - proj, pw[j] - proj, pw[k] - proj)
-    wa = u * pa[i] + v * pa[j] + w3 * pa[k]
-    wb = u * pb[i] + v * pb[j] + w3 * pb[k]
-    return depth, wa, wb, face_n[best].copy(), True
+    u, v, w3 = _closest_on_triangle_xyz(pw[i, 0] - p0, pw[i, 1] - p1, pw[i, 2] - p2, pw[j, 0] - p0, pw[j, 1] - p1,
+                                        pw[j, 2] - p2, pw[k, 0] - p0, pw[k, 1] - p1, pw[k, 2] - p2)
+    for c in range(3):
+        wa[c] = u * pa[i, c] + v * pa[j, c] + w3 * pa[k, c]
+        wb[c] = u * pb[i, c] + v * pb[j, c] + w3 * pb[k, c]
+        normal[c] = face_n[best, c]
+    return depth, True
 
 
 @njit(cache=True)
@@ -801,16 +838,17 @@ def shape_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b,
     the cores overlap, EPA runs on the cores and the radii are added (exact for polytopes, spheres and
     capsules; cylinders converge to ``EPA_TOLERANCE`` or the iteration cap)."""
     scr = new_gjk_scratch()
-    d, wa, wb, nrm, separated = gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b,
-                                                     params_b, pose_b, start_b, count_b, verts, scr)
+    d, separated = gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
+                                        start_b, count_b, verts, scr)
     if separated:
-        return d, wa, wb, nrm
+        return d, scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy()
     rounded_a = type_a == SPHERE or type_a == CAPSULE
     rounded_b = type_b == SPHERE or type_b == CAPSULE
     if rounded_a and rounded_b:
         return _rounded_core_overlap(type_a, params_a, pose_a, type_b, params_b, pose_b)
-    depth, wa, wb, nrm, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
-                                  start_b, count_b, verts, False, scr)
+    depth, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b,
+                     verts, False, scr)
+    wa, wb, nrm = scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy()
     ra = core_radius(type_a, params_a)
     rb = core_radius(type_b, params_b)
     return -(depth + ra + rb), wa + ra * nrm, wb - rb * nrm, nrm

@@ -716,19 +716,20 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
     vs_b, vc_b = shapes.shape_vert_start[sb], shapes.shape_vert_count[sb]
     ra = CV.core_radius(ta, par_a)
     rb = CV.core_radius(tb, par_b)
-    dist, wa, wb, nrm, separated = CV.gjk_distance_scratch(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b,
-                                                           vs_b, vc_b, verts, gscr)
+    dist, separated = CV.gjk_distance_scratch(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts,
+                                              gscr)
+    wa, wb, nrm = gscr.vec[6], gscr.vec[7], gscr.vec[8]
     if separated:
         if dist > spec:
             return 0
     else:
-        depth, wa, wb, nrm, ok = CV._epa(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts,
-                                         False, gscr)
+        depth, ok = CV._epa(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts, False, gscr)
         if not ok:
             return 0
         dist = -(depth + ra + rb)
-        wa = wa + ra * nrm
-        wb = wb - rb * nrm
+        for k in range(3):
+            wa[k] = wa[k] + ra * nrm[k]
+            wb[k] = wb[k] - rb * nrm[k]
     n = (nrm[0], nrm[1], nrm[2])
     fa, fb = scr.feat_a, scr.feat_b
     ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa, scr)
