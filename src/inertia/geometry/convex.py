@@ -341,27 +341,9 @@ def _closest_on_triangle_xyz(a0, a1, a2, b0, b1, b2, c0, c1, c2):
 
 
 @njit(cache=True)
-def _barycentric(a, b, c, p):
-    """Unclamped barycentric coordinates of p's projection onto the plane of triangle abc."""
-    v0 = b - a
-    v1 = c - a
-    v2 = p - a
-    d00 = _m.dot(v0, v0)
-    d01 = _m.dot(v0, v1)
-    d11 = _m.dot(v1, v1)
-    d20 = _m.dot(v2, v0)
-    d21 = _m.dot(v2, v1)
-    den = d00 * d11 - d01 * d01
-    if den <= 0.0:
-        return -np.inf, -np.inf, -np.inf
-    v = (d11 * d20 - d01 * d21) / den
-    w = (d00 * d21 - d01 * d20) / den
-    return 1.0 - v - w, v, w
-
-
-@njit(cache=True)
 def _barycentric_rows(pw, ia, ib, ic, p0, p1, p2):
-    """``_barycentric`` of the triangle of rows ia, ib, ic of ``pw`` and the point (p0, p1, p2), no arrays."""
+    """Unclamped barycentric coordinates of the projection of the point (p0, p1, p2) onto the plane of the
+    triangle of rows ia, ib, ic of ``pw``."""
     v0 = (pw[ib, 0] - pw[ia, 0], pw[ib, 1] - pw[ia, 1], pw[ib, 2] - pw[ia, 2])
     v1 = (pw[ic, 0] - pw[ia, 0], pw[ic, 1] - pw[ia, 1], pw[ic, 2] - pw[ia, 2])
     v2 = (p0 - pw[ia, 0], p1 - pw[ia, 1], p2 - pw[ia, 2])
@@ -376,6 +358,12 @@ def _barycentric_rows(pw, ia, ib, ic, p0, p1, p2):
     v = (d11 * d20 - d01 * d21) / den
     w = (d00 * d21 - d01 * d20) / den
     return 1.0 - v - w, v, w
+
+
+@njit(cache=True)
+def _cross3(a, b):
+    """a x b of 3-tuples, the same arithmetic as ``inertia.math.cross`` without an array."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
 
 
 @njit(cache=True)
@@ -414,20 +402,23 @@ def _reduce_simplex(sw, sa, sb, n, lam, bl):
     faces = ((0, 1, 2, 3), (0, 1, 3, 2), (0, 2, 3, 1), (1, 2, 3, 0))
     # a flat tetrahedron (support ties of flat shapes put four points on one plane) encloses nothing:
     # then the closest point of its faces decides, and GJK goes on with (at most) a triangle
-    e1 = sw[1] - sw[0]
-    e2 = sw[2] - sw[0]
-    e3 = sw[3] - sw[0]
-    vol = _m.dot(_m.cross(e1, e2), e3)
+    e1 = (sw[1, 0] - sw[0, 0], sw[1, 1] - sw[0, 1], sw[1, 2] - sw[0, 2])
+    e2 = (sw[2, 0] - sw[0, 0], sw[2, 1] - sw[0, 1], sw[2, 2] - sw[0, 2])
+    e3 = (sw[3, 0] - sw[0, 0], sw[3, 1] - sw[0, 1], sw[3, 2] - sw[0, 2])
+    vol = _m.dot(_cross3(e1, e2), e3)
     flat = abs(vol) <= 1e-10 * math.sqrt(_m.dot(e1, e1) * _m.dot(e2, e2) * _m.dot(e3, e3))
     for f in faces:
         i, j, k, o = f
-        nrm = _m.cross(sw[j] - sw[i], sw[k] - sw[i])
+        nrm = _cross3((sw[j, 0] - sw[i, 0], sw[j, 1] - sw[i, 1], sw[j, 2] - sw[i, 2]),
+                      (sw[k, 0] - sw[i, 0], sw[k, 1] - sw[i, 1], sw[k, 2] - sw[i, 2]))
         s_origin = -(nrm[0] * sw[i, 0] + nrm[1] * sw[i, 1] + nrm[2] * sw[i, 2])
         s_opp = nrm[0] * (sw[o, 0] - sw[i, 0]) + nrm[1] * (sw[o, 1] - sw[i, 1]) + nrm[2] * (sw[o, 2] - sw[i, 2])
         if flat or s_origin * s_opp < 0.0:
             inside = False
-            u, v, w = _closest_on_triangle(sw[i], sw[j], sw[k])
-            p = u * sw[i] + v * sw[j] + w * sw[k]
+            u, v, w = _closest_on_triangle_xyz(sw[i, 0], sw[i, 1], sw[i, 2], sw[j, 0], sw[j, 1], sw[j, 2],
+                                               sw[k, 0], sw[k, 1], sw[k, 2])
+            p = (u * sw[i, 0] + v * sw[j, 0] + w * sw[k, 0], u * sw[i, 1] + v * sw[j, 1] + w * sw[k, 1],
+                 u * sw[i, 2] + v * sw[j, 2] + w * sw[k, 2])
             d = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
             if d < best:
                 best = d
