@@ -34,8 +34,10 @@ Limitations
 - Triangle meshes, planes and heightfields are not convex: the queries refuse them (ValueError).
 - Cylinders are curved without a core: their EPA depth converges to ``EPA_TOLERANCE`` only within
   ``EPA_MAX_ITERATIONS`` (1e-6 m typical for unit sizes), polytopes and rounded shapes are exact to rounding.
-- The kernels allocate a few small arrays per query (EPA: its polytope, ~70 KB); rigid-core's narrow phase
-  should prefer closed forms/SAT where they exist and call these for the remaining pairs.
+- Work arrays (simplex, EPA polytope ~70 KB, results) live in a `GjkScratch` (``new_gjk_scratch``): the
+  narrow phase makes one per run of pairs and calls ``gjk_distance_scratch`` / ``_epa``, which allocate
+  nothing (except when EPA has to grow a GJK simplex of fewer than 4 points); the public functions
+  (``gjk_distance``, ``epa_penetration``, ``shape_distance``) make a scratch per call and return copies.
 - Hull ``params`` (scale) are ignored: vertices are used as stored.
 """
 
