@@ -237,3 +237,27 @@ def test_degenerate_box_pairs_against_minkowski_brute_force(seed):
     d, wa, wb, n = distance(BOX, params(*ha), pa, BOX, params(*hb), pb)
     assert d == pytest.approx(minkowski_reference(world_a, world_b), abs=1e-8)
     np.testing.assert_allclose(wb - wa, d * n, atol=1e-8)
+
+
+def test_a_reused_scratch_gives_the_bits_of_a_fresh_one():
+    """One `GjkScratch` reused across pairs (as the narrow phase does) leaves nothing behind: every call
+    through the shared scratch returns exactly (bit for bit) what the public functions, which make a fresh
+    scratch per call, return; penetrating, separated and deep pairs interleaved."""
+    rng = np.random.default_rng(9)
+    scr = C.new_gjk_scratch()
+    shapes = [(BOX, params(0.3, 0.2, 0.25)), (CAPSULE, params(0.1, 0.3)), (CYLINDER, params(0.2, 0.15)),
+              (SPHERE, params(0.2))]
+    for trial in range(24):
+        ta, pa_ = shapes[trial % 4]
+        tb, pb_ = shapes[(trial // 4) % 4]
+        posa = pose(rng.uniform(-0.1, 0.1, 3), random_quat(rng))
+        posb = pose(rng.uniform(-0.5, 0.5, 3), random_quat(rng))
+        d, wa, wb, n, sep = C.gjk_distance(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS)
+        d2, sep2 = C.gjk_distance_scratch(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS, scr)
+        assert (d2, sep2) == (d, sep)
+        assert np.array_equal(scr.vec[6:9], np.array([wa, wb, n]))
+        if not sep:
+            depth, wa, wb, n, ok = C.epa_penetration(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS)
+            depth2, ok2 = C._epa(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS, True, scr)
+            assert (depth2, ok2) == (depth, ok)
+            assert np.array_equal(scr.vec[6:9], np.array([wa, wb, n]))

@@ -246,3 +246,55 @@ def test_general_and_mesh_kernels_fill_their_pairs_after_the_closed_form_kernel(
     assert seps[(0, 4)] == pytest.approx([-0.001], abs=1e-12)             # sphere on the plane
     assert seps[(5, 6)] == pytest.approx([-0.001], abs=1e-9)              # sphere on the mesh
     assert seps[(0, 1)] == pytest.approx([-0.0] * 4, abs=1e-12)           # lower box resting on the plane
+
+
+def _general_pairs_scene(npairs):
+    """``npairs`` separate general-family contacts (a tetrahedral hull tilted on a box, a capsule lying
+    across a box, alternately), with the arguments of one ``_narrow_range_general`` run over all pairs."""
+    from inertia.geometry.narrowphase import FAMILY_GENERAL, pair_family
+    b = ModelBuilder()
+    tet = np.array([[0, 0, 0.3], [0.2, 0, -0.1], [-0.1, 0.17, -0.1], [-0.1, -0.17, -0.1]])
+    for k in range(npairs):
+        x = 2.0 * k
+        b.add_box(b.add_body(position=(x, 0, 0)), (0.2, 0.2, 0.2))
+        if k % 2 == 0:
+            b.add_convex_hull(b.add_body(position=(x, 0.01, 0.29), orientation=_rot((1, 0, 0), 0.4)), tet)
+        else:
+            b.add_capsule(b.add_body(position=(x, 0, 0.248), orientation=_rot((0, 1, 0), math.pi / 2)), 0.05, 0.1)
+    m = b.finalize()
+    st = m.state()
+    ns, dt = m.shape_count, 1.0 / 60.0
+    pose, aabb = np.zeros((ns, 7)), np.zeros((ns, 6))
+    shapes = m.shapes()
+    shape_world_bounds(shapes, m.body_type, m.body_bound_radius, st.body_q, st.body_qd, dt, pose, aabb)
+    cap = 2 * npairs + 8
+    pairs, keys = np.zeros((cap, 2), np.int32), np.zeros(cap, np.int64)
+    n = sort_and_sweep(aabb, shapes, m.body_type, st.body_awake, np.zeros(ns, np.int64), keys, pairs)
+    families = [pair_family(*sorted(m.shape_type[pairs[i]])) for i in range(n)]
+    assert n == npairs and families == [FAMILY_GENERAL] * n
+    c = Contacts(cap)
+    return c, (0, n, pairs, shapes, pose, st.body_qd, m.body_bound_radius, dt, c.arrays())
+
+
+def test_general_pairs_reuse_one_gjk_epa_scratch_per_run():
+    """GJK/EPA work in a scratch made once per run of pairs (issue 9): Numba's NRT allocation counter
+    (``rtsys.get_allocation_stats``) over one run of 50 hull/capsule-box pairs equals that over 5 pairs, so
+    nothing is allocated per pair (before the change: ~210 allocations per pair)."""
+    from numba.core.runtime import _nrt_python, rtsys
+    from inertia.geometry.narrowphase import _narrow_range_general
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+    try:
+        counts = {}
+        for npairs in (5, 50):
+            c, args = _general_pairs_scene(npairs)
+            _narrow_range_general(*args)                        # compile / warm
+            a0 = rtsys.get_allocation_stats().alloc
+            _narrow_range_general(*args)
+            counts[npairs] = rtsys.get_allocation_stats().alloc - a0
+            assert (c.contact_point_count[:npairs] > 0).all()
+    finally:
+        if not was_on:
+            _nrt_python.memsys_disable_stats()
+    assert counts[5] > 0                                        # the counter works (the run's scratches)
+    assert counts[50] == counts[5], counts

@@ -34,8 +34,10 @@ Limitations
 - Triangle meshes, planes and heightfields are not convex: the queries refuse them (ValueError).
 - Cylinders are curved without a core: their EPA depth converges to ``EPA_TOLERANCE`` only within
   ``EPA_MAX_ITERATIONS`` (1e-6 m typical for unit sizes), polytopes and rounded shapes are exact to rounding.
-- The kernels allocate a few small arrays per query (EPA: its polytope, ~70 KB); rigid-core's narrow phase
-  should prefer closed forms/SAT where they exist and call these for the remaining pairs.
+- Work arrays (simplex, EPA polytope ~70 KB, results) live in a `GjkScratch` (``new_gjk_scratch``): the
+  narrow phase makes one per run of pairs and calls ``gjk_distance_scratch`` / ``_epa``, which allocate
+  nothing (except when EPA has to grow a GJK simplex of fewer than 4 points); the public functions
+  (``gjk_distance``, ``epa_penetration``, ``shape_distance``) make a scratch per call and return copies.
 - Hull ``params`` (scale) are ignored: vertices are used as stored.
 """
 
@@ -154,6 +156,38 @@ EPA_MAX_ITERATIONS = 128
 EPA_TOLERANCE = 1e-10       # relative gap between the closest face and the support along its normal
 _EPA_MAX_VERTS = EPA_MAX_ITERATIONS + 8
 _EPA_MAX_FACES = 8 * _EPA_MAX_VERTS
+_EPA_MAX_EDGES = 6 * _EPA_MAX_VERTS + 12          # horizon: <= 3 x alive faces <= 6 nv
+
+
+class GjkScratch(NamedTuple):
+    """Work arrays of GJK and EPA, allocated once (per run of pairs in the narrow phase, per call in the
+    public wrappers) and reused: only the entries a call writes are read back."""
+    pw: np.ndarray      # (_EPA_MAX_VERTS, 3) simplex / polytope vertices on A - B (GJK uses the first 4)
+    pa: np.ndarray      # (_EPA_MAX_VERTS, 3) their support points on A
+    pb: np.ndarray      # (_EPA_MAX_VERTS, 3) their support points on B
+    lam: np.ndarray     # (4,) barycentric weights of GJK's closest point
+    bl: np.ndarray      # (4,) weights of the best tetrahedron face in the simplex reduction
+    faces: np.ndarray   # (_EPA_MAX_FACES, 3) int64 polytope faces (vertex indices)
+    face_n: np.ndarray  # (_EPA_MAX_FACES, 3) their outward unit normals
+    face_d: np.ndarray  # (_EPA_MAX_FACES,) their distances from the origin
+    alive: np.ndarray   # (_EPA_MAX_FACES,) bool face still on the polytope
+    edges: np.ndarray   # (_EPA_MAX_EDGES, 2) int64 horizon edges
+    axes: np.ndarray    # (6, 3) the +-coordinate axes (constant)
+    tri: np.ndarray     # (4, 3) int64 faces of the initial tetrahedron (constant)
+    vec: np.ndarray     # (9, 3) 3-vectors: search direction, local direction, local support, GJK's v,
+                        # the support points on A and on B of the current iteration; results: witness on
+                        # A, witness on B, unit normal A -> B
+
+
+@njit(cache=True)
+def new_gjk_scratch():
+    """A `GjkScratch` for one run of GJK/EPA calls."""
+    axes = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
+    tri = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]], dtype=np.int64)
+    return GjkScratch(np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)),
+                      np.zeros(4), np.zeros(4), np.empty((_EPA_MAX_FACES, 3), dtype=np.int64),
+                      np.empty((_EPA_MAX_FACES, 3)), np.empty(_EPA_MAX_FACES), np.zeros(_EPA_MAX_FACES, dtype=np.bool_),
+                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((9, 3)))
 
 
 @njit(cache=True)
@@ -168,8 +202,17 @@ def core_radius(shape_type, params):
 @njit(cache=True)
 def support_core_local(shape_type, params, verts, vert_start, vert_count, direction):
     """Farthest point of the shape's core (the shape minus ``core_radius``) along ``direction``, local frame."""
-    dx, dy, dz = direction[0], direction[1], direction[2]
     out = np.zeros(3)
+    return _support_core_local_into(shape_type, params, verts, vert_start, vert_count, direction, out)
+
+
+@njit(cache=True)
+def _support_core_local_into(shape_type, params, verts, vert_start, vert_count, direction, out):
+    """``support_core_local`` written into ``out`` (3,), which is returned."""
+    dx, dy, dz = direction[0], direction[1], direction[2]
+    out[0] = 0.0
+    out[1] = 0.0
+    out[2] = 0.0
     if shape_type == SPHERE:
         return out
     if shape_type == CAPSULE:
@@ -230,11 +273,45 @@ def _support_world(shape_type, params, pose, verts, vert_start, vert_count, dire
 
 
 @njit(cache=True)
+def _support_world_into(shape_type, params, pose, verts, vert_start, vert_count, direction, sign, with_radius,
+                        out, scr):
+    """``_support_world`` along ``sign * direction`` (sign +-1) written into ``out`` (3,), no allocation
+    (same arithmetic, so the same bits); uses rows 0-2 of ``scr.vec``."""
+    dvec, dloc, p = scr.vec[0], scr.vec[1], scr.vec[2]
+    for k in range(3):
+        dvec[k] = sign * direction[k]
+    _m.quat_rotate_inv_into(pose[3:7], dvec, dloc)
+    _support_core_local_into(shape_type, params, verts, vert_start, vert_count, dloc, p)
+    if with_radius:
+        r = core_radius(shape_type, params)
+        if r > 0.0:
+            n = math.sqrt(dloc[0] ** 2 + dloc[1] ** 2 + dloc[2] ** 2)
+            if n > 0.0:
+                for k in range(3):
+                    p[k] += r * dloc[k] / n
+            else:
+                p[0] += r
+    _m.quat_rotate_into(pose[3:7], p, out)
+    out[0] += pose[0]
+    out[1] += pose[1]
+    out[2] += pose[2]
+
+
+@njit(cache=True)
 def _closest_on_triangle(a, b, c):
     """Barycentric weights (u, v, w) of the point of triangle abc closest to the origin (Ericson 2005,
     Real-Time Collision Detection, 5.1.5: Voronoi regions of vertices, edges, face)."""
-    ab = b - a
-    ac = c - a
+    return _closest_on_triangle_xyz(a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2])
+
+
+@njit(cache=True)
+def _closest_on_triangle_xyz(a0, a1, a2, b0, b1, b2, c0, c1, c2):
+    """``_closest_on_triangle`` of the corners given by coordinates (no arrays)."""
+    a = (a0, a1, a2)
+    b = (b0, b1, b2)
+    c = (c0, c1, c2)
+    ab = (b0 - a0, b1 - a1, b2 - a2)
+    ac = (c0 - a0, c1 - a1, c2 - a2)
     d1 = -(ab[0] * a[0] + ab[1] * a[1] + ab[2] * a[2])
     d2 = -(ac[0] * a[0] + ac[1] * a[1] + ac[2] * a[2])
     if d1 <= 0.0 and d2 <= 0.0:
@@ -266,11 +343,12 @@ def _closest_on_triangle(a, b, c):
 
 
 @njit(cache=True)
-def _barycentric(a, b, c, p):
-    """Unclamped barycentric coordinates of p's projection onto the plane of triangle abc."""
-    v0 = b - a
-    v1 = c - a
-    v2 = p - a
+def _barycentric_rows(pw, ia, ib, ic, p0, p1, p2):
+    """Unclamped barycentric coordinates of the projection of the point (p0, p1, p2) onto the plane of the
+    triangle of rows ia, ib, ic of ``pw``."""
+    v0 = (pw[ib, 0] - pw[ia, 0], pw[ib, 1] - pw[ia, 1], pw[ib, 2] - pw[ia, 2])
+    v1 = (pw[ic, 0] - pw[ia, 0], pw[ic, 1] - pw[ia, 1], pw[ic, 2] - pw[ia, 2])
+    v2 = (p0 - pw[ia, 0], p1 - pw[ia, 1], p2 - pw[ia, 2])
     d00 = _m.dot(v0, v0)
     d01 = _m.dot(v0, v1)
     d11 = _m.dot(v1, v1)
@@ -285,53 +363,64 @@ def _barycentric(a, b, c, p):
 
 
 @njit(cache=True)
-def _reduce_simplex(sw, sa, sb, n, lam):
+def _cross3(a, b):
+    """a x b of 3-tuples, the same arithmetic as ``inertia.math.cross`` without an array."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(cache=True)
+def _reduce_simplex(sw, sa, sb, n, lam, bl):
     """Closest point of the simplex sw[:n] to the origin; keeps only the vertices that support it (their
     weights in lam) and returns the new count; count 4 means the origin is inside the tetrahedron."""
     if n == 1:
         lam[0] = 1.0
         return 1
     if n == 2:
-        e = sw[1] - sw[0]
+        e = (sw[1, 0] - sw[0, 0], sw[1, 1] - sw[0, 1], sw[1, 2] - sw[0, 2])
         ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2]
         t = -(e[0] * sw[0, 0] + e[1] * sw[0, 1] + e[2] * sw[0, 2]) / ee if ee > 0.0 else 0.0
         if t <= 0.0:
             lam[0] = 1.0
             return 1
         if t >= 1.0:
-            sw[0] = sw[1]
-            sa[0] = sa[1]
-            sb[0] = sb[1]
+            for k in range(3):
+                sw[0, k] = sw[1, k]
+                sa[0, k] = sa[1, k]
+                sb[0, k] = sb[1, k]
             lam[0] = 1.0
             return 1
         lam[0] = 1.0 - t
         lam[1] = t
         return 2
     if n == 3:
-        u, v, w = _closest_on_triangle(sw[0], sw[1], sw[2])
+        u, v, w = _closest_on_triangle_xyz(sw[0, 0], sw[0, 1], sw[0, 2], sw[1, 0], sw[1, 1], sw[1, 2],
+                                           sw[2, 0], sw[2, 1], sw[2, 2])
         lam[0], lam[1], lam[2] = u, v, w
         return _compact(sw, sa, sb, 3, lam)
     # tetrahedron: the origin is outside a face when it lies on the other side from the opposite vertex
     best = np.inf
-    bl = np.zeros(4)
+    bl[:] = 0.0
     inside = True
     faces = ((0, 1, 2, 3), (0, 1, 3, 2), (0, 2, 3, 1), (1, 2, 3, 0))
     # a flat tetrahedron (support ties of flat shapes put four points on one plane) encloses nothing:
     # then the closest point of its faces decides, and GJK goes on with (at most) a triangle
-    e1 = sw[1] - sw[0]
-    e2 = sw[2] - sw[0]
-    e3 = sw[3] - sw[0]
-    vol = _m.dot(_m.cross(e1, e2), e3)
+    e1 = (sw[1, 0] - sw[0, 0], sw[1, 1] - sw[0, 1], sw[1, 2] - sw[0, 2])
+    e2 = (sw[2, 0] - sw[0, 0], sw[2, 1] - sw[0, 1], sw[2, 2] - sw[0, 2])
+    e3 = (sw[3, 0] - sw[0, 0], sw[3, 1] - sw[0, 1], sw[3, 2] - sw[0, 2])
+    vol = _m.dot(_cross3(e1, e2), e3)
     flat = abs(vol) <= 1e-10 * math.sqrt(_m.dot(e1, e1) * _m.dot(e2, e2) * _m.dot(e3, e3))
     for f in faces:
         i, j, k, o = f
-        nrm = _m.cross(sw[j] - sw[i], sw[k] - sw[i])
+        nrm = _cross3((sw[j, 0] - sw[i, 0], sw[j, 1] - sw[i, 1], sw[j, 2] - sw[i, 2]),
+                      (sw[k, 0] - sw[i, 0], sw[k, 1] - sw[i, 1], sw[k, 2] - sw[i, 2]))
         s_origin = -(nrm[0] * sw[i, 0] + nrm[1] * sw[i, 1] + nrm[2] * sw[i, 2])
         s_opp = nrm[0] * (sw[o, 0] - sw[i, 0]) + nrm[1] * (sw[o, 1] - sw[i, 1]) + nrm[2] * (sw[o, 2] - sw[i, 2])
         if flat or s_origin * s_opp < 0.0:
             inside = False
-            u, v, w = _closest_on_triangle(sw[i], sw[j], sw[k])
-            p = u * sw[i] + v * sw[j] + w * sw[k]
+            u, v, w = _closest_on_triangle_xyz(sw[i, 0], sw[i, 1], sw[i, 2], sw[j, 0], sw[j, 1], sw[j, 2],
+                                               sw[k, 0], sw[k, 1], sw[k, 2])
+            p = (u * sw[i, 0] + v * sw[j, 0] + w * sw[k, 0], u * sw[i, 1] + v * sw[j, 1] + w * sw[k, 1],
+                 u * sw[i, 2] + v * sw[j, 2] + w * sw[k, 2])
             d = p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
             if d < best:
                 best = d
@@ -350,9 +439,10 @@ def _compact(sw, sa, sb, n, lam):
     m = 0
     for i in range(n):
         if lam[i] > 0.0:
-            sw[m] = sw[i]
-            sa[m] = sa[i]
-            sb[m] = sb[i]
+            for k in range(3):
+                sw[m, k] = sw[i, k]
+                sa[m, k] = sa[i, k]
+                sb[m, k] = sb[i, k]
             lam[m] = lam[i]
             m += 1
     return m
@@ -360,48 +450,56 @@ def _compact(sw, sa, sb, n, lam):
 
 @njit(cache=True)
 def _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-         with_radius, sw, sa, sb):
+         with_radius, sw, sa, sb, scr):
     """GJK (Gilbert, Johnson and Keerthi 1988; van den Bergen 1999 termination) on A - B.
 
     Returns (distance, count, lam): distance between the shapes (0 when they overlap), the final simplex
-    size (4 = origin enclosed) with vertices sw (A - B), sa, sb and weights lam."""
-    lam = np.zeros(4)
-    d = pose_b[0:3] - pose_a[0:3]
+    size (4 = origin enclosed) with vertices sw (A - B), sa, sb and weights lam (``scr.lam``).  Works in
+    the `GjkScratch` ``scr``: allocates nothing."""
+    lam, bl = scr.lam, scr.bl
+    lam[:] = 0.0
+    d, v, qa, qb = scr.vec[3], scr.vec[3], scr.vec[4], scr.vec[5]
+    for k in range(3):
+        d[k] = pose_b[k] - pose_a[k]
     if d[0] == 0.0 and d[1] == 0.0 and d[2] == 0.0:
         d[0] = 1.0
     # first vertex: support of A - B along the direction from B to A
-    pa = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, -d, with_radius)
-    pb = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, d, with_radius)
-    sa[0] = pa
-    sb[0] = pb
-    sw[0] = pa - pb
+    _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, d, -1.0, with_radius, qa, scr)
+    _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, d, 1.0, with_radius, qb, scr)
+    for k in range(3):
+        sa[0, k] = qa[k]
+        sb[0, k] = qb[k]
+        sw[0, k] = qa[k] - qb[k]
     n = 1
     lam[0] = 1.0
-    v = sw[0].copy()
+    for k in range(3):
+        v[k] = sw[0, k]
     for _ in range(GJK_MAX_ITERATIONS):
         vv = v[0] * v[0] + v[1] * v[1] + v[2] * v[2]
         if vv <= 1e-30:
             return 0.0, n, lam
-        pa = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, -v, with_radius)
-        pb = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, v, with_radius)
-        w = pa - pb
+        _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, v, -1.0, with_radius, qa, scr)
+        _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, v, 1.0, with_radius, qb, scr)
+        w0, w1, w2 = qa[0] - qb[0], qa[1] - qb[1], qa[2] - qb[2]
         # no progress: v is the closest point (within the relative tolerance)
-        if vv - (v[0] * w[0] + v[1] * w[1] + v[2] * w[2]) <= GJK_REL_TOLERANCE * vv:
+        if vv - (v[0] * w0 + v[1] * w1 + v[2] * w2) <= GJK_REL_TOLERANCE * vv:
             return math.sqrt(vv), n, lam
         # a repeated vertex also means no progress
         for i in range(n):
-            if sw[i, 0] == w[0] and sw[i, 1] == w[1] and sw[i, 2] == w[2]:
+            if sw[i, 0] == w0 and sw[i, 1] == w1 and sw[i, 2] == w2:
                 return math.sqrt(vv), n, lam
-        sw[n] = w
-        sa[n] = pa
-        sb[n] = pb
+        sw[n, 0], sw[n, 1], sw[n, 2] = w0, w1, w2
+        for k in range(3):
+            sa[n, k] = qa[k]
+            sb[n, k] = qb[k]
         n += 1
-        n = _reduce_simplex(sw, sa, sb, n, lam)
+        n = _reduce_simplex(sw, sa, sb, n, lam, bl)
         if n == 4:
             return 0.0, 4, lam
         v[:] = 0.0
         for i in range(n):
-            v += lam[i] * sw[i]
+            for k in range(3):
+                v[k] += lam[i] * sw[i, k]
     return math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), n, lam
 
 
@@ -415,38 +513,58 @@ def gjk_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, p
     negative distance (shallow overlap of the rounded parts) is still exact.  Returns
     (distance, witness_a (3,), witness_b (3,), normal (3,), separated) where ``separated`` is False when the
     cores overlap (then distance = 0 and the witnesses are meaningless: call ``epa_penetration``)."""
-    sw = np.zeros((4, 3))
-    sa = np.zeros((4, 3))
-    sb = np.zeros((4, 3))
+    scr = new_gjk_scratch()
+    dist, separated = gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
+                                           start_b, count_b, verts, scr)
+    return dist, scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy(), separated
+
+
+@njit(cache=True)
+def gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
+                         count_b, verts, scr):
+    """``gjk_distance`` working in the `GjkScratch` ``scr``, allocating nothing: returns (distance,
+    separated) and writes witness_a, witness_b and the normal into ``scr.vec[6]``, ``[7]``, ``[8]``."""
+    sw, sa, sb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                        count_b, verts, False, sw, sa, sb)
-    normal = np.zeros(3)
-    pa = np.zeros(3)
-    pb = np.zeros(3)
+                        count_b, verts, False, sw, sa, sb, scr)
+    pa, pb, normal = scr.vec[6], scr.vec[7], scr.vec[8]
+    pa[:] = 0.0
+    pb[:] = 0.0
+    normal[:] = 0.0
     if n == 4 or dist <= 1e-12:
-        return 0.0, pa, pb, normal, False
+        return 0.0, False
     for i in range(n):
-        pa += lam[i] * sa[i]
-        pb += lam[i] * sb[i]
-    normal = (pb - pa) / dist
+        for k in range(3):
+            pa[k] += lam[i] * sa[i, k]
+            pb[k] += lam[i] * sb[i, k]
     ra = core_radius(type_a, params_a)
     rb = core_radius(type_b, params_b)
-    return dist - ra - rb, pa + ra * normal, pb - rb * normal, normal, True
+    for k in range(3):
+        normal[k] = (pb[k] - pa[k]) / dist
+        pa[k] = pa[k] + ra * normal[k]
+        pb[k] = pb[k] - rb * normal[k]
+    return dist - ra - rb, True
 
 
 @njit(cache=True)
 def _epa_face(pw, i, j, k, faces, face_n, face_d, f):
     """Store face (i, j, k) with its outward unit normal and distance from the origin; False if degenerate."""
-    nrm = _m.cross(pw[j] - pw[i], pw[k] - pw[i])
-    ln = math.sqrt(nrm[0] ** 2 + nrm[1] ** 2 + nrm[2] ** 2)
+    a0, a1, a2 = pw[j, 0] - pw[i, 0], pw[j, 1] - pw[i, 1], pw[j, 2] - pw[i, 2]
+    b0, b1, b2 = pw[k, 0] - pw[i, 0], pw[k, 1] - pw[i, 1], pw[k, 2] - pw[i, 2]
+    n0 = a1 * b2 - a2 * b1
+    n1 = a2 * b0 - a0 * b2
+    n2 = a0 * b1 - a1 * b0
+    ln = math.sqrt(n0 ** 2 + n1 ** 2 + n2 ** 2)
     if ln <= 1e-300:
         return False
-    nrm /= ln
+    n0 /= ln
+    n1 /= ln
+    n2 /= ln
     faces[f, 0] = i
     faces[f, 1] = j
     faces[f, 2] = k
-    face_n[f] = nrm
-    face_d[f] = nrm[0] * pw[i, 0] + nrm[1] * pw[i, 1] + nrm[2] * pw[i, 2]
+    face_n[f, 0], face_n[f, 1], face_n[f, 2] = n0, n1, n2
+    face_d[f] = n0 * pw[i, 0] + n1 * pw[i, 1] + n2 * pw[i, 2]
     return True
 
 
@@ -456,30 +574,34 @@ def epa_penetration(type_a, params_a, pose_a, start_a, count_a, type_b, params_b
     """Penetration depth, witness points and unit normal from A to B of two overlapping convex shapes by the
     expanding polytope algorithm on the whole shapes (see ``_epa``; ``shape_distance`` is usually better: it
     runs EPA on the cores of spheres and capsules and adds their radii, which is exact)."""
-    return _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-                True)
+    scr = new_gjk_scratch()
+    depth, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b,
+                     verts, True, scr)
+    return depth, scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy(), ok
 
 
 @njit(cache=True)
 def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b, verts,
-         with_radius):
+         with_radius, scr):
     """Penetration depth, witness points and unit normal from A to B of two overlapping convex shapes by the
     expanding polytope algorithm (van den Bergen 2001) on the Minkowski difference A - B.
 
-    Returns (depth, witness_a, witness_b, normal, ok): translating B by depth * normal separates the shapes
+    Returns (depth, ok) and writes witness_a, witness_b, normal into ``scr.vec[6]``, ``[7]``, ``[8]``
+    (zeros when not ok): translating B by depth * normal separates the shapes
     (touching); witness_a is A's deepest point inside B, witness_b B's deepest inside A.  ok is False when
-    the shapes do not overlap (use ``gjk_distance``) or the polytope degenerated."""
-    # scratch: only the entries below nv / nf are ever read
-    pw = np.empty((_EPA_MAX_VERTS, 3))
-    pa = np.empty((_EPA_MAX_VERTS, 3))
-    pb = np.empty((_EPA_MAX_VERTS, 3))
+    the shapes do not overlap (use ``gjk_distance``) or the polytope degenerated.  Works in the
+    `GjkScratch` ``scr``: only the entries below nv / nf are ever read."""
+    pw, pa, pb = scr.pw, scr.pa, scr.pb
     dist, n, lam = _gjk(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b,
-                        count_b, verts, with_radius, pw, pa, pb)
-    zero = np.zeros(3)
+                        count_b, verts, with_radius, pw, pa, pb, scr)
+    wa, wb, normal = scr.vec[6], scr.vec[7], scr.vec[8]
+    wa[:] = 0.0
+    wb[:] = 0.0
+    normal[:] = 0.0
     if dist > 1e-12:
-        return 0.0, zero, zero, zero, False
+        return 0.0, False
     # grow the GJK simplex into a tetrahedron (or bipyramid) that encloses the origin
-    axes = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [-1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])
+    axes = scr.axes
     nv = n
     if nv == 1:
         for a in range(6):
@@ -523,29 +645,35 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
                 best_height = height
                 pw[3], pa[3], pb[3] = w, p1, p2
         if best_height <= 1e-12 * np.sum(nrm ** 2):
-            return 0.0, zero, zero, zero, False
+            return 0.0, False
         nv = 4
-    faces = np.empty((_EPA_MAX_FACES, 3), dtype=np.int64)
-    face_n = np.empty((_EPA_MAX_FACES, 3))
-    face_d = np.empty(_EPA_MAX_FACES)
-    alive = np.zeros(_EPA_MAX_FACES, dtype=np.bool_)
+    faces, face_n, face_d, alive = scr.faces, scr.face_n, scr.face_d, scr.alive
+    alive[:] = False
     nf = 0
     # initial faces, each oriented away from the polytope's interior point
-    centre = np.zeros(3)
+    c0, c1, c2 = 0.0, 0.0, 0.0
     for i in range(nv):
-        centre += pw[i]
-    centre /= nv
-    tri = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+        c0 += pw[i, 0]
+        c1 += pw[i, 1]
+        c2 += pw[i, 2]
+    c0 /= nv
+    c1 /= nv
+    c2 /= nv
+    tri = scr.tri
     for t in range(tri.shape[0]):
         i, j, k = tri[t, 0], tri[t, 1], tri[t, 2]
-        nrm = _m.cross(pw[j] - pw[i], pw[k] - pw[i])
-        if _m.dot(nrm, pw[i] - centre) < 0.0:
+        a0, a1, a2 = pw[j, 0] - pw[i, 0], pw[j, 1] - pw[i, 1], pw[j, 2] - pw[i, 2]
+        b0, b1, b2 = pw[k, 0] - pw[i, 0], pw[k, 1] - pw[i, 1], pw[k, 2] - pw[i, 2]
+        n0 = a1 * b2 - a2 * b1
+        n1 = a2 * b0 - a0 * b2
+        n2 = a0 * b1 - a1 * b0
+        if n0 * (pw[i, 0] - c0) + n1 * (pw[i, 1] - c1) + n2 * (pw[i, 2] - c2) < 0.0:
             j, k = k, j
         if not _epa_face(pw, i, j, k, faces, face_n, face_d, nf):
-            return 0.0, zero, zero, zero, False
+            return 0.0, False
         alive[nf] = True
         nf += 1
-    edges = np.empty((6 * _EPA_MAX_VERTS + 12, 2), dtype=np.int64)  # horizon: <= 3 x alive faces <= 6 nv
+    edges = scr.edges
     best = 0
     for _ in range(EPA_MAX_ITERATIONS):
         # the face closest to the origin
@@ -556,22 +684,29 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
                 bd = face_d[f]
                 best = f
         if best < 0:
-            return 0.0, zero, zero, zero, False
-        nrm = face_n[best].copy()
-        p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, nrm, with_radius)
-        p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -nrm, with_radius)
-        w = p1 - p2
-        gap = _m.dot(w, nrm) - bd
+            return 0.0, False
+        nrm, p1, p2 = scr.vec[3], scr.vec[4], scr.vec[5]
+        for k in range(3):
+            nrm[k] = face_n[best, k]
+        _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, nrm, 1.0, with_radius, p1, scr)
+        _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, nrm, -1.0, with_radius, p2, scr)
+        w0, w1, w2 = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+        gap = (w0 * nrm[0] + w1 * nrm[1] + w2 * nrm[2]) - bd
         if gap <= EPA_TOLERANCE * max(1.0, abs(bd)) or nv >= _EPA_MAX_VERTS or nf + 2 * nv >= _EPA_MAX_FACES:
             break
-        pw[nv], pa[nv], pb[nv] = w, p1, p2
+        pw[nv, 0], pw[nv, 1], pw[nv, 2] = w0, w1, w2
+        for k in range(3):
+            pa[nv, k] = p1[k]
+            pb[nv, k] = p2[k]
         # remove the faces the new vertex sees; their unshared edges form the horizon
         # (a tolerance keeps faces coplanar with w: removing only some of a flat patch, by rounding, would
         # leave a horizon that is not a simple loop and fold the polytope)
         ne = 0
-        see_tol = 1e-10 * max(1.0, math.sqrt(_m.dot(w, w)))
+        see_tol = 1e-10 * max(1.0, math.sqrt(w0 * w0 + w1 * w1 + w2 * w2))
         for f in range(nf):
-            if alive[f] and _m.dot(face_n[f], w - pw[faces[f, 0]]) > see_tol:
+            g0 = faces[f, 0]
+            if alive[f] and (face_n[f, 0] * (w0 - pw[g0, 0]) + face_n[f, 1] * (w1 - pw[g0, 1])
+                             + face_n[f, 2] * (w2 - pw[g0, 2])) > see_tol:
                 alive[f] = False
                 for e in range(3):
                     u = faces[f, e]
@@ -597,22 +732,25 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     # neighbours tie with it (face-face contacts split a polygon into triangles); take the one whose
     # triangle holds the foot point, else the closest point of the best face
     depth = face_d[best]
-    proj = depth * face_n[best]
+    p0, p1, p2 = depth * face_n[best, 0], depth * face_n[best, 1], depth * face_n[best, 2]
     chosen = best
     best_margin = -np.inf
     for f in range(nf):
         if alive[f] or f == best:
             if abs(face_d[f] - depth) <= 1e-9 * max(1.0, abs(depth)) and _m.dot(face_n[f], face_n[best]) > 0.999999:
-                b0, b1, b2 = _barycentric(pw[faces[f, 0]], pw[faces[f, 1]], pw[faces[f, 2]], proj)
+                b0, b1, b2 = _barycentric_rows(pw, faces[f, 0], faces[f, 1], faces[f, 2], p0, p1, p2)
                 margin = min(b0, min(b1, b2))
                 if margin > best_margin:
                     best_margin = margin
                     chosen = f
     i, j, k = faces[chosen, 0], faces[chosen, 1], faces[chosen, 2]
-    u, v, w3 = _closest_on_triangle(pw[i] - proj, pw[j] - proj, pw[k] - proj)
-    wa = u * pa[i] + v * pa[j] + w3 * pa[k]
-    wb = u * pb[i] + v * pb[j] + w3 * pb[k]
-    return depth, wa, wb, face_n[best].copy(), True
+    u, v, w3 = _closest_on_triangle_xyz(pw[i, 0] - p0, pw[i, 1] - p1, pw[i, 2] - p2, pw[j, 0] - p0, pw[j, 1] - p1,
+                                        pw[j, 2] - p2, pw[k, 0] - p0, pw[k, 1] - p1, pw[k, 2] - p2)
+    for c in range(3):
+        wa[c] = u * pa[i, c] + v * pa[j, c] + w3 * pa[k, c]
+        wb[c] = u * pb[i, c] + v * pb[j, c] + w3 * pb[k, c]
+        normal[c] = face_n[best, c]
+    return depth, True
 
 
 @njit(cache=True)
@@ -692,16 +830,18 @@ def shape_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b,
     GJK on the cores (spheres: points, capsules: segments) gives separated and shallow cases exactly; when
     the cores overlap, EPA runs on the cores and the radii are added (exact for polytopes, spheres and
     capsules; cylinders converge to ``EPA_TOLERANCE`` or the iteration cap)."""
-    d, wa, wb, nrm, separated = gjk_distance(type_a, params_a, pose_a, start_a, count_a, type_b, params_b,
-                                             pose_b, start_b, count_b, verts)
+    scr = new_gjk_scratch()
+    d, separated = gjk_distance_scratch(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
+                                        start_b, count_b, verts, scr)
     if separated:
-        return d, wa, wb, nrm
+        return d, scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy()
     rounded_a = type_a == SPHERE or type_a == CAPSULE
     rounded_b = type_b == SPHERE or type_b == CAPSULE
     if rounded_a and rounded_b:
         return _rounded_core_overlap(type_a, params_a, pose_a, type_b, params_b, pose_b)
-    depth, wa, wb, nrm, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b,
-                                  start_b, count_b, verts, False)
+    depth, ok = _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b,
+                     verts, False, scr)
+    wa, wb, nrm = scr.vec[6].copy(), scr.vec[7].copy(), scr.vec[8].copy()
     ra = core_radius(type_a, params_a)
     rb = core_radius(type_b, params_b)
     return -(depth + ra + rb), wa + ra * nrm, wb - rb * nrm, nrm

@@ -44,7 +44,8 @@ cost half the stage's time). ``narrow_phase`` runs the three in that order.
 
 Limitations
 - Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`
-  allocated once per run of pairs; GJK/EPA (``inertia.geometry.convex``) keep their own work arrays.
+  allocated once per run of pairs, GJK/EPA in a `GjkScratch` (``inertia.geometry.convex``) likewise: the
+  general family allocates nothing per pair (test_narrowphase counts Numba's NRT allocations).
 - Curved cylinder sides converge in EPA only to its tolerance (~1e-6 m) when a cylinder's side is deep in
   a shape that is not a polytope face (parallel round sides and faces snap the normal exactly).
 - A support feature is flat within ~2 degrees (``FEATURE_SIN``); a cylinder cap is a 12-gon on its rim.
@@ -704,10 +705,11 @@ def _polygon_normal(pts, m, d):
 
 
 @njit(cache=True)
-def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
     """Any two convex shapes: GJK on the cores (exact distance when separated), EPA when the cores overlap,
     then the manifold by clipping the incident support feature against the reference feature's side
-    planes (Gregorius 2015), reduced to four points. Normal A -> B."""
+    planes (Gregorius 2015), reduced to four points. Normal A -> B. GJK/EPA work in the `GjkScratch`
+    ``gscr`` of the run (no work arrays allocated per pair)."""
     verts = shapes.geom_vertices
     par_a, par_b = shapes.shape_params[sa], shapes.shape_params[sb]
     pose_a, pose_b = pose[sa], pose[sb]
@@ -715,19 +717,20 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr):
     vs_b, vc_b = shapes.shape_vert_start[sb], shapes.shape_vert_count[sb]
     ra = CV.core_radius(ta, par_a)
     rb = CV.core_radius(tb, par_b)
-    dist, wa, wb, nrm, separated = CV.gjk_distance(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b,
-                                                   verts)
+    dist, separated = CV.gjk_distance_scratch(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts,
+                                              gscr)
+    wa, wb, nrm = gscr.vec[6], gscr.vec[7], gscr.vec[8]
     if separated:
         if dist > spec:
             return 0
     else:
-        depth, wa, wb, nrm, ok = CV._epa(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts,
-                                         False)
+        depth, ok = CV._epa(ta, par_a, pose_a, vs_a, vc_a, tb, par_b, pose_b, vs_b, vc_b, verts, False, gscr)
         if not ok:
             return 0
         dist = -(depth + ra + rb)
-        wa = wa + ra * nrm
-        wb = wb - rb * nrm
+        for k in range(3):
+            wa[k] = wa[k] + ra * nrm[k]
+            wb[k] = wb[k] - rb * nrm[k]
     n = (nrm[0], nrm[1], nrm[2])
     fa, fb = scr.feat_a, scr.feat_b
     ma = _support_feature(ta, par_a, pose_a, verts, vs_a, vc_a, n, fa, scr)
@@ -1001,6 +1004,7 @@ def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius,
 def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
     """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents."""
     scr = new_scratch()
+    gscr = CV.new_gjk_scratch()         # GJK/EPA work arrays, once per run
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
@@ -1012,7 +1016,7 @@ def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radiu
             continue
         spec = _speculative_distance(shape_body[sa], shape_body[sb], shape_margin[sa], shape_margin[sb], body_qd,
                                      body_bound_radius, dt)
-        contact_point_count[i] = _convex_general(out, i, ta, tb, sa, sb, shapes, pose, spec, scr)
+        contact_point_count[i] = _convex_general(out, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr)
         _tangents(i, contact_normal, contact_tangent)
 
 
