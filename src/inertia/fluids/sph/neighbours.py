@@ -124,6 +124,21 @@ def _min_image(r, d, grid):
 
 
 @njit(cache=True, inline="always")
+def _separation(x0, x1, x2, xt, j, wrap, grid, dim):
+    """x_i - x_j for x_i = (x0, x1, x2) and row j of xt, by the minimum image on periodic axes when
+    ``wrap`` (any axis periodic); z is 0 in 2-D."""
+    if wrap:
+        rx = _min_image(x0 - xt[j, 0], 0, grid)
+        ry = _min_image(x1 - xt[j, 1], 1, grid)
+        rz = _min_image(x2 - xt[j, 2], 2, grid) if dim == 3 else 0.0
+    else:
+        rx = x0 - xt[j, 0]
+        ry = x1 - xt[j, 1]
+        rz = x2 - xt[j, 2] if dim == 3 else 0.0
+    return rx, ry, rz
+
+
+@njit(cache=True, inline="always")
 def _store_pair(k, rx, ry, rz, r2, kernel, h, sigma, w_out, g_out):
     # W and grad_i W of the pair at displacement (rx, ry, rz) = x_i - x_j, |.|^2 = r2, into row k
     r = np.sqrt(r2)
@@ -191,14 +206,7 @@ def _visit(i, x0, x1, x2, xt, cell_start, grid, kernel, h, sigma, exclude_self, 
                 for j in range(cell_start[row + a], cell_start[row + b]):
                     if exclude_self and j == i:
                         continue
-                    if wrap:
-                        rx = _min_image(x0 - xt[j, 0], 0, grid)
-                        ry = _min_image(x1 - xt[j, 1], 1, grid)
-                        rz = _min_image(x2 - xt[j, 2], 2, grid) if dim == 3 else 0.0
-                    else:
-                        rx = x0 - xt[j, 0]
-                        ry = x1 - xt[j, 1]
-                        rz = x2 - xt[j, 2] if dim == 3 else 0.0
+                    rx, ry, rz = _separation(x0, x1, x2, xt, j, wrap, grid, dim)
                     r2 = rx * rx + ry * ry + rz * rz
                     if r2 >= support2:
                         continue
@@ -273,14 +281,7 @@ def compact(x, n, xt, grid, kernel, h, stride, start, nbr_s, nbr, w_out, g_out):
         x2 = x[i, 2] if dim == 3 else 0.0
         for k in range(c):
             j = nbr_s[b + k]
-            if wrap:
-                rx = _min_image(x0 - xt[j, 0], 0, grid)
-                ry = _min_image(x1 - xt[j, 1], 1, grid)
-                rz = _min_image(x2 - xt[j, 2], 2, grid) if dim == 3 else 0.0
-            else:
-                rx = x0 - xt[j, 0]
-                ry = x1 - xt[j, 1]
-                rz = x2 - xt[j, 2] if dim == 3 else 0.0
+            rx, ry, rz = _separation(x0, x1, x2, xt, j, wrap, grid, dim)
             nbr[a + k] = j
             _store_pair(a + k, rx, ry, rz, rx * rx + ry * ry + rz * rz, kernel, h, sigma, w_out, g_out)
 
