@@ -235,3 +235,38 @@ def test_viscous_liquid_with_obstacle_resumes_bit_for_bit(dim):
         f.step(0.01)
     assert np.array_equal(f.x, x1) and np.array_equal(f.v, v1)
     assert np.any(f.obstacle_viscous_force[0] != 0.0)    # the sphere feels the shear
+
+
+# Determinism of the viscous liquid (issue 10, "Determinism at 1 and 2 threads against a golden
+# hash"): APIC particles, MGPCG pressure, no-slip walls and obstacle, implicit viscosity.
+LIQUID_DETERMINISM_SCRIPT = """
+import hashlib
+import numpy as np
+from inertia.colliders import Sphere
+from inertia.fluids.grid.liquid import LiquidFluid
+f = LiquidFluid((32, 24), 1 / 32, viscosity=0.01, walls="no-slip", parallel=True,
+                obstacles=[Sphere(center=(0.6, 0.3), radius=0.1)])
+f.add_block((0.0, 0.0), (0.4, 0.6), jitter=0.3, seed=3)
+for _ in range(6):
+    f.step(1 / 120)
+h = hashlib.sha256()
+for a in (f.positions(), f.velocities(), f.obstacle_viscous_force):
+    h.update(np.ascontiguousarray(a).tobytes())
+print(f.particle_count, h.hexdigest())
+"""
+# golden hash: x86-64, numba 0.68.1, numpy 2.x, measured 2026-11-25 at 1 and 2 threads.
+LIQUID_GOLDEN = "988 e76add104654e8e071b165d6fdc58de3244180a29a46d0991337b14d514c6d80"
+
+
+def test_viscous_liquid_same_hash_at_one_and_two_threads():
+    import os
+    import subprocess
+    import sys
+    lines = []
+    for threads in ("1", "2"):
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+        out = subprocess.run([sys.executable, "-c", LIQUID_DETERMINISM_SCRIPT], env=env, check=True,
+                             capture_output=True, text=True, timeout=900)
+        lines.append(out.stdout.strip().splitlines()[-1])
+    assert lines[0] == lines[1]
+    assert lines[0] == LIQUID_GOLDEN
