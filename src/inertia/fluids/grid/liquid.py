@@ -946,9 +946,9 @@ class LiquidFluid:
             self._pscratch = (np.empty((n, d)), np.empty(n), np.empty((n, d)), np.empty((n, d)),
                               np.empty(n, np.int64), np.empty((n, d)))
         pts, dist, nrm, vs, idx, near = self._pscratch
-        np.copyto(pts, self.x[:, :d])
         clearance = 0.1 * self.cell_size
         for o in obst:
+            np.copyto(pts, self.x[:, :d])   # (each obstacle sees the pushes of those before it)
             o.query_into(pts, t, dist, nrm, vs)
             m = _close_rows(dist, clearance, pts, idx, near)
             if m == 0:
