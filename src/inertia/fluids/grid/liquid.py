@@ -4,7 +4,7 @@ The liquid is carried by particles; the grid only solves for pressure. One step
 (``LiquidFluid.step(dt)``) runs these stages (arrays named are written by the stage):
 
 0. ``obstacles``  (when an obstacle or body moves) open face fractions and solid face velocities
-   v + w x r from the colliders and the rigid shape rows (`obstacles.solid_faces`, the cut cells
+   v + w x r from the colliders and the rigid shape rows (`obstacles.CutCells`, the cut cells
    of `GridFluid`; Batty, Bertails and Bridson 2007), cells whose centre lies in a solid.
 1. ``p2g``        particles -> face velocities u, v, w and weights (multilinear "tent" kernel;
    APIC adds the particle's affine velocity C_p (x_face - x_p)). Serial scatter: deterministic.
@@ -767,10 +767,19 @@ class LiquidFluid:
         self._visc_impulse = (np.zeros((len(self.obstacles), 3)), np.zeros((len(self.obstacles), 3)))
         self._rigid = None
         self._dynamic = np.zeros(0, dtype=np.bool_)
+        self._any_dynamic = False
         self._rigid_obstacles = []
         self._owners = np.full(len(self.obstacles), -1, np.int64)
         self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
         self._cut = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))] * 3
+        # per-step work arrays: the obstacles stage's (`CutCells`, on first need), the dynamic-body
+        # nodes of the viscosity (`_viscous_nodes`), particle queries (`_push_particles_out`)
+        self._cells = None
+        self._vrigid_buf = [(np.zeros(int(np.prod(s)), np.int64), np.zeros(int(np.prod(s)), np.int64))
+                            for s in fs]
+        self._pscratch = None
+        self._coupling = None   # the pressure solve's body term (`_body_coupling`)
+        self._obstacles_changed()
         self.body_force = np.zeros((0, 3))   # N, last substep's pressure force per body
         self.body_torque = np.zeros((0, 3))  # N m, about each body's centre of mass
         self._update_solids(0.0, check_domain=True)
@@ -841,37 +850,47 @@ class LiquidFluid:
     def _all_obstacles(self):
         return self._obstacle_views + self._rigid_obstacles
 
+    def _obstacles_changed(self):
+        """After the obstacle list changed (constructor, `bind_rigid`): slip flags as one bool
+        array, the viscous-torque reference points and force arrays, the obstacles stage's work
+        arrays (`obstacles.CutCells`, made once per grid)."""
+        nall = len(self.obstacles) + len(self._rigid_obstacles)
+        self._slip_all = np.array(self._slip + [self._rigid_slip] * len(self._rigid_obstacles),
+                                  dtype=np.bool_)
+        self._refs = np.zeros((nall, 3))
+        if nall and self._cells is None:
+            from .obstacles import CutCells
+            from .solver import MACGrid
+            dim = self.dim
+            g = MACGrid(self.shape, self.cell_size, self.origin[:dim])
+            vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
+            self._cells = CutCells(g.vertex_positions(), vshape,
+                                   [g.face_positions(a) for a in range(dim)], g.cell_positions(),
+                                   dim, self._kk.parallel)
+            self._pts = (self._cells.vertex_pts, self._cells.face_pts, self._cells.cell_pts, vshape)
+
     def _update_solids(self, t, check_domain=False):
         """Obstacles stage: open fractions, solid velocities and closed (body) faces from the
-        obstacles at time t (`obstacles.solid_faces`, the cut cells GridFluid uses); the domain
-        sides are closed slip walls; cells whose centre lies inside a solid."""
-        from .obstacles import solid_faces
-        from .solver import MACGrid
+        obstacles at time t (`obstacles.CutCells`, the cut cells GridFluid uses; nothing
+        allocated); the domain sides are closed slip walls; cells whose centre lies inside a
+        solid."""
         dim = self.dim
         obst = self._all_obstacles()
         if obst:
-            g = MACGrid(self.shape, self.cell_size, self.origin[:dim])
-            if getattr(self, "_pts", None) is None:
-                vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
-                self._pts = (g.vertex_positions(), [g.face_positions(a) for a in range(dim)],
-                             g.cell_positions(), vshape)
-            verts, faces, cells, vshape = self._pts
-            self._cut = solid_faces(obst, self._owners, verts, faces, vshape,
-                                    dim, t, self._frac, self._solid)
-            if self.viscosity > 0.0:
-                self._viscous_nodes(obst, faces, t)
-            inside = np.zeros(cells.shape[0], dtype=np.bool_)
-            for o in obst:
-                inside |= np.asarray(o.signed_distance(cells, t)) < 0
+            cc = self._cells
+            visc = self.viscosity > 0.0
+            cc.update(obst, self._owners, t, self._frac, self._solid, self._cell_solid, nodes=visc)
+            self._cut = cc.cut
+            if visc:
+                self._viscous_nodes(obst, None, t)
             if check_domain:
-                if np.all(inside):
+                if np.all(self._cell_solid):
                     raise ValueError("obstacles cover the whole domain")
                 for i, o in enumerate(self.obstacles):
-                    if not np.any(np.asarray(o.signed_distance(cells, t)) < self.cell_size):
+                    if not np.any(np.asarray(o.signed_distance(cc.cell_pts, t)) < self.cell_size):
                         raise ValueError(f"obstacles[{i}] lies outside the domain "
                                          f"{self.origin[:dim].tolist()} + "
                                          f"{(self.n[:dim] * self.cell_size).tolist()}")
-            self._cell_solid[...] = inside.reshape(self._cell_solid.shape)
         else:
             for a in range(3):
                 self._frac[a][...] = 1.0
@@ -889,26 +908,26 @@ class LiquidFluid:
             self._solid[a][tuple(idx)] = 0.0
 
     def _viscous_nodes(self, obst, faces, t):
-        """Every face node's nearest obstacle: signed distance, velocity component, index (the
-        no-slip boundary of the viscous solve), and the nodes near a dynamic body's shape, whose
-        wall velocity `_diffuse` renews after the pressure solve changed the body's velocity."""
-        from .obstacles import nearest_obstacle
+        """Every face node's nearest obstacle (computed by the obstacles stage, ``nodes=True``):
+        signed distance, velocity component, index (the no-slip boundary of the viscous solve),
+        and the nodes near a dynamic body's shape, whose wall velocity `_diffuse` renews after
+        the pressure solve changed the body's velocity."""
         h = self.cell_size
+        cc = self._cells
         for a in range(self.dim):
             shape = self.vel[a].shape
             if self._vsdf[a].shape != shape:
                 self._vsdf[a] = np.zeros(shape)
                 self._vwall[a] = np.zeros(shape)
                 self._vowner[a] = np.full(shape, -1, np.int64)
-            best, vel, own = nearest_obstacle(obst, faces[a], t, a)
+            best, own = cc.best[a], cc.near[a]
             self._vsdf[a].reshape(-1)[...] = best
-            self._vwall[a].reshape(-1)[...] = vel
+            self._vwall[a].reshape(-1)[...] = cc.near_vel[a]
             self._vowner[a].reshape(-1)[...] = own
-            if self._rigid is not None and np.any(self._dynamic):
-                body = self._owners[own]
-                near = np.flatnonzero((best < 2.0 * h) & (body >= 0))
-                near = near[self._dynamic[body[near]]]
-                self._vrigid[a] = (near.astype(np.int64), body[near].astype(np.int64))
+            if self._any_dynamic:
+                nodes, body = self._vrigid_buf[a]
+                n = _near_dynamic_nodes(best, own, self._owners, self._dynamic, 2.0 * h, nodes, body)
+                self._vrigid[a] = (nodes[:n], body[:n])
 
     @property
     def face_fractions(self):
@@ -922,23 +941,28 @@ class LiquidFluid:
         if not obst or self.x.shape[0] == 0:
             return
         d = self.dim
-        pts = self.x[:, :d]
+        n = self.x.shape[0]
+        if self._pscratch is None or self._pscratch[0].shape[0] != n:   # particles added or dropped
+            self._pscratch = (np.empty((n, d)), np.empty(n), np.empty((n, d)), np.empty((n, d)),
+                              np.empty(n, np.int64), np.empty((n, d)))
+        pts, dist, nrm, vs, idx, near = self._pscratch
         clearance = 0.1 * self.cell_size
         for o in obst:
-            dist = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
-            idx = np.flatnonzero(dist < clearance)
-            if idx.size == 0:
+            np.copyto(pts, self.x[:, :d])   # (each obstacle sees the pushes of those before it)
+            o.query_into(pts, t, dist, nrm, vs)
+            m = _close_rows(dist, clearance, pts, idx, near)
+            if m == 0:
                 continue
-            dn, nrm, vs = o.query(pts[idx], t)
-            push_out_of_solids(self.x, self.v, dn, nrm, vs, idx.astype(np.int64), d, clearance)
-        np.clip(self.x, self._lo, self._hi, out=self.x)
+            o.query_into(near[:m], t, dist[:m], nrm[:m], vs[:m])
+            push_out_of_solids(self.x, self.v, dist[:m], nrm[:m], vs[:m], idx[:m], d, clearance)
+        _clamp_rows(self.x, self._lo, self._hi)
 
     # ------------------------------------------------------------------------ stepping
     def step(self, dt):
         """Advance by dt seconds (one step)."""
         dt = positive_scalar(dt, "dt")
         h = self.cell_size
-        coupled = self._rigid is not None and bool(np.any(self._dynamic))
+        coupled = self._any_dynamic
         if coupled:
             self._predict_gravity(dt, 1.0)
         if self._moving:
@@ -967,7 +991,7 @@ class LiquidFluid:
                                    self._valid)
         if self._rigid is not None:
             self._push_bodies(dt)
-            if np.any(self._dynamic):
+            if self._any_dynamic:
                 # the bodies' new velocity on their faces (the solve made it divergence-free)
                 origin, _ = self._impulse_frame()
                 st = self._rigid.state
@@ -992,7 +1016,7 @@ class LiquidFluid:
                           self.dim, m, self.flip_ratio)
         advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._lo, self._hi)
         self._push_particles_out(self.time + dt)
-        if not np.all(np.isfinite(self.v)):
+        if not _all_finite(self.v):
             bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))[:10]
             raise SimulationDiverged(
                 f"liquid step {self.step_index} (t = {self.time:.6g} s): non-finite velocity of "
@@ -1018,13 +1042,13 @@ class LiquidFluid:
             V.liquid_node_kinds(self.liquid, self._frac[a], a, self._vkind[a])
         no_slip = False
         if obst:
-            slip = self._slip + [self._rigid_slip] * len(self._rigid_obstacles)
+            slip = self._slip_all
             for a in range(self.dim):
                 if self._vsdf[a].shape != self.vel[a].shape:   # viscosity set after construction
                     self._update_solids(self.time + dt)
                 no_slip |= V.obstacle_node_kinds(self._vkind[a].reshape(-1), self._vsdf[a].reshape(-1),
                                                  self._vowner[a].reshape(-1), slip, self._vedge[a])
-            if self._rigid is not None and np.any(self._dynamic):
+            if self._any_dynamic:
                 st = self._rigid.state
                 faces = self._pts[1]
                 for a in range(self.dim):
@@ -1036,6 +1060,9 @@ class LiquidFluid:
             lin, ang = self._visc_impulse
             if lin.shape[0] != len(obst):
                 lin, ang = self._visc_impulse = (np.zeros((len(obst), 3)), np.zeros((len(obst), 3)))
+            if self.obstacle_viscous_force.shape[0] != len(obst):
+                self.obstacle_viscous_force = np.zeros((len(obst), 3))
+                self.obstacle_viscous_torque = np.zeros((len(obst), 3))
             lin[...] = 0.0
             ang[...] = 0.0
             ref = self._obstacle_refs()
@@ -1052,9 +1079,9 @@ class LiquidFluid:
                                       self._vowner[a], a, scale, self._ctx, ref, lin, ang)
                 V.mark_no_slip_valid(kind, self._valid[a])
         self.last_viscous_iterations = its
-        if no_slip:
-            self.obstacle_viscous_force = lin / dt
-            self.obstacle_viscous_torque = ang / dt
+        if no_slip:   # (arrays written in place: hold a .copy() across steps)
+            np.divide(lin, dt, out=self.obstacle_viscous_force)
+            np.divide(ang, dt, out=self.obstacle_viscous_torque)
             if self._rigid is not None:
                 self._push_bodies_viscous(lin, ang, dt)
         elif self.obstacle_viscous_force.shape[0]:
@@ -1063,18 +1090,20 @@ class LiquidFluid:
 
     def _obstacle_refs(self):
         """(n_obstacles, 3) reference points of the viscous torques: a collider's position at the
-        current time (origin if it has no pose), a shape row's body centre of mass."""
+        current time (origin if it has no pose), a shape row's body centre of mass (written into
+        the array `_obstacles_changed` made)."""
         n0 = len(self.obstacles)
-        refs = np.zeros((n0 + len(self._rigid_obstacles), 3))
+        refs = self._refs
         for i, o in enumerate(self.obstacles):
             if hasattr(o, "pose"):
                 p = np.asarray(o.pose(self.time)[0], dtype=np.float64).reshape(-1)
                 refs[i, :p.size] = p[:3]
         if self._rigid is not None:
             body_q = self._rigid.state.body_q
-            own = self._owners[n0:]
-            for i in np.flatnonzero(own >= 0):
-                refs[n0 + i] = body_q[own[i], :3]
+            for i in range(len(self._rigid_obstacles)):
+                b = self._owners[n0 + i]
+                if b >= 0:
+                    refs[n0 + i] = body_q[b, :3]
         return refs
 
     def _push_bodies_viscous(self, lin, ang, dt):
@@ -1086,11 +1115,9 @@ class LiquidFluid:
         blin, bang = self._impulse
         blin[...] = 0.0
         bang[...] = 0.0
-        rows = np.flatnonzero(own >= 0)
-        np.add.at(blin, own[rows], lin[n0 + rows])
-        np.add.at(bang, own[rows], ang[n0 + rows])
-        self.body_force += blin / dt
-        self.body_torque += bang / dt
+        _sum_rows_per_body(own, lin[n0:], ang[n0:], blin, bang)
+        _add_divided(blin, dt, self.body_force)
+        _add_divided(bang, dt, self.body_torque)
         apply_body_impulses(self._rigid.model.bodies(), self._rigid.state, blin, bang)
 
     def stable_dt(self):
@@ -1131,8 +1158,7 @@ class LiquidFluid:
         stage, which runs after the liquid, adds the same g dt itself."""
         st = self._rigid.state
         g = np.asarray(self._rigid.model.gravity, dtype=np.float64).reshape(3)
-        moving = self._dynamic & np.asarray(st.body_awake, dtype=np.bool_)
-        st.body_qd[moving, 3:6] += (sign * dt) * g
+        _add_velocity(st.body_qd, self._dynamic, st.body_awake, (sign * dt) * g)
 
     # ------------------------------------------------------------------------ rigid coupling
     def bind_rigid(self, rigid, slip=False):
@@ -1157,6 +1183,7 @@ class LiquidFluid:
         self._rigid = rigid
         self._rigid_obstacles = obst
         self._owners = np.concatenate([np.full(len(self.obstacles), -1, np.int64), owner])
+        self._obstacles_changed()
         nb = int(rigid.model.body_count)
         self.body_force = np.zeros((nb, 3))
         self.body_torque = np.zeros((nb, 3))
@@ -1165,6 +1192,8 @@ class LiquidFluid:
         from ...geometry import shapes as S
         bodies = rigid.model.bodies()
         self._dynamic = (np.asarray(bodies.body_type) == S.DYNAMIC) & (bodies.body_inv_mass > 0)
+        self._any_dynamic = bool(np.any(self._dynamic))   # (a rigid world is bound and has one)
+        self._coupling = None
         self._update_solids(self.time)
         self._drop_particles_in_solids()
 
@@ -1181,13 +1210,19 @@ class LiquidFluid:
     def _body_coupling(self):
         """The implicit body term of the pressure solve (`liquid_pressure.BodyCoupling`), or None
         without dynamic bodies."""
-        if self._rigid is None or not np.any(self._dynamic):
+        if not self._any_dynamic:
             return None
-        bodies = self._rigid.model.bodies()
-        origin, rho = self._impulse_frame()
-        h = self.cell_size
-        return BodyCoupling(self._cut, self._dynamic, bodies.body_inv_mass, bodies.body_inv_inertia,
-                            self._rigid.state.body_q, origin, h, rho * h ** 3, self.dim)
+        c = self._coupling
+        if c is None:   # made once per binding; the cut faces and poses are renewed every step
+            bodies = self._rigid.model.bodies()
+            origin, rho = self._impulse_frame()
+            h = self.cell_size
+            c = self._coupling = BodyCoupling(self._cut, self._dynamic, bodies.body_inv_mass,
+                                              bodies.body_inv_inertia, self._rigid.state.body_q,
+                                              origin, h, rho * h ** 3, self.dim)
+        c.cut = self._cut
+        c.body_q = self._rigid.state.body_q
+        return c
 
     def _push_bodies(self, dt):
         """Pressure impulse on each body from its closed faces (GridFluid's `_pressure_impulses`:
@@ -1275,3 +1310,84 @@ class LiquidFluid:
         self.step_index = int(state["step_index"])
         if self._moving:
             self._update_solids(self.time)
+
+
+@njit(cache=True)
+def _near_dynamic_nodes(best, near, owners, dynamic, dist, nodes, body):
+    """Face nodes within `dist` of a shape of a dynamic body (best < dist, owners[near] >= 0 and
+    dynamic): their flat index and body into nodes, body, in order; returns the count."""
+    n = 0
+    for m in range(best.shape[0]):
+        b = owners[near[m]]
+        if best[m] < dist and b >= 0 and dynamic[b]:
+            nodes[n] = m
+            body[n] = b
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _close_rows(dist, clearance, pts, idx, out):
+    """Rows with dist < clearance: their index into idx and their point into out; returns the count."""
+    n = 0
+    for m in range(dist.shape[0]):
+        if dist[m] < clearance:
+            idx[n] = m
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[m, c]
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _clamp_rows(x, lo, hi):
+    """x[:, c] = clip(x[:, c], lo[c], hi[c]) in place (np.clip's values; NaN stays NaN)."""
+    for p in range(x.shape[0]):
+        for c in range(x.shape[1]):
+            v = x[p, c]
+            if v != v:
+                continue
+            if v < lo[c]:
+                v = lo[c]
+            if v > hi[c]:
+                v = hi[c]
+            x[p, c] = v
+
+
+@njit(cache=True)
+def _all_finite(a):
+    """Whether every element of the 2-D array a is finite."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            if not np.isfinite(a[i, j]):
+                return False
+    return True
+
+
+@njit(cache=True)
+def _add_velocity(body_qd, dynamic, awake, dv):
+    """body_qd[b, 3:6] += dv for the awake dynamic bodies."""
+    for b in range(body_qd.shape[0]):
+        if dynamic[b] and awake[b]:
+            for c in range(3):
+                body_qd[b, 3 + c] += dv[c]
+
+
+@njit(cache=True)
+def _sum_rows_per_body(own, lin, ang, blin, bang):
+    """blin[own[i]] += lin[i], bang[own[i]] += ang[i] for the rows with own[i] >= 0, in row order
+    (np.add.at's sums)."""
+    for i in range(own.shape[0]):
+        b = own[i]
+        if b >= 0:
+            for c in range(3):
+                blin[b, c] += lin[i, c]
+                bang[b, c] += ang[i, c]
+
+
+@njit(cache=True)
+def _add_divided(a, dt, out):
+    """out += a / dt."""
+    for i in range(a.shape[0]):
+        for c in range(a.shape[1]):
+            out[i, c] += a[i, c] / dt

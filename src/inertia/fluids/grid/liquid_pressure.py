@@ -41,7 +41,6 @@ from numba import njit
 
 from . import pressure as P
 from .obstacles import face_cells
-from ...math import world_inertia_inv
 
 METHODS = ("mgpcg", "jacobi")
 AIR, LIQUID, SOLID = 0, 1, 2
@@ -189,8 +188,10 @@ def body_scatter(y6, types, faces, open_frac, owner, dyn, axis, h, origin, body_
 
 
 @njit(cache=True)
-def apply_inverse_mass(s6, dyn, inv_mass, inv_inertia, body_q, kappa, y6):
-    """y_b = kappa M_b^-1 s_b (world inverse inertia for the angular part)."""
+def apply_inverse_mass(s6, dyn, inv_mass, inv_inertia, body_q, kappa, y6, rot, iw):
+    """y_b = kappa M_b^-1 s_b (world inverse inertia for the angular part); rot, iw: (3, 3)
+    scratch for R(q) and R diag(I^-1) R^T (`math.world_inertia_inv`'s operations, written into
+    them instead of two new 3x3 arrays per body)."""
     for b in range(s6.shape[0]):
         for c in range(6):
             y6[b, c] = 0.0
@@ -200,9 +201,31 @@ def apply_inverse_mass(s6, dyn, inv_mass, inv_inertia, body_q, kappa, y6):
         y6[b, 0] = m * s6[b, 0]
         y6[b, 1] = m * s6[b, 1]
         y6[b, 2] = m * s6[b, 2]
-        iw = world_inertia_inv(body_q[b, 3:7], inv_inertia[b])
+        _world_inertia_inv_into(body_q[b, 3:7], inv_inertia[b], rot, iw)
         for r in range(3):
             y6[b, 3 + r] = kappa * (iw[r, 0] * s6[b, 3] + iw[r, 1] * s6[b, 4] + iw[r, 2] * s6[b, 5])
+
+
+@njit(cache=True, inline="always")
+def _world_inertia_inv_into(q, d, rot, out):
+    """`math.world_inertia_inv(q, d)` into out, R(q) (`math.quat_to_mat3`) into rot: the same
+    expressions, so the same bits, without allocating."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    rot[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    rot[0, 1] = 2.0 * (x * y - w * z)
+    rot[0, 2] = 2.0 * (x * z + w * y)
+    rot[1, 0] = 2.0 * (x * y + w * z)
+    rot[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    rot[1, 2] = 2.0 * (y * z - w * x)
+    rot[2, 0] = 2.0 * (x * z - w * y)
+    rot[2, 1] = 2.0 * (y * z + w * x)
+    rot[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    for i in range(3):
+        for j in range(i, 3):
+            s = (rot[i, 0] * d[0] * rot[j, 0] + rot[i, 1] * d[1] * rot[j, 1]
+                 + rot[i, 2] * d[2] * rot[j, 2])
+            out[i, j] = s
+            out[j, i] = s
 
 
 class BodyCoupling:
@@ -218,6 +241,8 @@ class BodyCoupling:
         nb = dyn.shape[0]
         self.s6 = np.zeros((nb, 6))
         self.y6 = np.zeros((nb, 6))
+        self._rot = np.zeros((3, 3))
+        self._iw = np.zeros((3, 3))
 
     def add_to(self, d, types, q):
         """q += kappa B M^-1 B^T d."""
@@ -228,7 +253,7 @@ class BodyCoupling:
                 body_gather(d, types, faces, frac, owner, self.dyn, a, self.h, self.origin,
                             self.body_q, self.s6)
         apply_inverse_mass(self.s6, self.dyn, self.inv_mass, self.inv_inertia, self.body_q,
-                           self.kappa, self.y6)
+                           self.kappa, self.y6, self._rot, self._iw)
         for a in range(self.dim):
             faces, frac, owner = self.cut[a]
             if faces.size:
@@ -274,7 +299,7 @@ class LiquidPressure:
         for lv, t in zip(mg.levels, self.types):
             restrict_to_liquid(lv.ax, lv.ay, lv.az, lv.diag, t)
         np.greater(mg.levels[0].diag, 0.0, out=mg.active)
-        mg.active_count = int(mg.active.sum())
+        mg.active_count = int(np.count_nonzero(mg.active))
         mg.singular = not surface
 
     def _vcycle(self, r, z):

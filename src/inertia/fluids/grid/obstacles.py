@@ -10,6 +10,12 @@ which makes curved walls act smoothly instead of as staircases.
 
 Limitations: features thinner than a cell are lost between vertices; fractions below
 ``MIN_FRACTION`` are set to 0 (they would only worsen the pressure system's conditioning).
+
+The per-step path (`CutCells`) allocates nothing: its work arrays are made once per grid and
+the fractions are a Numba kernel (`fractions_into`, the same arithmetic as the NumPy
+`face_fractions` kept as the readable reference). Colliders of `inertia.collision.shapes` are
+queried into those arrays; an obstacle that only offers ``signed_distance`` / ``velocity``
+(duck-typed) still returns new arrays from its own methods.
 """
 
 from __future__ import annotations
@@ -106,7 +112,8 @@ def square_fraction(c00, c10, c11, c01):
 
 def face_fractions(vertex_sdf, dim):
     """Open fractions of the u, v, w faces from the signed distance at the grid vertices
-    ((nx+1, ny+1, nz+1), nz+1 = 2 in 2-D with both layers equal). Returns three 3-D arrays."""
+    ((nx+1, ny+1, nz+1), nz+1 = 2 in 2-D with both layers equal). Returns three 3-D arrays.
+    The NumPy reference of the step's kernel `fractions_into` (same bits, new arrays)."""
     s = vertex_sdf
     if dim == 2:
         s2 = s[:, :, 0]
@@ -125,84 +132,266 @@ def face_fractions(vertex_sdf, dim):
     return out
 
 
-# ----------------------------------------------------------------------------- shared by fluids
-def obstacle_fractions(obstacles, vertex_pts, vertex_shape, dim, t):
-    """(sdf (V,), per-axis open fractions) of the faces from the union of the obstacles: the
-    smallest signed distance at the grid vertices (C order of `vertex_shape`), then
-    `face_fractions` (a 2-D grid is one cell thick: its vertex layer is doubled in z)."""
-    sdf = None
-    for o in obstacles:
-        d = np.asarray(o.signed_distance(vertex_pts, t), dtype=np.float64)
-        sdf = d if sdf is None else np.minimum(sdf, d)
-    vs = sdf.reshape(vertex_shape)
+# ----------------------------------------------------------------------------- per-step kernels
+@njit(cache=True, inline="always")
+def _segment_value(a, b):
+    """`segment_fraction` of one segment, before the clean-up of `_clean_fraction` (NaN in, NaN
+    out where the NumPy version's np.maximum propagates it)."""
+    if a > 0 and b > 0:
+        return 1.0
+    if (a > 0) != (b > 0):
+        if a != a or b != b:
+            return np.nan
+        return max(a, b) / (abs(a) + abs(b))
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _triangle_value(a, b, c):
+    """`_triangle_fraction` of one triangle: the same operations on the sorted vertex values
+    (lo <= mid <= hi), so the same bits."""
+    npos = (1 if a > 0 else 0) + (1 if b > 0 else 0) + (1 if c > 0 else 0)
+    if npos == 3:
+        return 1.0
+    if npos == 0:
+        return 0.0
+    if a != a or b != b or c != c:
+        return np.nan
+    lo, mid, hi = a, b, c
+    if lo > mid:
+        lo, mid = mid, lo
+    if mid > hi:
+        mid, hi = hi, mid
+    if lo > mid:
+        lo, mid = mid, lo
+    if npos == 1:    # one positive vertex p = hi: p^2 / ((p - n1)(p - n2))
+        return hi * hi / ((hi - lo) * (hi - mid))
+    return 1.0 - lo * lo / ((lo - mid) * (lo - hi))   # one negative vertex n = lo
+
+
+@njit(cache=True, inline="always")
+def _square_value(c00, c10, c11, c01):
+    """`square_fraction` of one square face (four triangles around the mean of the corners)."""
+    centre = 0.25 * (c00 + c10 + c11 + c01)
+    total = 0.0
+    total = total + _triangle_value(centre, c00, c10)
+    total = total + _triangle_value(centre, c10, c11)
+    total = total + _triangle_value(centre, c11, c01)
+    total = total + _triangle_value(centre, c01, c00)
+    return 0.25 * total
+
+
+@njit(cache=True, inline="always")
+def _clean_fraction(f):
+    """NaN -> 0, clip to [0, 1], below MIN_FRACTION -> 0 (the end of `face_fractions`)."""
+    if f != f:
+        return 0.0
+    f = min(max(f, 0.0), 1.0)
+    return 0.0 if f < MIN_FRACTION else f
+
+
+@njit(cache=True)
+def fractions_into(s, dim, fu, fv, fw):
+    """`face_fractions` into fu, fv, fw from the vertex signed distance s ((nx+1, ny+1, nz+1);
+    (nx+1, ny+1, 1) in 2-D, where fw is set to 1 as the NumPy version does). Serial."""
     if dim == 2:
-        vs = np.concatenate([vs, vs], axis=2)
-    return sdf, face_fractions(vs, dim)
+        for i in range(fu.shape[0]):
+            for j in range(fu.shape[1]):
+                fu[i, j, 0] = _clean_fraction(_segment_value(s[i, j, 0], s[i, j + 1, 0]))
+        for i in range(fv.shape[0]):
+            for j in range(fv.shape[1]):
+                fv[i, j, 0] = _clean_fraction(_segment_value(s[i, j, 0], s[i + 1, j, 0]))
+        fw[...] = 1.0
+        return
+    for i in range(fu.shape[0]):
+        for j in range(fu.shape[1]):
+            for k in range(fu.shape[2]):
+                fu[i, j, k] = _clean_fraction(_square_value(s[i, j, k], s[i, j + 1, k],
+                                                            s[i, j + 1, k + 1], s[i, j, k + 1]))
+    for i in range(fv.shape[0]):
+        for j in range(fv.shape[1]):
+            for k in range(fv.shape[2]):
+                fv[i, j, k] = _clean_fraction(_square_value(s[i, j, k], s[i + 1, j, k],
+                                                            s[i + 1, j, k + 1], s[i, j, k + 1]))
+    for i in range(fw.shape[0]):
+        for j in range(fw.shape[1]):
+            for k in range(fw.shape[2]):
+                fw[i, j, k] = _clean_fraction(_square_value(s[i, j, k], s[i + 1, j, k],
+                                                            s[i + 1, j + 1, k], s[i, j + 1, k]))
 
 
-def nearest_obstacle(obstacles, pts, t, axis):
-    """At (M, dim) points: the smallest signed distance over the obstacles, the `axis` velocity
-    component of the obstacle attaining it, and its index (one query per obstacle)."""
+@njit(cache=True)
+def _take_nearest(d, vel, axis, index, best, best_vel, owner):
+    """Where d < best: best = d, best_vel = vel[:, axis], owner = index (one obstacle's turn in
+    `CutCells._nearest`)."""
+    for m in range(d.shape[0]):
+        if d[m] < best[m]:
+            best[m] = d[m]
+            best_vel[m] = vel[m, axis]
+            owner[m] = index
+
+
+@njit(cache=True)
+def _min_into(d, out, first):
+    """out = d (first obstacle) or min(out, d) (np.minimum)."""
+    for m in range(d.shape[0]):
+        if first or d[m] < out[m] or d[m] != d[m]:
+            out[m] = d[m]
+
+
+@njit(cache=True)
+def _mark_inside(d, inside, first):
+    """inside |= d < 0 (inside = d < 0 for the first obstacle)."""
+    for m in range(d.shape[0]):
+        if first:
+            inside[m] = d[m] < 0.0
+        elif d[m] < 0.0:
+            inside[m] = True
+
+
+@njit(cache=True)
+def _cut_faces(frac, solid, faces, open_frac):
+    """The closed faces (frac < 1) of one axis (flat arrays) in C order: their flat index and
+    open fraction; solid = 0 everywhere (`_cut_values` then writes the closed faces). Returns
+    the closed-face count."""
+    n = 0
+    for f in range(frac.shape[0]):
+        solid[f] = 0.0
+        if frac[f] < 1.0:
+            faces[n] = f
+            open_frac[n] = frac[f]
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def _cut_values(n, faces, best_vel, owner, per_node, owner_body, solid, body):
+    """solid[faces[m]] = the nearest obstacle's velocity, body[m] = its body, for m < n;
+    best_vel / owner are indexed by face (per_node) or by closed-face rank."""
+    for m in range(n):
+        r = faces[m] if per_node else m
+        solid[faces[m]] = best_vel[r]
+        body[m] = owner_body[owner[r]]
+
+
+@njit(cache=True)
+def _gather_rows(src, idx, n, out):
+    """out[m] = src[idx[m]] for m < n (rows of a points array)."""
+    for m in range(n):
+        for c in range(src.shape[1]):
+            out[m, c] = src[idx[m], c]
+
+
+def query_into(o, pts, t, d, nrm, vel, kernel):
+    """Distance (d (M,)) and surface velocity (vel (M, dim)) of obstacle `o` at pts (M, dim),
+    written in place: a `PlaneSlice` or a plain `Collider` through the query kernel (no (M,)
+    array made), a collider with its own ``query`` through it, anything else through its
+    ``signed_distance`` and ``velocity`` (new arrays)."""
     from ...collision.shapes import Collider
-    m = pts.shape[0]
-    best = np.full(m, np.inf)
-    vel = np.zeros(m)
-    owner = np.zeros(m, np.int64)
-    if m == 0:
-        return best, vel, owner
-    d = np.empty(m)
-    nrm = np.empty(pts.shape)
-    v = np.empty(pts.shape)
-    for i, o in enumerate(obstacles):
-        if isinstance(o, Collider):      # fills preallocated outputs: one query for both
-            o.query(pts, t, d, nrm, v)
-            di, vi = d, v[:, axis]
-        elif isinstance(o, PlaneSlice):  # one serial query for both
-            di, _, vv = o.query(pts, t)
-            vi = vv[:, axis]
-        else:
-            di = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
-            vi = np.asarray(o.velocity(pts, t), dtype=np.float64)[:, axis]
-        take = di < best
-        best = np.where(take, di, best)
-        vel = np.where(take, vi, vel)
-        owner = np.where(take, i, owner)
-    return best, vel, owner
+    if isinstance(o, PlaneSlice):
+        o.query_into(pts, t, d, nrm, vel)
+    elif isinstance(o, Collider) and type(o).query is Collider.query:
+        v, w = o._rigid_velocity(t)
+        kernel(pts, o.kind, o._cf, o._ci, o._packed_pose(t), o._ref, o.moving, v, w, d, nrm, vel)
+    elif isinstance(o, Collider):
+        o.query(pts, t, d, nrm, vel)
+    else:
+        d[...] = np.asarray(o.signed_distance(pts, t), dtype=np.float64)
+        vel[...] = np.asarray(o.velocity(pts, t), dtype=np.float64)
 
 
-def solid_faces(obstacles, owners, vertex_pts, face_pts, vertex_shape, dim, t, frac, solid):
-    """Open fractions and solid velocities of every face from a list of obstacles (the
-    obstacle part of `GridFluid`'s obstacles stage as a function, so `LiquidFluid` uses the
-    same cut cells).
+class CutCells:
+    """The obstacles stage of both grid fluids with its work arrays made once per grid.
 
-    obstacles : objects with ``signed_distance(points, t)`` and ``velocity(points, t)`` taking
-        (M, dim) points; owners : (len(obstacles),) int, the rigid body of each (-1: none).
-    vertex_pts : (V, dim) grid vertices, C order of `vertex_shape` ((nx+1, ny+1, nz+1), or
-        (nx+1, ny+1, 1) in 2-D); face_pts : per axis (F_a, dim) face centres in C order.
-    frac, solid : three face arrays each, written: open fraction (from `face_fractions`) and,
-        on faces with fraction < 1, the velocity component of the nearest obstacle (the one
-        with the smallest signed distance at the face centre). In 2-D frac[2] is set to 0.
-    Returns, per axis, (closed flat face indices, their open fractions, owner body per face),
-    the faces whose pressure pushes a body. Domain sides are left to the caller."""
-    _, fr = obstacle_fractions(obstacles, vertex_pts, vertex_shape, dim, t)
-    owners = np.asarray(owners, np.int64)
-    cut = []
-    for a in range(3):
-        frac[a][...] = fr[a]
-        solid[a][...] = 0.0
-    if dim == 2:
-        frac[2][...] = 0.0
-    for a in range(dim):
-        closed = np.flatnonzero(frac[a].reshape(-1) < 1.0)
-        owner = np.full(closed.size, -1, np.int64)
-        if closed.size:
-            _, vel, nearest = nearest_obstacle(obstacles, face_pts[a][closed], t, a)
-            owner = owners[nearest]
-            solid[a].reshape(-1)[closed] = vel
-        cut.append((closed.astype(np.int64), frac[a].reshape(-1)[closed].copy(), owner))
-    if dim == 2:
-        cut.append((np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)))
-    return cut
+    Built from the grid's vertex, face-centre and cell-centre positions (C order; see
+    `solver.MACGrid`); `update` fills, from a list of obstacles at time t:
+    open fractions and solid velocities of the faces, the cells whose centre is inside a solid,
+    optionally every face node's nearest obstacle (the implicit viscosity's boundary data), and
+    ``cut``: per axis (closed flat face indices, their open fractions, owning body), views of
+    length ``count[a]`` into preallocated arrays (valid until the next `update`).
+
+    Arrays (written by `update`): ``vertex_sdf`` (V,) m, the union's signed distance at the
+    vertices; ``best``, ``near_vel``, ``near`` per axis: the nearest obstacle's signed distance
+    (m), velocity component (m/s) and index at the closed faces (first ``count[a]``) or at every
+    face node (``nodes=True``); ``d``, ``nrm``, ``vel``: one obstacle's query (scratch)."""
+
+    def __init__(self, vertex_pts, vertex_shape, face_pts, cell_pts, dim, parallel=False):
+        from ...collision import distance as _d
+        from . import kernels as K
+        self.dim = int(dim)
+        self.vertex_pts = vertex_pts
+        self.vertex_shape = tuple(int(x) for x in vertex_shape)
+        self.face_pts = list(face_pts)
+        self.cell_pts = cell_pts
+        nv, nc = vertex_pts.shape[0], cell_pts.shape[0]
+        nf = [p.shape[0] for p in self.face_pts]
+        m = max([nv, nc] + nf)
+        self.d = np.empty(m)
+        self.nrm = np.empty((m, self.dim))
+        self.vel = np.empty((m, self.dim))
+        self.vertex_sdf = np.empty(nv)
+        self.inside = np.zeros(nc, dtype=np.bool_)
+        self.best = [np.empty(f) for f in nf]
+        self.near_vel = [np.empty(f) for f in nf]
+        self.near = [np.empty(f, np.int64) for f in nf]
+        self.pts = np.empty((max(nf), self.dim))
+        self._faces = [np.empty(f, np.int64) for f in nf]
+        self._open = [np.empty(f) for f in nf]
+        self._body = [np.empty(f, np.int64) for f in nf]
+        self.count = [0, 0, 0]
+        empty = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+        self.cut = [empty] * 3
+        self._kernel = K.version(_d.query_points, parallel)
+
+    def _query(self, o, pts, t):
+        m = pts.shape[0]
+        d, nrm, vel = self.d[:m], self.nrm[:m], self.vel[:m]
+        query_into(o, pts, t, d, nrm, vel, self._kernel)
+        return d, vel
+
+    def _nearest(self, obstacles, pts, t, axis, best, best_vel, owner):
+        """At pts: the smallest signed distance over the obstacles, the `axis` velocity component
+        of the obstacle attaining it and its index, into best, best_vel, owner."""
+        best[...] = np.inf
+        best_vel[...] = 0.0
+        owner[...] = 0
+        for i, o in enumerate(obstacles):
+            d, vel = self._query(o, pts, t)
+            _take_nearest(d, vel, axis, i, best, best_vel, owner)
+
+    def update(self, obstacles, owner_body, t, frac, solid, cell_solid, nodes=False):
+        """Fill frac, solid (three face arrays each; in 2-D frac[2] = 0), cell_solid and ``cut``
+        from `obstacles` (one or more) at time t; owner_body (len(obstacles),) int64: the body of
+        each (-1: none). nodes: also the nearest obstacle of every face node (``best``,
+        ``near_vel``, ``near``). Fractions: `face_fractions` (bit for bit); a face's nearest
+        obstacle: the one with the smallest signed distance at its centre (the first on a tie)."""
+        dim = self.dim
+        for i, o in enumerate(obstacles):
+            d, _ = self._query(o, self.vertex_pts, t)
+            _min_into(d, self.vertex_sdf, i == 0)
+        fractions_into(self.vertex_sdf.reshape(self.vertex_shape), dim, frac[0], frac[1], frac[2])
+        if dim == 2:
+            frac[2][...] = 0.0
+            solid[2][...] = 0.0
+        for a in range(dim):
+            fa, sa = frac[a].reshape(-1), solid[a].reshape(-1)
+            faces, open_frac, body = self._faces[a], self._open[a], self._body[a]
+            n = _cut_faces(fa, sa, faces, open_frac)
+            if nodes:
+                self._nearest(obstacles, self.face_pts[a], t, a, self.best[a], self.near_vel[a],
+                              self.near[a])
+            elif n:
+                pts = self.pts[:n]
+                _gather_rows(self.face_pts[a], faces, n, pts)
+                self._nearest(obstacles, pts, t, a, self.best[a][:n], self.near_vel[a][:n],
+                              self.near[a][:n])
+            _cut_values(n, faces, self.near_vel[a], self.near[a], nodes, owner_body, sa, body)
+            self.count[a] = n
+            self.cut[a] = (faces[:n], open_frac[:n], body[:n])
+        for i, o in enumerate(obstacles):
+            d, _ = self._query(o, self.cell_pts, t)
+            _mark_inside(d, self.inside, i == 0)
+        cell_solid.reshape(-1)[...] = self.inside
 
 
 class PlaneSlice:
@@ -253,17 +442,23 @@ class PlaneSlice:
             self._kernel = K.version(_d.query_points, False)
 
     def query(self, points, t=0.0):
-        """(distance (M,), normal (M, dim), velocity (M, dim)) at points (M, dim)."""
-        c = self.collider
+        """(distance (M,), normal (M, dim), velocity (M, dim)) at points (M, dim) (new arrays)."""
         pts = np.ascontiguousarray(points, dtype=np.float64)
         m = pts.shape[0]
         d, n, v = np.empty(m), np.empty((m, self.dim)), np.empty((m, self.dim))
+        return self.query_into(pts, t, d, n, v)
+
+    def query_into(self, pts, t, d, n, v):
+        """`query` into d (M,), n (M, dim), v (M, dim) for C-contiguous float64 pts (M, dim);
+        returns (d, n, v). A collider of `inertia.collision.shapes` allocates no (M,) array."""
+        c = self.collider
         if self._fast:
             vel, omega = c._rigid_velocity(t)
             self._kernel(pts, c.kind, c._cf, c._ci, c._packed_pose(t), c._ref, c.moving,
                          np.ascontiguousarray(vel, dtype=np.float64),
                          np.ascontiguousarray(omega, dtype=np.float64), d, n, v)
             return d, n, v
+        m = pts.shape[0]
         if c.dim == self.dim:
             c.query(pts, t, d, n, v)
             return d, n, v
@@ -271,7 +466,9 @@ class PlaneSlice:
         p3[:, :2] = pts[:, :2]
         n3, v3 = np.empty((m, 3)), np.empty((m, 3))
         c.query(p3, t, d, n3, v3)
-        return d, n3[:, :self.dim].copy(), v3[:, :self.dim].copy()
+        n[...] = n3[:, :self.dim]
+        v[...] = v3[:, :self.dim]
+        return d, n, v
 
     def signed_distance(self, points, t=0.0):
         return self.query(points, t)[0]

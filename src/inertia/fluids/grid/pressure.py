@@ -606,16 +606,17 @@ class PoissonSolver:
             level_diag(lv.ax, lv.ay, lv.az, lv.diag)
             self.levels[i] = lv._replace(uniform=_uniform_coefficient(lv, dim))
         np.greater(self.levels[0].diag, 0.0, out=self.active)
-        self.active_count = int(self.active.sum())
+        self.active_count = int(np.count_nonzero(self.active))   # (no temporary, unlike .sum())
         # outflow faces (open faces on the boundary of a non-periodic axis) make L definite
         lv0 = self.levels[0]
         dirichlet = False
+        nz = np.count_nonzero   # any(), without the buffered cast of a strided face layer
         if not self.periodic[0]:
-            dirichlet |= bool(lv0.ax[0].any() or lv0.ax[-1].any())
+            dirichlet |= bool(nz(lv0.ax[0]) or nz(lv0.ax[-1]))
         if not self.periodic[1]:
-            dirichlet |= bool(lv0.ay[:, 0].any() or lv0.ay[:, -1].any())
+            dirichlet |= bool(nz(lv0.ay[:, 0]) or nz(lv0.ay[:, -1]))
         if dim == 3 and not self.periodic[2]:
-            dirichlet |= bool(lv0.az[:, :, 0].any() or lv0.az[:, :, -1].any())
+            dirichlet |= bool(nz(lv0.az[:, :, 0]) or nz(lv0.az[:, :, -1]))
         self.singular = not dirichlet
 
     # -- pieces ------------------------------------------------------------------------------

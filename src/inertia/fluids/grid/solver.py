@@ -80,7 +80,7 @@ from ...errors import SimulationDiverged
 from . import kernels as K
 from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
-from .obstacles import add_axis_impulse, face_cells, face_fractions, nearest_obstacle, obstacle_fractions, rigid_shape_obstacles
+from .obstacles import CutCells, add_axis_impulse, face_cells, rigid_shape_obstacles
 from .pressure import SOLVERS, PoissonSolver
 
 ADVECTION = ("semi-lagrangian", "maccormack")
@@ -328,13 +328,28 @@ class GridFluid:
         self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
         self._slip = V.slip_flags(obstacle_slip, len(self.obstacles), "obstacle_slip")
         self._rigid_slip = False
-        self._vertex_pts = g.vertex_positions() if self.obstacles else None
-        self._face_pts = [g.face_positions(a) for a in range(dim)] if self.obstacles else None
+        self._cells = None            # the obstacles stage's work arrays (`CutCells`, on first need)
         self._cell_solid = np.zeros((nx, ny, nz), dtype=np.bool_)
         # rigid bodies (bind_rigid): one BodyShape obstacle per supported shape row
         self._rigid = None
         self._rigid_obstacles = []
-        self._owner_body = np.zeros(0, np.int64)      # body of each obstacle (-1: a collider)
+        self._owner_body = np.zeros(0, np.int64)      # body of each shape-row obstacle
+        self._obstacles_changed()
+        # per-step work arrays of the obstacles and diffuse stages: closed faces of each axis
+        # (the first `_closed` of them), domain-side face nodes the viscosity leaves alone
+        self._closed_buf = [np.zeros(int(np.prod(s)), np.int64) for s in fs]
+        self._side_values = [(axis, sd, side_velocity(self.sides[2 * axis + sd], dim)[axis])
+                             for axis in range(dim) for sd in range(2)
+                             if not isinstance(self.sides[2 * axis + sd], (Periodic, Outflow))]
+        self._vedge = []
+        for a in range(3):
+            edge = np.zeros(fs[a], dtype=np.bool_)
+            idx = [slice(None)] * 3
+            for end in (0, -1):
+                idx[a] = end
+                if not isinstance(self.sides[2 * a + (0 if end == 0 else 1)], (Periodic, Outflow)):
+                    edge[tuple(idx)] = True
+            self._vedge.append(edge.reshape(-1))
         # closed obstacle faces (obstacles stage): flat face index, open fraction, owner body
         self._cut = [(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)) for _ in range(3)]
         self.body_force = np.zeros((0, 3))            # N, last substep's pressure force (project)
@@ -378,49 +393,45 @@ class GridFluid:
             return self.ambient_temperature if b.temperature is None else float(b.temperature)
         return 0.0
 
+    def _obstacles_changed(self):
+        """After the obstacle list changed (constructor, `bind_rigid`): the body of every obstacle
+        (-1: a collider), the slip flags, the viscous-torque reference points, the work arrays."""
+        n0 = len(self.obstacles)
+        nall = n0 + len(self._rigid_obstacles)
+        self._obstacle_body = np.concatenate([np.full(n0, -1, np.int64), self._owner_body])
+        self._slip_all = np.array(self._slip + [self._rigid_slip] * len(self._rigid_obstacles),
+                                  dtype=np.bool_)
+        self._refs = np.zeros((nall, 3))
+        if nall and self._cells is None:
+            g = self.grid
+            vshape = tuple(g.n + 1) if self.dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
+            self._cells = CutCells(g.vertex_positions(), vshape,
+                                   [g.face_positions(a) for a in range(self.dim)], g.cell_positions(),
+                                   self.dim, self.parallel)
+
     def _update_solids(self, t, check_domain=False):
-        """Face fractions and solid velocities from the domain sides and the obstacles."""
+        """Face fractions and solid velocities from the domain sides and the obstacles
+        (`obstacles.CutCells`: nothing allocated)."""
         g = self.grid
         dim = self.dim
         obstacles = self.obstacles + self._rigid_obstacles
         if obstacles:
-            vshape = tuple(g.n + 1) if dim == 3 else (int(g.n[0]) + 1, int(g.n[1]) + 1, 1)
-            sdf, fr = obstacle_fractions(obstacles, self._vertex_pts, vshape, dim, t)
-            if check_domain and np.all(sdf < 0):
+            visc = self.viscosity > 0.0
+            cc = self._cells
+            cc.update(obstacles, self._obstacle_body, t, self._frac, self._solid, self._cell_solid,
+                      nodes=visc)
+            if check_domain and np.all(cc.vertex_sdf < 0):
                 raise ValueError("obstacles cover the whole domain")
             if check_domain:
                 for i, o in enumerate(self.obstacles):
-                    d = o.signed_distance(self._vertex_pts, t)
+                    d = o.signed_distance(cc.vertex_pts, t)
                     if np.all(d > 0) and not self._inside_domain(o, t):
                         raise ValueError(f"obstacles[{i}] lies outside the domain "
                                          f"{g.origin3[:dim].tolist()} + {g.size[:dim].tolist()}")
-            for a in range(3):
-                self._frac[a][...] = fr[a]
-                self._solid[a][...] = 0.0
-            visc = self.viscosity > 0.0
-            slip = self._slip + [self._rigid_slip] * len(self._rigid_obstacles)
             for a in range(dim):
-                pts = self._face_pts[a]
-                closed = np.flatnonzero(self._frac[a].reshape(-1) < 1.0)
-                owner = np.zeros(closed.size, np.int64)
                 if visc:
-                    # every face node's nearest obstacle (the viscous solve needs them all)
-                    best, vel, own = nearest_obstacle(obstacles, pts, t, a)
-                    self._viscous_nodes(a, best, vel, own, slip)
-                    if closed.size:
-                        owner = own[closed]
-                        self._solid[a].reshape(-1)[closed] = vel[closed]
-                elif closed.size:
-                    best, vel, owner = nearest_obstacle(obstacles, pts[closed], t, a)
-                    self._solid[a].reshape(-1)[closed] = vel
-                body = (np.concatenate([np.full(len(self.obstacles), -1, np.int64), self._owner_body])[owner]
-                        if closed.size else owner)
-                self._cut[a] = (closed.astype(np.int64), self._frac[a].reshape(-1)[closed].copy(), body)
-            cells = g.cell_positions()
-            inside = np.full(cells.shape[0], False)
-            for o in obstacles:
-                inside |= np.asarray(o.signed_distance(cells, t)) < 0
-            self._cell_solid[...] = inside.reshape(self._cell_solid.shape)
+                    self._viscous_nodes(a, cc.best[a], cc.near_vel[a], cc.near[a])
+                self._cut[a] = cc.cut[a]
         else:
             for a in range(3):
                 self._frac[a][...] = 1.0
@@ -428,22 +439,19 @@ class GridFluid:
         if dim == 2:
             self._frac[2][...] = 0.0
         # domain sides: walls and inflows close their boundary faces and impose the velocity
-        for axis in range(dim):
-            for sd in range(2):
-                b = self.sides[2 * axis + sd]
-                if isinstance(b, (Periodic, Outflow)):
-                    continue
-                idx = [slice(None)] * 3
-                idx[axis] = 0 if sd == 0 else -1
-                self._frac[axis][tuple(idx)] = 0.0
-                self._solid[axis][tuple(idx)] = side_velocity(b, dim)[axis]
+        for axis, sd, value in self._side_values:
+            idx = [slice(None)] * 3
+            idx[axis] = 0 if sd == 0 else -1
+            self._frac[axis][tuple(idx)] = 0.0
+            self._solid[axis][tuple(idx)] = value
         self.pressure.set_coefficients(*self._frac, g.cell_size, dim)
-        self._closed = [np.flatnonzero(self._frac[a].reshape(-1) == 0.0) for a in range(3)]
+        self._closed = [self._closed_buf[a][:_closed_faces(self._frac[a].reshape(-1), self._closed_buf[a])]
+                        for a in range(3)]
         # node kinds of the implicit viscosity
         self._no_slip_nodes = False
         for a in range(3):
             kind = self._vkind[a]
-            kind[...] = np.where(self._frac[a] == 0.0, V.FIXED, V.FREE)
+            V.fixed_where_closed(self._frac[a].reshape(-1), kind.reshape(-1))
             if self.viscosity > 0.0 and obstacles and a < dim:
                 self._viscous_kinds(a)
             if self.periodic[a]:
@@ -452,7 +460,7 @@ class GridFluid:
                 kind[tuple(idx)] = V.FIXED  # the duplicate of face 0
         self._enforce()
 
-    def _viscous_nodes(self, a, best, vel, owner, slip):
+    def _viscous_nodes(self, a, best, vel, owner):
         """Store the component-a face nodes' signed distance, solid velocity and nearest obstacle,
         and which of them lie inside a no-slip obstacle (for `_viscous_kinds`)."""
         shape = self._face_shapes[a]
@@ -460,25 +468,17 @@ class GridFluid:
             self._vsdf[a] = np.zeros(shape)
             self._vwall[a] = np.zeros(shape)
             self._vowner[a] = np.full(shape, -1, np.int64)
-        self._vsdf[a][...] = best.reshape(shape)
-        self._vwall[a][...] = vel.reshape(shape)
-        self._vowner[a][...] = owner.reshape(shape)
+        self._vsdf[a].reshape(-1)[...] = best
+        self._vwall[a].reshape(-1)[...] = vel
+        self._vowner[a].reshape(-1)[...] = owner
 
     def _viscous_kinds(self, a):
         """NO_SLIP / SLIP kinds of the component-a face nodes inside obstacles."""
-        slip = self._slip + [self._rigid_slip] * len(self._rigid_obstacles)
-        shape = self._face_shapes[a]
         best = self._vsdf[a].reshape(-1)
         owner = self._vowner[a].reshape(-1)
-        # domain-side faces stay FIXED (their value is the wall's or the inflow's)
-        edge = np.zeros(shape, dtype=bool)
-        idx = [slice(None)] * 3
-        for end in (0, -1):
-            idx[a] = end
-            if not isinstance(self.sides[2 * a + (0 if end == 0 else 1)], (Periodic, Outflow)):
-                edge[tuple(idx)] = True
-        any_no_slip = V.obstacle_node_kinds(self._vkind[a].reshape(-1), best, owner, slip,
-                                            edge.reshape(-1))
+        # domain-side faces stay FIXED (their value is the wall's or the inflow's): `_vedge`
+        any_no_slip = V.obstacle_node_kinds(self._vkind[a].reshape(-1), best, owner, self._slip_all,
+                                            self._vedge[a])
         self._no_slip_nodes = self._no_slip_nodes or any_no_slip
 
     def _inside_domain(self, o, t):
@@ -569,9 +569,7 @@ class GridFluid:
             vel = self._vel[a]
             K.enforce_closed(vel.reshape(-1), self._closed[a], self._solid[a].reshape(-1))
             if self.periodic[a]:
-                idx = [slice(None)] * 3
-                idx[a] = -1
-                vel[tuple(idx)] = vel[tuple([slice(None)] * a + [0])]
+                _wrap_periodic(vel, a)
 
     def _advect(self, dt):
         g = self.ctx
@@ -671,9 +669,9 @@ class GridFluid:
                 self._k.add_cell_force(f, dt, a, self._frac[a], self.ctx, self._vel[a])
         for cell_idx, rates, faces in self.sources:
             for s, r in rates:
-                self._scal[s].reshape(-1)[cell_idx] += r * dt
+                _add_at(self._scal[s].reshape(-1), cell_idx, r * dt)
             for a, idx, acc in faces:
-                self._vel[a].reshape(-1)[idx] += acc * dt
+                _add_at(self._vel[a].reshape(-1), idx, acc * dt)
         self._enforce()
 
     def _diffuse(self, dt):
@@ -686,6 +684,8 @@ class GridFluid:
             lin, ang = self._visc_impulse
             if lin.shape[0] != nobst:
                 lin, ang = self._visc_impulse = (np.zeros((nobst, 3)), np.zeros((nobst, 3)))
+                self.obstacle_viscous_force = np.zeros((nobst, 3))
+                self.obstacle_viscous_torque = np.zeros((nobst, 3))
             lin[...] = 0.0
             ang[...] = 0.0
             ref = self._obstacle_refs()
@@ -698,15 +698,16 @@ class GridFluid:
                 scale = self.fluid_density * self.grid.cell_size ** self.dim * coef
                 V.wall_shear_impulses(x, kind, sdf, wall, self._vowner[a], a, scale, g, ref,
                                       lin, ang)
-        if self._no_slip_nodes:
-            self.obstacle_viscous_force = lin / dt
-            self.obstacle_viscous_torque = ang / dt
+        if self._no_slip_nodes:   # (arrays written in place: hold a .copy() across steps)
+            np.divide(lin, dt, out=self.obstacle_viscous_force)
+            np.divide(ang, dt, out=self.obstacle_viscous_torque)
         self._enforce()
 
     def _obstacle_refs(self):
         """(n_obstacles, 3) reference points of the viscous torques: a collider's reference point
-        (its pose at the current time), a shape row's body centre of mass."""
-        refs = np.zeros((len(self.obstacles) + len(self._rigid_obstacles), 3))
+        (its pose at the current time), a shape row's body centre of mass (written into the
+        array `_obstacles_changed` made)."""
+        refs = self._refs
         for i, o in enumerate(self.obstacles):
             if hasattr(o, "pose"):
                 refs[i, :] = np.asarray(o.pose(self.time)[0], dtype=np.float64).reshape(-1)[:3]
@@ -855,14 +856,11 @@ class GridFluid:
         self._rigid_slip = bool(slip)
         self._rigid_obstacles = obst
         self._owner_body = np.asarray(owner, np.int64)
+        self._obstacles_changed()
         nb = int(rigid.model.body_count)
         self.body_force = np.zeros((nb, 3))
         self.body_torque = np.zeros((nb, 3))
         self._impulse = (np.zeros((nb, 3)), np.zeros((nb, 3)))
-        if self._vertex_pts is None:
-            g = self.grid
-            self._vertex_pts = g.vertex_positions()
-            self._face_pts = [g.face_positions(a) for a in range(self.dim)]
         self._moving = self._moving or bool(np.any(self._owner_body >= 0))
         self._update_solids(self.time)
 
@@ -1027,3 +1025,39 @@ def _pressure_impulses(phi, faces, open_frac, body, axis, h, origin, rho, body_q
         y = origin[1] + (j + (0.0 if axis == 1 else 0.5)) * h - body_q[b, 1]
         z = origin[2] + (k + (0.0 if axis == 2 else 0.5)) * h - body_q[b, 2]
         add_axis_impulse(lin, ang, b, axis, J, x, y, z)
+
+
+@K.njit(cache=True)
+def _closed_faces(frac, out):
+    """Flat indices of the closed faces (frac == 0) into out, in C order; returns their count."""
+    n = 0
+    for f in range(frac.shape[0]):
+        if frac[f] == 0.0:
+            out[n] = f
+            n += 1
+    return n
+
+
+@K.njit(cache=True)
+def _wrap_periodic(vel, axis):
+    """The last face layer along a periodic `axis` is a copy of the first (face n = face 0)."""
+    nx, ny, nz = vel.shape
+    if axis == 0:
+        for j in range(ny):
+            for k in range(nz):
+                vel[nx - 1, j, k] = vel[0, j, k]
+    elif axis == 1:
+        for i in range(nx):
+            for k in range(nz):
+                vel[i, ny - 1, k] = vel[i, 0, k]
+    else:
+        for i in range(nx):
+            for j in range(ny):
+                vel[i, j, nz - 1] = vel[i, j, 0]
+
+
+@K.njit(cache=True)
+def _add_at(a, idx, value):
+    """a[idx] += value (flat a; distinct indices)."""
+    for m in range(idx.shape[0]):
+        a[idx[m]] += value

@@ -235,15 +235,34 @@ def solve_component(kv, kk, x, kind, sdf, wall, slot, coef, g, cg, partial, rel_
 
 def obstacle_node_kinds(kind, sdf, owner, slip, edge):
     """Mark the face nodes inside obstacles (flat views; sdf < 0 at the node): NO_SLIP inside an
-    obstacle whose flag in `slip` (one bool per obstacle) is False, SLIP for FIXED (closed) nodes
-    inside a slip obstacle; nodes with `edge` (domain sides whose value the side sets) are left
-    alone. Returns whether any NO_SLIP node exists."""
-    inside = sdf < 0.0
-    no_slip = inside & ~np.asarray(slip, dtype=bool)[owner]
-    closed = kind == FIXED
-    kind[no_slip & ~edge] = NO_SLIP
-    kind[inside & ~no_slip & closed & ~edge] = SLIP
-    return bool(np.any(no_slip & ~edge))
+    obstacle whose flag in `slip` (one bool per obstacle: a bool array, or a sequence) is False,
+    SLIP for FIXED (closed) nodes inside a slip obstacle; nodes with `edge` (domain sides whose
+    value the side sets) are left alone. Returns whether any NO_SLIP node exists (a kernel:
+    nothing allocated when `slip` is a bool array)."""
+    if not isinstance(slip, np.ndarray) or slip.dtype != np.bool_:
+        slip = np.asarray(slip, dtype=np.bool_).reshape(-1)
+    return _obstacle_node_kinds(kind, sdf, owner, slip, edge)
+
+
+@njit(cache=True)
+def _obstacle_node_kinds(kind, sdf, owner, slip, edge):
+    any_no_slip = False
+    for m in range(kind.shape[0]):
+        if edge[m] or not sdf[m] < 0.0:
+            continue
+        if not slip[owner[m]]:
+            kind[m] = NO_SLIP
+            any_no_slip = True
+        elif kind[m] == FIXED:
+            kind[m] = SLIP
+    return any_no_slip
+
+
+@njit(cache=True)
+def fixed_where_closed(frac, kind):
+    """kind = FIXED on closed faces (frac == 0), FREE elsewhere (flat views)."""
+    for m in range(frac.shape[0]):
+        kind[m] = FIXED if frac[m] == 0.0 else FREE
 
 
 def slip_flags(slip, count, name):
