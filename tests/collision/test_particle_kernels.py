@@ -1,7 +1,8 @@
-"""The particle collision kernels' far test (``particle_kernels._far_from_all``).
+"""The particle collision kernels' far test (``particle_kernels._far_from_slots``).
 
 The fused step (``step_and_collide``) integrates each chunk of particles in a loop that only
-asks "can this path reach any collider?" with ``_far_from_all`` and leaves the exact mask
+asks "can this path reach any collider?" with ``_far_from_slots`` (over the rows
+``far_slots`` makes of the packed colliders) and leaves the exact mask
 (``_near_mask``) and the response to the few particles it sets aside. The results stay the
 bits of the separate pass (test_particle_stage.py) only if the cheap test never calls a particle
 far that the exact mask calls near; it must also send most far particles straight through, or
@@ -31,9 +32,10 @@ def test_far_test_implies_the_exact_mask_is_empty():
     tol = d.distance_tolerance
     far_count = 0
     for cnear in (d.cnear, d.cnear[:2], d.cnear[1:2]):  # all kinds; plane + sphere; sphere alone
+        planes, balls = pk.far_slots(cnear, d.cf)
         for i in range(m):
             e, s, r = ends[i], steps[i], radii[i]
-            far = pk._far_from_all(cnear, d.cf, r, tol, e[0], e[1], e[2], s[0], s[1], s[2])
+            far = pk._far_from_slots(planes, balls, r, tol, e[0], e[1], e[2], s[0], s[1], s[2])
             mask = pk._near_mask(cnear, d.cf, -1, r, tol, e[0], e[1], e[2], s[0], s[1], s[2])
             assert not (far and mask != 0), (i, e, s, r, mask)
             far_count += far
