@@ -545,30 +545,59 @@ def _near_mask(cnear, cf, kr, r, tol, ex, ey, ez, dx, dy, dz):
     return near
 
 
+#: A far-test plane row that no particle passes (0 x - 1e300 < 0): stands for the colliders the
+#: cheap test cannot bound (more than 62 colliders, moving ones), so every particle is sent to the
+#: exact mask
+ALWAYS_NEAR_PLANE = (0.0, 0.0, 0.0, 1e300)
+
+
+def far_slots(cnear, cf):
+    """The rows of the cheap far test (``_far_from_slots``) for a packed ``cnear``/``cf``: (P, 4)
+    planes [n, c] (every ``NEAR_PLANE`` row and each wall of a ``NEAR_PLANES`` row, the
+    container) and (B, 4) balls [centre, bounding radius] (``NEAR_BALL`` rows). Built once when
+    the colliders are packed (NumPy, outside the step)."""
+    import numpy as np
+
+    planes, balls = [], []
+    k_count = cnear.shape[0]
+    for k in range(k_count):
+        kind = cnear[k, 0]
+        if kind == NEAR_NEVER:
+            continue
+        if k_count > 62 or kind == NEAR_ALWAYS:
+            planes.append(ALWAYS_NEAR_PLANE)
+        elif kind == NEAR_PLANE:
+            planes.append(tuple(cnear[k, 1:5]))
+        elif kind == NEAR_BALL:
+            balls.append(tuple(cnear[k, 1:5]))
+        elif kind == NEAR_PLANES:
+            o, m = int(cnear[k, 1]), int(cnear[k, 2])
+            planes.extend(tuple(cf[o + 4 * p:o + 4 * p + 4]) for p in range(m))
+        else:
+            planes.append(ALWAYS_NEAR_PLANE)
+    return (np.array(planes, np.float64).reshape(-1, 4), np.array(balls, np.float64).reshape(-1, 4))
+
+
 @njit(cache=True, inline="always")
-def _far_from_all(cnear, cf, r, tol, ex, ey, ez, dx, dy, dz):
+def _far_from_slots(planes, balls, r, tol, ex, ey, ez, dx, dy, dz):
     """True when the step's path (displacement d, ending at e) provably reaches no collider: the
-    cheap half of ``_near_mask`` (the path's length bounded by |d|_1, no square root) for every
-    collider, without the bit mask. It implies ``_near_mask(...) == 0`` (the same comparisons,
-    rounded the same way), so it may only send a far particle to the exact test, never miss a
-    near one. Few branches: the integrating loop of ``step_and_collide`` runs it per particle."""
+    cheap half of ``_near_mask`` (the path's length bounded by |d|_1, no square root) over the
+    rows of ``far_slots`` (planes and container walls, then bounding balls), with no branch on
+    the collider kind. It implies ``_near_mask(...) == 0``: the same products and comparisons,
+    rounded the same way (a container's minimum over its walls passes ``lb - reach0 > l1`` exactly
+    when every wall does, subtraction being monotone), so it may only send a far particle to the
+    exact test, never miss a near one (NaN fails every comparison: near). The integrating loop of
+    ``step_and_collide`` runs it per particle."""
     reach0 = r + 2.0 * tol
     l1 = abs(dx) + abs(dy) + abs(dz)
-    far = cnear.shape[0] <= 62  # beyond 62 colliders the mask marks every particle near
-    for k in range(cnear.shape[0]):
-        kind = cnear[k, 0]
-        lin = cnear[k, 1] * ex + cnear[k, 2] * ey + cnear[k, 3] * ez - cnear[k, 4]
-        if kind == NEAR_PLANES:
-            o, m = int(cnear[k, 1]), int(cnear[k, 2])
-            lin = 1e300
-            for p in range(m):
-                b = o + 4 * p
-                lin = min(lin, cf[b] * ex + cf[b + 1] * ey + cf[b + 2] * ez - cf[b + 3])
-        bx, by, bz = ex - cnear[k, 1], ey - cnear[k, 2], ez - cnear[k, 3]
-        reach = cnear[k, 4] + (reach0 + l1)
-        ball = reach > 0.0 and bx * bx + by * by + bz * bz > reach * reach
-        far &= (((kind == NEAR_PLANE or kind == NEAR_PLANES) and lin - reach0 > l1)
-                or (kind == NEAR_BALL and ball) or kind == NEAR_NEVER)
+    far = True
+    for p in range(planes.shape[0]):
+        lin = planes[p, 0] * ex + planes[p, 1] * ey + planes[p, 2] * ez - planes[p, 3]
+        far &= lin - reach0 > l1
+    for b in range(balls.shape[0]):
+        bx, by, bz = ex - balls[b, 0], ey - balls[b, 1], ez - balls[b, 2]
+        reach = balls[b, 3] + (reach0 + l1)
+        far &= (reach > 0.0) & (bx * bx + by * by + bz * bz > reach * reach)
     return far
 
 
@@ -761,67 +790,69 @@ STEP_CHUNK = 1024
 
 @njit(cache=True, parallel=True)
 def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk4, cint, cnear, cmat, cf,
-                     ci, pose, ref, rest_k, rest_n, rest_u, load, static_ok, near_list, dt, tol,
-                     rest_speed, a_priori, max_sub, max_iter, kinds, motion):
+                     ci, far_planes, far_balls, pose, ref, rest_k, rest_n, rest_u, load, static_ok,
+                     near_list, chunk_counts, dt, tol, rest_speed, a_priori, max_sub, max_iter, kinds,
+                     motion):
     """The fused integrator step (rk4 or semi-implicit Euler, affine forces) and the collision
     pass against static colliders, in one pass over memory.
 
     Each particle's start (x, v) and end of step stay in registers: no start-of-step copy is
     written or read (the separate path moves x0, v0 through memory twice). The particles go in
     chunks of ``STEP_CHUNK`` (in parallel): a first, tight loop integrates the chunk and tests
-    each path against the colliders (``_far_from_all``, a few flops per collider); particles whose
-    path cannot reach a collider (and that rest on none) are written back at once, the others
-    are left at their start and their indices noted in ``near_list`` (N,) int64 (a preallocated
-    scratch array: the chunk's near particles from the chunk's first slot, ended by -1). A
-    second loop over that short list integrates them again (the same arithmetic: the same
+    each path against the colliders (``_far_from_slots`` over ``far_planes`` (P, 4) and
+    ``far_balls`` (B, 4), the rows of ``far_slots``: a few flops per row, no branch on the
+    collider kind). That loop has no data-dependent branch: every particle's slot of x, v gets
+    its end of step when it is far (and moves: active, 1/m > 0, resting on nothing) and its
+    start otherwise (the same values: nothing changes), and its index is written to the next
+    free slot of ``near_list`` (N,) int64 (a preallocated scratch array: the chunk's near
+    particles from the chunk's first slot, ended by -1), a slot that only a near particle keeps.
+    A second loop over that short list integrates them again (the same arithmetic: the same
     bits) and runs the same ``_collide_near`` as ``collide_particles``, so the results are the
     same bits as the integrator's fused kernel followed by ``collide_particles``. The far path
     thus stays a small loop free of the response code. pose (K, 12): the static colliders'
-    poses (unused by static shapes). Returns (changed, resting, finite), finite False when any
+    poses (unused by static shapes). chunk_counts (>= chunks, 3) int64: scratch for each chunk's
+    (changed, resting, non-finite values) counts, summed in chunk order after the parallel loop
+    (no scalar reduction inside it). Returns (changed, resting, finite), finite False when any
     value of the state (pinned and inactive particles included) is NaN or infinite.
     """
     n, dim = x.shape
-    changed = 0
-    resting = 0
-    check = 0.0
     chunks = (n + STEP_CHUNK - 1) // STEP_CHUNK
     unfiltered = cint.shape[0] >= 0  # True (no force filter runs), typed as collide_particles' token
+    gx, gy = gravity[0], gravity[1]
+    gz = gravity[2] if dim == 3 else 0.0
+    fx, fy = force[0], force[1]
+    fz = force[2] if dim == 3 else 0.0
     for c in prange(chunks):
         lo = c * STEP_CHUNK
         hi = min(lo + STEP_CHUNK, n)
         count = lo
         chunk_changed = 0
         chunk_resting = 0
-        chunk_check = 0.0  # sum of (written value) * 0: NaN as soon as one is NaN or infinite
-        # 1. integrate; far particles are done, near ones noted
+        chunk_bad = 0  # values written that are NaN or infinite ((sum of them) * 0 != 0)
+        # 1. integrate; far particles are done, the others noted (no branch: see above)
         for i in range(lo, hi):
             w = inv_mass[i]
-            if not active[i] or w == 0.0:
-                if rest_k[i] != -1:
-                    rest_k[i] = -1
-                for d in range(dim):
-                    chunk_check += x[i, d] * 0.0 + v[i, d] * 0.0
-                continue
             sx, svx = x[i, 0], v[i, 0]
             sy, svy = x[i, 1], v[i, 1]
             sz = x[i, 2] if dim == 3 else 0.0
             svz = v[i, 2] if dim == 3 else 0.0
-            ex, evx = _affine_step(sx, svx, gravity[0], force[0], damping, w, dt, rk4)
-            ey, evy = _affine_step(sy, svy, gravity[1], force[1], damping, w, dt, rk4)
+            ex, evx = _affine_step(sx, svx, gx, fx, damping, w, dt, rk4)
+            ey, evy = _affine_step(sy, svy, gy, fy, damping, w, dt, rk4)
+            ez, evz = _affine_step(sz, svz, gz, fz, damping, w, dt, rk4)
+            far = (active[i] & (w != 0.0) & (rest_k[i] < 0)
+                   & _far_from_slots(far_planes, far_balls, radius[i], tol, ex, ey, ez, ex - sx, ey - sy,
+                                     ez - sz))
+            # the end of step where far, the start (unchanged) otherwise
+            ox, ovx = (ex, evx) if far else (sx, svx)
+            oy, ovy = (ey, evy) if far else (sy, svy)
+            oz, ovz = (ez, evz) if far else (sz, svz)
+            chunk_bad += far & ((ex + ey + ez + evx + evy + evz) * 0.0 != 0.0)
+            x[i, 0], x[i, 1] = ox, oy
+            v[i, 0], v[i, 1] = ovx, ovy
             if dim == 3:
-                ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
-            else:
-                ez, evz = 0.0, 0.0
-            if rest_k[i] >= 0 or not _far_from_all(cnear, cf, radius[i], tol, ex, ey, ez, ex - sx,
-                                                   ey - sy, ez - sz):
-                near_list[count] = i
-                count += 1
-                continue
-            chunk_check += (ex + ey + ez + evx + evy + evz) * 0.0
-            x[i, 0], x[i, 1] = ex, ey
-            v[i, 0], v[i, 1] = evx, evy
-            if dim == 3:
-                x[i, 2], v[i, 2] = ez, evz
+                x[i, 2], v[i, 2] = oz, ovz
+            near_list[count] = i
+            count += not far
         if count < hi:
             near_list[count] = -1
         # 2. the particles near a collider: the step again, then the collision response
@@ -830,36 +861,46 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
             if i < 0:
                 break
             w = inv_mass[i]
-            sx, svx = x[i, 0], v[i, 0]
-            sy, svy = x[i, 1], v[i, 1]
-            sz = x[i, 2] if dim == 3 else 0.0
-            svz = v[i, 2] if dim == 3 else 0.0
-            ex, evx = _affine_step(sx, svx, gravity[0], force[0], damping, w, dt, rk4)
-            ey, evy = _affine_step(sy, svy, gravity[1], force[1], damping, w, dt, rk4)
-            if dim == 3:
-                ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
-            else:
-                ez, evz = 0.0, 0.0
-            kr = rest_k[i]
-            near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, ex - sx, ey - sy, ez - sz)
-            if near != 0 or kr >= 0:  # the exact test (the first loop's may send far particles)
-                ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
-                    i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
-                    static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
-                    rest_speed, a_priori, max_sub, max_iter, True, unfiltered, True, kinds, motion)
-                if mod:
-                    chunk_changed += 1
-                if rests:
-                    chunk_resting += 1
-            chunk_check += (ex + ey + ez + evx + evy + evz) * 0.0
-            x[i, 0], x[i, 1] = ex, ey
-            v[i, 0], v[i, 1] = evx, evy
-            if dim == 3:
-                x[i, 2], v[i, 2] = ez, evz
-        changed += chunk_changed
-        resting += chunk_resting
-        check += chunk_check
-    return changed, resting, check == 0.0
+            if not active[i] or w == 0.0:  # not moved: no contact; its values checked as they are
+                if rest_k[i] != -1:
+                    rest_k[i] = -1
+                for d in range(dim):
+                    chunk_bad += x[i, d] * 0.0 + v[i, d] * 0.0 != 0.0
+            else:  # (an else, not a continue: Numba's parfor reductions trip over the latter here)
+                sx, svx = x[i, 0], v[i, 0]
+                sy, svy = x[i, 1], v[i, 1]
+                sz = x[i, 2] if dim == 3 else 0.0
+                svz = v[i, 2] if dim == 3 else 0.0
+                ex, evx = _affine_step(sx, svx, gravity[0], force[0], damping, w, dt, rk4)
+                ey, evy = _affine_step(sy, svy, gravity[1], force[1], damping, w, dt, rk4)
+                if dim == 3:
+                    ez, evz = _affine_step(sz, svz, gravity[2], force[2], damping, w, dt, rk4)
+                else:
+                    ez, evz = 0.0, 0.0
+                kr = rest_k[i]
+                near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, ex - sx, ey - sy, ez - sz)
+                mod = rests = False
+                if near != 0 or kr >= 0:  # the exact test (the first loop's may send far particles)
+                    ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
+                        i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
+                        static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
+                        rest_speed, a_priori, max_sub, max_iter, True, unfiltered, True, kinds, motion)
+                chunk_changed += mod
+                chunk_resting += rests
+                chunk_bad += (ex + ey + ez + evx + evy + evz) * 0.0 != 0.0
+                x[i, 0], x[i, 1] = ex, ey
+                v[i, 0], v[i, 1] = evx, evy
+                if dim == 3:
+                    x[i, 2], v[i, 2] = ez, evz
+        chunk_counts[c, 0] = chunk_changed
+        chunk_counts[c, 1] = chunk_resting
+        chunk_counts[c, 2] = chunk_bad
+    changed = resting = bad = 0
+    for c in range(chunks):
+        changed += chunk_counts[c, 0]
+        resting += chunk_counts[c, 1]
+        bad += chunk_counts[c, 2]
+    return changed, resting, bad == 0
 
 
 @njit(cache=True, parallel=True)

@@ -248,6 +248,8 @@ class ParticleCollisionData:
             self.cnear[i] = _near_bound(c, self.cint[i, 2])
         self.cf = np.concatenate(cfs) if cfs else np.zeros(1)
         self.ci = np.concatenate(cis) if cis else np.zeros(1, np.int64)
+        # the rows of the fused step's cheap far test (planes and container walls, bounding balls)
+        self.far_planes, self.far_balls = pk.far_slots(self.cnear, self.cf)
         self.callables = [(i, c) for i, c in enumerate(self.colliders) if c.kind == _d.CALLABLE]
         if getattr(self, "coupling", None) is not None:     # rows added later: re-map them to bodies
             self.coupling.entry_body = self.entry_bodies(self._model)
@@ -274,8 +276,9 @@ class ParticleCollisionData:
         tic = time.perf_counter()
         self.fused_result = pk.kernels_for(self.cint).step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
-            self.cint, self.cnear, self.cmat, self.cf, self.ci, self.pose1, self.ref, self.rest_k,
-            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, dt, self.distance_tolerance,
+            self.cint, self.cnear, self.cmat, self.cf, self.ci, self.far_planes, self.far_balls, self.pose1,
+            self.ref, self.rest_k,
+            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, self.chunk_counts, dt, self.distance_tolerance,
             self.rest_speed, self.mode == "a_priori", self.max_substeps, self.max_iterations)
         self.profile["collide"] += time.perf_counter() - tic
 
@@ -353,6 +356,7 @@ class ParticleCollisionData:
             self.load = np.zeros(n)
             self.static_ok = np.zeros(n, bool)
             self.near_list = np.empty(n, np.int64)  # scratch of the fused step (step_and_collide)
+            self.chunk_counts = np.zeros(((n + pk.STEP_CHUNK - 1) // pk.STEP_CHUNK, 3), np.int64)  # its counts
             self._valid_revision = None
         if self.self_collisions:
             self.table_size = bp.table_size_for(n)
