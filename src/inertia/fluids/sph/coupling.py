@@ -20,11 +20,12 @@ dynamic bodies only).
 
 The force on a boundary particle is the reaction of the fluid's pressure acceleration on it, with the
 boundary particle's own pressure k_b in the symmetric SPH sum m (k_i + k_b) (``SPHFluid(boundary_pressure=
-...)``): "extrapolated" (default) the Shepard average of the fluid pressures plus the wall-normal
+...)``): "extrapolated" the Shepard average of the fluid pressures plus the wall-normal
 body-force share (Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput.
 Phys. 231; ``kernels.boundary_extrapolated_pressure`` / ``body_boundary_pressure_wrench``), "mirror"
-k_b = k_i (Akinci et al. 2012) plus the wall-normal hydrostatic share (g . n_b)(n_b . (x_b - x_i)) /
-rho_i (``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``). The normals n_b are the
+(the default) k_b = k_i (Akinci et al. 2012) plus the wall's hydrostatic share g . (x_b - x_i) / rho_i
+(``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``; the full offset: its wall-normal
+part alone lost the share in corners and on the slab bodies' periodic faces). The normals n_b are the
 unit gradients of the shapes' signed distances at the sample points (``sample_model``). With k_i alone (the earlier
 form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
 submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).
