@@ -77,13 +77,13 @@ Limitations
 - Boundary pressure: the default "mirror" (k_b = k_i plus the wall's hydrostatic share, pairwise,
   without the wall's acceleration) holds the floor row at rho0 g (H - y); Akinci's single term
   leaves it at ~1.7x; "extrapolated" (Adami et al. 2012's wall pressure, wall-normal body force
-  only) compresses the start of a tall column more (see ``boundary_pressure``).
+  only) compresses the start of a tall column more (see ``boundary_pressure``). Band et al. 2018's
+  linear MLS fit was tried and ran away (with the cubic spline at h = dx a wall particle sees one
+  row of fluid: the fit is degenerate or amplifies the noise of the iteration). The rows within
+  one support of a free surface alternate by a few % (time average).
 - DFSPH: a block given without velocities starts with its hydrostatic pressure
   (``hydrostatic_pressure``, the warm start of the first constant-density solve; the solve removes
-  what a block not at rest, e.g. in free fall, does not need); with velocities, from zero. Band et al. 2018's linear MLS fit was tried
-  and ran away (with the cubic spline at h = dx a wall particle sees one row of fluid: the fit is
-  degenerate or amplifies the noise of the iteration). The rows within one support of a free
-  surface alternate by a few % (time average).
+  what a block not at rest, e.g. in free fall, does not need); with velocities, from zero.
 - Body coupling is explicit (the body integrates the force of the step it was posed for).
 - Particles are reordered every step: ``x``, ``v`` rows move; ``particle_id`` follows them.
 - The domain grid is dense: its cell count is capped at ``MAX_CELLS``.
@@ -431,8 +431,8 @@ class SPHFluid:
             self._F.v[:n] = _validate.as_points(velocities, "velocities", dim=dim, count=n)
         elif method == "dfsph" and gmag > 0 and n:
             # a block at rest starts with its hydrostatic pressure as the warm start of the first
-            # constant-density solve (from zero, the first solves of a 20-row column needed ~300
-            # iterations and the unconverged ones halved the steps; see hydrostatic_pressure)
+            # constant-density solve (from zero, the first solves of a 20-row column needed up to ~140
+            # iterations, 1-3 with it; a 200-row column was compressed by 8-10 % in its first steps)
             self._F.k_dens[:n] = hydrostatic_pressure(x0, self.gravity, self.spacing, self.rest_density) / \
                 self.rest_density ** 2
         self._id = np.full(cap, -1, np.int64)
