@@ -205,6 +205,24 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
     return parts
 
 
+def solid_cores(model):
+    """(body, 0 sphere / 1 box, centre (3,), rotation (3, 3), size (3,)) in the body frame for every
+    sphere and box row of a dynamic or kinematic body: the solids whose hollow core (deeper than
+    the band) ``kernels.push_out_of_cores`` keeps free of fluid. Other shape types are not covered."""
+    out = []
+    types = np.asarray(model.shape_type)
+    for s in range(model.shape_count):
+        st = int(types[s])
+        body = int(model.shape_body[s])
+        if st not in (S.SPHERE, S.BOX) or body < 0 or int(model.body_type[body]) == S.STATIC:
+            continue
+        pose = np.asarray(model.shape_local_pose[s], float)
+        params = np.asarray(model.shape_params[s], float)
+        size = np.full(3, params[0]) if st == S.SPHERE else params[:3].copy()
+        out.append((body, 0 if st == S.SPHERE else 1, pose[:3].copy(), quat_to_matrices(pose[3:7])[0], size))
+    return out
+
+
 def _surface_normal(shape_type, params, p, verts, spacing):
     """(M, 3) unit gradient of the signed distance at p (shape frame; central differences of
     1e-3 spacing): the outward normal of the nearest surface point."""

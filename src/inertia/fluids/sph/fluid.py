@@ -467,6 +467,7 @@ class SPHFluid:
         self._pending_state = None
         self.body_force = np.zeros((0, 3))
         self.body_torque = np.zeros((0, 3))
+        self._cores = []           # (body, type 0 sphere / 1 box, centre (3,), rotation (3, 3), size (3,))
 
         self.time = 0.0
         self.step_count = 0
@@ -559,6 +560,9 @@ class SPHFluid:
         self._bodies.append((p.copy(), rot3))
         normal = _unit_rows(collider.normal(world[keep])) @ rot if keep.any() else np.zeros((0, self.dim))
         self._add_part(world[keep], body, self._noslip(slip, boundary_viscosity), local[keep], normal)
+        size = np.zeros(3)
+        size[:self.dim] = half
+        self._cores.append((body, 1 if isinstance(collider, Box) else 0, np.zeros(3), np.eye(3), size))
         count = len(self._bodies)
         self.body_force = np.zeros((count, 3))
         self.body_torque = np.zeros((count, 3))
@@ -597,6 +601,16 @@ class SPHFluid:
                            np.ascontiguousarray(normal))
             count += world.shape[0]
         nbody = int(model.body_count)
+        self._cores = coupling.solid_cores(model)
+        # a box spanning a periodic axis (the 2-D slabs) has no faces on it
+        length = self.domain_hi - self.domain_lo
+        rot0 = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
+        for body, kind, _, rs, size in self._cores:
+            axes = rot0[body] @ rs
+            for d in np.flatnonzero(self.periodic) if kind == 1 else ():
+                for e in range(3):
+                    if abs(axes[d, e]) > 0.999 and 2 * size[e] >= length[d] - self.spacing:
+                        size[e] = np.inf
         rot = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
         self._bodies = [(np.asarray(body_q[k, :3], float).copy(), rot[k]) for k in range(nbody)]
         self._body_x = np.array(body_q[:, :3], float).reshape(nbody, 3)
@@ -883,6 +897,11 @@ class SPHFluid:
         self._k0_dens = np.zeros(self.capacity)   # k_dens / k_div at the start of this step's solves
         self._k0_div = np.zeros(self.capacity)
         self._bodies_moved = bool(self._bodies)
+        c = self._cores
+        self._core_arrays = (np.array([e[0] for e in c], np.int64), np.array([e[1] for e in c], np.int64),
+                             np.array([e[2] for e in c], float).reshape(-1, 3),
+                             np.array([e[3] for e in c], float).reshape(-1, 3, 3),
+                             np.array([e[4] for e in c], float).reshape(-1, 3))
         self._sort_boundary()
 
     def _alloc_transpose(self, m):
@@ -1176,6 +1195,10 @@ class SPHFluid:
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)
+        if self._cores:   # fluid that got through a thick body's band into its hollow core
+            self.stats["pushed_out"] = self.stats.get("pushed_out", 0) + _k.push_out_of_cores(
+                F, n, *self._core_arrays, self._body_x, self._body_rot, self._body_v, self._body_w,
+                self.support, 0.5 * self.spacing)
         if self._emitters:
             self._emit(dt)
         self._K.speed_squared(F.v, self._n, self._tmp1)
