@@ -85,6 +85,10 @@ Limitations
   (``hydrostatic_pressure``, the warm start of the first constant-density solve; the solve removes
   what a block not at rest, e.g. in free fall, does not need); with velocities, from zero.
 - Body coupling is explicit (the body integrates the force of the step it was posed for).
+- Bodies are sampled as bands one support thick: fluid that gets deeper into a box or sphere is
+  pushed out through the nearest face after the advection (``kernels.push_out_of_cores``);
+  capsules, cylinders and hulls of moving bodies are not covered. The adaptive step does not see
+  the bodies' speeds (a fast body may cross a band in one step).
 - Particles are reordered every step: ``x``, ``v`` rows move; ``particle_id`` follows them.
 - The domain grid is dense: its cell count is capped at ``MAX_CELLS``.
 """
