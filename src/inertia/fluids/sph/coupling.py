@@ -20,11 +20,12 @@ dynamic bodies only).
 
 The force on a boundary particle is the reaction of the fluid's pressure acceleration on it, with the
 boundary particle's own pressure k_b in the symmetric SPH sum m (k_i + k_b) (``SPHFluid(boundary_pressure=
-...)``): "extrapolated" (default) the Shepard average of the fluid pressures plus the wall-normal
+...)``): "extrapolated" the Shepard average of the fluid pressures plus the wall-normal
 body-force share (Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput.
 Phys. 231; ``kernels.boundary_extrapolated_pressure`` / ``body_boundary_pressure_wrench``), "mirror"
-k_b = k_i (Akinci et al. 2012) plus the wall-normal hydrostatic share (g . n_b)(n_b . (x_b - x_i)) /
-rho_i (``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``). The normals n_b are the
+(the default) k_b = k_i (Akinci et al. 2012) plus the wall's hydrostatic share g . (x_b - x_i) / rho_i
+(``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``; the full offset: its wall-normal
+part alone lost the share in corners and on the slab bodies' periodic faces). The normals n_b are the
 unit gradients of the shapes' signed distances at the sample points (``sample_model``). With k_i alone (the earlier
 form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
 submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).
@@ -202,6 +203,24 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
             normal = _surface_normal(st, params, local[keep], verts, spacing) @ quat_to_matrices(pose[3:7])[0].T
             parts.append((pts[keep], -1, np.zeros((int(keep.sum()), 3)), normal))
     return parts
+
+
+def solid_cores(model):
+    """(body, 0 sphere / 1 box, centre (3,), rotation (3, 3), size (3,)) in the body frame for every
+    sphere and box row of a dynamic or kinematic body: the solids whose hollow core (deeper than
+    the band) ``kernels.push_out_of_cores`` keeps free of fluid. Other shape types are not covered."""
+    out = []
+    types = np.asarray(model.shape_type)
+    for s in range(model.shape_count):
+        st = int(types[s])
+        body = int(model.shape_body[s])
+        if st not in (S.SPHERE, S.BOX) or body < 0 or int(model.body_type[body]) == S.STATIC:
+            continue
+        pose = np.asarray(model.shape_local_pose[s], float)
+        params = np.asarray(model.shape_params[s], float)
+        size = np.full(3, params[0]) if st == S.SPHERE else params[:3].copy()
+        out.append((body, 0 if st == S.SPHERE else 1, pose[:3].copy(), quat_to_matrices(pose[3:7])[0], size))
+    return out
 
 
 def _surface_normal(shape_type, params, p, verts, spacing):

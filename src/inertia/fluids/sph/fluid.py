@@ -45,7 +45,8 @@ References
   psi_b W to the density, pressure mirrored onto them, reaction forces and torques on bodies.
 - Adami, S., Hu, X. Y. & Adams, N. A. (2012), "A generalized wall boundary condition for
   smoothed particle hydrodynamics", J. Comput. Phys. 231: the wall pressure extrapolated from
-  the fluid (Shepard average plus the body force), the default boundary pressure.
+  the fluid (Shepard average plus the body force): the wall's hydrostatic share of the default
+  "mirror" boundary pressure (pairwise), and the "extrapolated" mode.
 - Akinci, N., Akinci, G. & Teschner, M. (2013), "Versatile surface tension and adhesion for SPH
   fluids", ACM TOG 32(6): cohesion kernel and curvature (normal difference) force.
 - Monaghan, J. J. (2005), "Smoothed particle hydrodynamics", Rep. Prog. Phys. 68, and Morris,
@@ -73,14 +74,21 @@ Limitations
 - The DFSPH error is the mean over all particles (as in the paper): below the surface layers
   the compression is ~1.7x the tolerance (measured, hydrostatic column); the largest one is
   bounded separately (``local_density_tolerance``, default 10x).
-- Boundary pressure: Akinci's single term (default) leaves the fluid row on a wall at ~1.7x the
-  hydrostatic pressure; "extrapolated" (Adami et al. 2012's wall pressure, wall-normal body
-  force only, without the wall's acceleration) fixes it but compresses the start of a tall
-  column more (see ``boundary_pressure``). Band et al. 2018's linear MLS fit was tried
-  and ran away (with the cubic spline at h = dx a wall particle sees one row of fluid: the fit is
-  degenerate or amplifies the noise of the iteration). The rows within one support of a free
-  surface alternate by a few % (time average).
+- Boundary pressure: the default "mirror" (k_b = k_i plus the wall's hydrostatic share, pairwise,
+  without the wall's acceleration) holds the floor row at rho0 g (H - y); Akinci's single term
+  leaves it at ~1.7x; "extrapolated" (Adami et al. 2012's wall pressure, wall-normal body force
+  only) compresses the start of a tall column more (see ``boundary_pressure``). Band et al. 2018's
+  linear MLS fit was tried and ran away (with the cubic spline at h = dx a wall particle sees one
+  row of fluid: the fit is degenerate or amplifies the noise of the iteration). The rows within
+  one support of a free surface alternate by a few % (time average).
+- DFSPH: a block given without velocities starts with its hydrostatic pressure
+  (``hydrostatic_pressure``, the warm start of the first constant-density solve; the solve removes
+  what a block not at rest, e.g. in free fall, does not need); with velocities, from zero.
 - Body coupling is explicit (the body integrates the force of the step it was posed for).
+- Bodies are sampled as bands one support thick: fluid that gets deeper into a box or sphere is
+  pushed out through the nearest face after the advection (``kernels.push_out_of_cores``);
+  capsules, cylinders and hulls of moving bodies are not covered. The adaptive step does not see
+  the bodies' speeds (a fast body may cross a band in one step).
 - Particles are reordered every step: ``x``, ``v`` rows move; ``particle_id`` follows them.
 - The domain grid is dense: its cell count is capped at ``MAX_CELLS``.
 """
@@ -140,6 +148,23 @@ def sample_block(lo, hi, spacing: float) -> np.ndarray:
     if np.any(hi <= lo):
         raise ValueError(f"hi must be > lo on every axis; got lo={lo.tolist()}, hi={hi.tolist()}")
     return _lattice(lo, hi, spacing)
+
+
+def hydrostatic_pressure(x, gravity, spacing, rest_density):
+    """p_i = rho0 |g| (s_i - z_i) [Pa]: the hydrostatic pressure of particles x (N, D) at rest, z the
+    height against gravity and s the free surface above the particle, half a spacing over the
+    highest particle of its lateral column (columns one spacing wide across gravity)."""
+    x = np.asarray(x, float)
+    gmag = float(np.linalg.norm(gravity))
+    up = -np.asarray(gravity, float) / gmag
+    z = x @ up
+    lateral = x - z[:, None] * up
+    keys = np.round(lateral / spacing).astype(np.int64)
+    _, column = np.unique(keys, axis=0, return_inverse=True)
+    column = column.reshape(-1)
+    top = np.full(int(column.max()) + 1, -np.inf)
+    np.maximum.at(top, column, z)
+    return rest_density * gmag * (top[column] + 0.5 * spacing - z)
 
 
 def lattice_volume(kernel: str, dim: int, spacing: float, h: float) -> float:
@@ -205,11 +230,11 @@ class SPHFluid:
         (rho* - rho0)+ / rho0 is below it; WCSPH sets its sound speed from it
         (c = max_speed / sqrt(tolerance)).
     divergence_tolerance : float, default 1e-3: DFSPH divergence solve, mean (drho/dt)+ dt / rho0.
-    max_iterations : int, default 100 (per DFSPH solve; 2 minimum). With the extrapolated
-        boundary pressure the start of a tall column from rest needs ~100-300 iterations for a
-        few steps (full-strength walls); with 100 the unconverged solves halved the step and the
-        overshooting warm start lifted the 20 000-particle dam break's column (front 30 % ahead):
-        pass 300 there.
+    max_iterations : int, default 100 (per DFSPH solve; 2 minimum). A block at rest starts with
+        its hydrostatic pressure (1-3 iterations per solve for the first steps of a 20-row column;
+        from zero pressure up to ~140). In the small hydrostatic column at rest the relaxed Jacobi
+        stalls at a mean error of 1.0-1.2x the tolerance in ~2 % of the steps with 100 (measured;
+        400 meets it every step).
     max_speed : float [m/s], WCSPH only: the largest expected flow speed; default
         sqrt(2 |g| H) with H the fluid's initial extent along gravity.
     dt : float [s] or None: fixed step (checked against the CFL/viscosity/acoustic limits
@@ -231,8 +256,13 @@ class SPHFluid:
         the flow's speed scale max(max_speed, sqrt(2 |g| domain height), initial speeds,
         spacing / dt_max). Also raised: an adaptive step below 1e-3 of ``cfl spacing /
         speed scale``.
-    boundary_pressure : "akinci" (default), "extrapolated" or "mirror": the pressure of the
+    boundary_pressure : "mirror" (default), "akinci" or "extrapolated": the pressure of the
         boundary particles b in the symmetric pressure term -sum_b psi_b (k_i + k_b) grad W_ib.
+        "mirror": k_b = k_i (pressure mirroring) plus the wall's hydrostatic share
+        rho_i g . (x_b - x_i) once per step (``kernels.boundary_hydrostatic_kick``, Adami et al.
+        2012 pairwise); the DFSPH factor keeps Akinci's diagonal |a + b|^2 (see ``step``).
+        Hydrostatic column over 1-10 s (defaults, max_iterations=400): floor row 1.009, rows
+        0.97-1.05 of rho0 g (H - y), floor load 0.974 of the weight (measured 2026-11-27).
         "extrapolated": k_b = p_b / rho0^2 with p_b the Shepard average of the neighbouring fluid
         pressures plus the wall-normal body-force share rho (g . n_b)(n_b . (x_b - x_f)) (Adami,
         Hu & Adams 2012, normal part only), applied with the warm start of each DFSPH solve; the
@@ -240,15 +270,13 @@ class SPHFluid:
         k_i + hydrostatic share; see ``kernels``. Hydrostatic column: floor row 1.04, rows
         0.97-1.05 (1-4 s); 20 000-particle dam break to T = 3 with the front within the coarse
         test's bounds with max_iterations=300 (measured). Not the default: a 200-row column
-        from rest compresses by 12 % in its start transient (Akinci: < 10 %).
+        from rest compressed by 12 % in its start transient (before the hydrostatic start).
         "akinci": k_b = 0, a_i = -k_i sum_b psi_b grad W_ib (Akinci et al. 2012, as
         SPlisHSPlasH's DFSPH): a wall carries its load with half the per-unit-pressure push, so
-        the fluid row on a floor holds ~1.7x rho0 g (H - y). "mirror": k_b = k_i (pressure
-        mirroring) plus the wall-normal hydrostatic share once per step
-        (``boundary_hydrostatic_kick``); 5 % in every row needs ``warm_start_divergence``.
+        the fluid row on a floor holds ~1.7x rho0 g (H - y) (the default until 2026-11-27).
     warm_start_divergence : bool, default False: start the divergence solve from the previous
         step's k (Bender & Koschier 2017; the density solve always is). At rest the two solves
-        then share the hydrostatic load (needed with "mirror" for 5 % in every row), but in the
+        then share the hydrostatic load, but in the
         20 000-particle dam break it shot surface particles at the wall out at 100+ m/s at
         t = 0.33 s (measured; without it the run reaches T = 3), hence off by default.
     """
@@ -258,7 +286,7 @@ class SPHFluid:
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
                  divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
                  dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
-                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="akinci",
+                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="mirror",
                  warm_start_divergence=False):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
@@ -405,6 +433,12 @@ class SPHFluid:
         self._F.x[:n] = x0
         if velocities is not None:
             self._F.v[:n] = _validate.as_points(velocities, "velocities", dim=dim, count=n)
+        elif method == "dfsph" and gmag > 0 and n:
+            # a block at rest starts with its hydrostatic pressure as the warm start of the first
+            # constant-density solve (from zero, the first solves of a 20-row column needed up to ~140
+            # iterations, 1-3 with it; a 200-row column was compressed by 8-10 % in its first steps)
+            self._F.k_dens[:n] = hydrostatic_pressure(x0, self.gravity, self.spacing, self.rest_density) / \
+                self.rest_density ** 2
         self._id = np.full(cap, -1, np.int64)
         self._id[:n] = np.arange(n)
         self._next_id = n
@@ -437,6 +471,7 @@ class SPHFluid:
         self._pending_state = None
         self.body_force = np.zeros((0, 3))
         self.body_torque = np.zeros((0, 3))
+        self._cores = []           # (body, type 0 sphere / 1 box, centre (3,), rotation (3, 3), size (3,))
 
         self.time = 0.0
         self.step_count = 0
@@ -529,6 +564,9 @@ class SPHFluid:
         self._bodies.append((p.copy(), rot3))
         normal = _unit_rows(collider.normal(world[keep])) @ rot if keep.any() else np.zeros((0, self.dim))
         self._add_part(world[keep], body, self._noslip(slip, boundary_viscosity), local[keep], normal)
+        size = np.zeros(3)
+        size[:self.dim] = half
+        self._cores.append((body, 1 if isinstance(collider, Box) else 0, np.zeros(3), np.eye(3), size))
         count = len(self._bodies)
         self.body_force = np.zeros((count, 3))
         self.body_torque = np.zeros((count, 3))
@@ -567,6 +605,16 @@ class SPHFluid:
                            np.ascontiguousarray(normal))
             count += world.shape[0]
         nbody = int(model.body_count)
+        self._cores = coupling.solid_cores(model)
+        # a box spanning a periodic axis (the 2-D slabs) has no faces on it
+        length = self.domain_hi - self.domain_lo
+        rot0 = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
+        for body, kind, _, rs, size in self._cores:
+            axes = rot0[body] @ rs
+            for d in np.flatnonzero(self.periodic) if kind == 1 else ():
+                for e in range(3):
+                    if abs(axes[d, e]) > 0.999 and 2 * size[e] >= length[d] - self.spacing:
+                        size[e] = np.inf
         rot = coupling.quat_to_matrices(body_q[:, 3:7]) if nbody else np.zeros((0, 3, 3))
         self._bodies = [(np.asarray(body_q[k, :3], float).copy(), rot[k]) for k in range(nbody)]
         self._body_x = np.array(body_q[:, :3], float).reshape(nbody, 3)
@@ -853,6 +901,11 @@ class SPHFluid:
         self._k0_dens = np.zeros(self.capacity)   # k_dens / k_div at the start of this step's solves
         self._k0_div = np.zeros(self.capacity)
         self._bodies_moved = bool(self._bodies)
+        c = self._cores
+        self._core_arrays = (np.array([e[0] for e in c], np.int64), np.array([e[1] for e in c], np.int64),
+                             np.array([e[2] for e in c], float).reshape(-1, 3),
+                             np.array([e[3] for e in c], float).reshape(-1, 3, 3),
+                             np.array([e[4] for e in c], float).reshape(-1, 3))
         self._sort_boundary()
 
     def _alloc_transpose(self, m):
@@ -1056,10 +1109,13 @@ class SPHFluid:
             self._boundary_lists()
         t0 = self._tick("neighbours", t0)
         # 3. density
-        # the factor's boundary weight: Akinci's (1) also for "extrapolated", whose increments are
-        # mirrored (2): |a + b|^2 + s >= s; with the mirrored diagonal the rows near the surface of
-        # the hydrostatic column alternated by +-5 % (measured over 10 s)
-        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, self._mirror)
+        # the factor's boundary weight: Akinci's (1) in every mode, also where the increments are
+        # mirrored (2): |a + b|^2 + s >= s. The mirrored diagonal (a + 2b) . (a + b) + s is smaller
+        # where b . (a + b) < 0 (a particle drawn off a wall), down to 0: the Jacobi steps there
+        # rattled particles against the slip walls of the 200-row column (one-step compressions
+        # of 6.8 % late in its collapse, 3.8 % with this one, both started from zero pressure),
+        # and the sinking dense 2-D box diverged; extrapolated: rows near the surface alternated
+        self._K.density_and_factor(F, nf, nb, B, n, m, self._w0, self._factor_eps, 1.0)
         t0 = self._tick("density", t0)
         # 4. dt
         self._K.speed_squared(F.v, n, self._tmp1)
@@ -1143,6 +1199,10 @@ class SPHFluid:
         t0 = self._tick("bodies", t0)
         # 9. advect, emit, check
         self._K.advect(F, self.grid, n, dt)
+        if self._cores:   # fluid that got through a thick body's band into its hollow core
+            self.stats["pushed_out"] = self.stats.get("pushed_out", 0) + _k.push_out_of_cores(
+                F, n, *self._core_arrays, self._body_x, self._body_rot, self._body_v, self._body_w,
+                self.support, 0.5 * self.spacing)
         if self._emitters:
             self._emit(dt)
         self._K.speed_squared(F.v, self._n, self._tmp1)

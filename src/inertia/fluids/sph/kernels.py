@@ -910,3 +910,74 @@ def rotate_boundary_normals(nrest, body, body_rot, normal):
                 for e in range(dim):
                     s += body_rot[k, d, e] * nrest[b, e]
                 normal[b, d] = s
+
+
+# --------------------------------------------------------------------------- hollow body cores
+@njit(cache=True)
+def push_out_of_cores(F, n, core_body, core_type, core_c, core_r, core_size, body_x, body_rot, body_v,
+                      body_w, depth, offset):
+    """Fluid particles inside a body's solid deeper than ``depth`` (its boundary band is one kernel
+    support thick; the core beyond it holds no boundary particles, and fluid that got through the
+    band, e.g. squeezed between a sinking box and the floor, stayed there) are moved out along
+    the shape's outward normal to the signed distance ``offset`` (half a spacing, where the first
+    fluid row sits) and take the body's velocity there. Shapes (box 1, sphere 0) in the body frame:
+    centre core_c (K, 3), rotation core_r (K, 3, 3) (shape -> body), half extents / radius
+    core_size (K, 3). Serial, no allocation (few particles move; the same bits at any thread
+    count). Returns the number of particles moved."""
+    dim = F.x.shape[1]
+    moved = 0
+    for i in range(n):
+        for s in range(core_body.shape[0]):
+            k = core_body[s]
+            d0 = F.x[i, 0] - body_x[k, 0]
+            d1 = F.x[i, 1] - body_x[k, 1]
+            d2 = (F.x[i, 2] - body_x[k, 2]) if dim == 3 else 0.0
+            # world -> body (R^T d) -> shape frame (R_s^T (b - c))
+            b0 = body_rot[k, 0, 0] * d0 + body_rot[k, 1, 0] * d1 + body_rot[k, 2, 0] * d2 - core_c[s, 0]
+            b1 = body_rot[k, 0, 1] * d0 + body_rot[k, 1, 1] * d1 + body_rot[k, 2, 1] * d2 - core_c[s, 1]
+            b2 = body_rot[k, 0, 2] * d0 + body_rot[k, 1, 2] * d1 + body_rot[k, 2, 2] * d2 - core_c[s, 2]
+            p0 = core_r[s, 0, 0] * b0 + core_r[s, 1, 0] * b1 + core_r[s, 2, 0] * b2
+            p1 = core_r[s, 0, 1] * b0 + core_r[s, 1, 1] * b1 + core_r[s, 2, 1] * b2
+            p2 = core_r[s, 0, 2] * b0 + core_r[s, 1, 2] * b1 + core_r[s, 2, 2] * b2
+            if core_type[s] == 0:   # sphere: radially out
+                r = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
+                if r - core_size[s, 0] >= -depth:
+                    continue
+                if r > 0.0:
+                    f = (core_size[s, 0] + offset) / r
+                    p0, p1, p2 = p0 * f, p1 * f, p2 * f
+                elif dim == 3:
+                    p2 = core_size[s, 0] + offset
+                else:
+                    p1 = core_size[s, 0] + offset
+            else:                   # box: out through the nearest face (largest |p_e| - half_e)
+                q0 = abs(p0) - core_size[s, 0]
+                q1 = abs(p1) - core_size[s, 1]
+                q2 = (abs(p2) - core_size[s, 2]) if dim == 3 else -np.inf
+                best = max(q0, max(q1, q2))
+                if best >= -depth:
+                    continue
+                if q0 == best:
+                    p0 = (core_size[s, 0] + offset) * (1.0 if p0 >= 0.0 else -1.0)
+                elif q1 == best:
+                    p1 = (core_size[s, 1] + offset) * (1.0 if p1 >= 0.0 else -1.0)
+                else:
+                    p2 = (core_size[s, 2] + offset) * (1.0 if p2 >= 0.0 else -1.0)
+            # back to the world: x = body_x + R (c + R_s p), v = v_body + w x (x - body_x)
+            b0 = core_c[s, 0] + core_r[s, 0, 0] * p0 + core_r[s, 0, 1] * p1 + core_r[s, 0, 2] * p2
+            b1 = core_c[s, 1] + core_r[s, 1, 0] * p0 + core_r[s, 1, 1] * p1 + core_r[s, 1, 2] * p2
+            b2 = core_c[s, 2] + core_r[s, 2, 0] * p0 + core_r[s, 2, 1] * p1 + core_r[s, 2, 2] * p2
+            r0 = body_rot[k, 0, 0] * b0 + body_rot[k, 0, 1] * b1 + body_rot[k, 0, 2] * b2
+            r1 = body_rot[k, 1, 0] * b0 + body_rot[k, 1, 1] * b1 + body_rot[k, 1, 2] * b2
+            r2 = body_rot[k, 2, 0] * b0 + body_rot[k, 2, 1] * b1 + body_rot[k, 2, 2] * b2
+            F.x[i, 0] = body_x[k, 0] + r0
+            F.x[i, 1] = body_x[k, 1] + r1
+            wx, wy, wz = body_w[k, 0], body_w[k, 1], body_w[k, 2]
+            F.v[i, 0] = body_v[k, 0] + wy * r2 - wz * r1
+            F.v[i, 1] = body_v[k, 1] + wz * r0 - wx * r2
+            if dim == 3:
+                F.x[i, 2] = body_x[k, 2] + r2
+                F.v[i, 2] = body_v[k, 2] + wx * r1 - wy * r0
+            moved += 1
+            break
+    return moved
