@@ -11,11 +11,10 @@ floating boxes run on vertical guides (their rotation is held: free, these light
 after about 2 s, the added-mass instability of the explicit coupling; ``--free`` lets them).
 Writes ``sph_boxes_in_tank.png`` (side views at four times, water coloured by speed, boxes
 brown, the Archimedes waterline of each floating box as a white bar) and prints the drafts.
-Known problems (2026-11-25): the floating boxes drift sideways (the 0.5 one to the wall, which
-spoils its printed draft); the dense box hits the floor fast and fluid particles get through its
-boundary band (one kernel support thick) into its hollow core (drawn as stripes inside it); a
-4 s run then stopped with SimulationDiverged in the rigid step at t = 2.85 s. The default
-duration is 2.5 s until that is fixed.
+Known problems (2026-11-25, partly fixed 2026-11-27): the floating boxes drift sideways (the 0.5
+one to the wall, which spoils its printed draft). Fluid that got through the dense box's boundary band
+into its hollow core is now pushed back out (``kernels.push_out_of_cores``). The default duration stays
+2.5 s: a 4 s run had stopped with SimulationDiverged in the rigid step at t = 2.85 s.
 """
 
 from __future__ import annotations
