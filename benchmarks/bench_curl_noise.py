@@ -262,7 +262,7 @@ def threshold():
     empty = _no_boundaries(3)
 
     def call(kernel, pts, out):
-        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, *empty,
+        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, field._codes, *empty,
                field.mean_velocity, out, 0.25, p.kind_code, p.frequency, p.lacunarity, p.gain,
                p.octaves, p.time_frequency, field._scale, field.boundary_width)
 

@@ -91,7 +91,7 @@ from .._validate import as_points, as_vector, positive_scalar
 from ..collision.shapes import Plane, Sphere
 from . import kernels as K
 from .base import Field
-from .noise import NoiseParameters, component_gradients, lattice_tables
+from .noise import NoiseParameters, component_gradients, gradient_codes, lattice_tables
 
 __all__ = ["CurlNoise"]
 
@@ -164,6 +164,9 @@ class CurlNoise(Field):
         self._perm, self._offsets = lattice_tables(self.params.seed, 1, self.params.octaves)
         self._grads = component_gradients(self.params.seed, self.components, self.lattice_dim)
         self._table = np.ascontiguousarray(self._grads.transpose(1, 0, 2))
+        # 3-D Perlin reads the same gradients packed per corner (``gradient_codes``).
+        self._codes = (gradient_codes(self._table, self._perm) if self.dim == 3
+                       else np.empty(0, np.int64))
         self._scale = self.params.scale(self.lattice_dim)
         # Calibrate: scale the unit-amplitude potential so that the RMS speed is `speed`.
         unit_rms = self._unit_rms_speed()
@@ -200,6 +203,7 @@ class CurlNoise(Field):
         p = self.params
         # The serial build: a scene with a few tracers then never compiles the parallel one.
         self._kernel.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
+                            self._codes,
                             *_no_boundaries(D), np.zeros(D), out,
                             0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                             p.time_frequency, self._scale, 1.0)
@@ -212,7 +216,8 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, *bnd,
+        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, self._codes,
+                     *bnd,
                      self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, self.boundary_width)
