@@ -164,9 +164,10 @@ class CurlNoise(Field):
         self._perm, self._offsets = lattice_tables(self.params.seed, 1, self.params.octaves)
         self._grads = component_gradients(self.params.seed, self.components, self.lattice_dim)
         self._table = np.ascontiguousarray(self._grads.transpose(1, 0, 2))
-        # 3-D Perlin reads the same gradients packed per corner (``gradient_codes``).
-        self._codes = (gradient_codes(self._table, self._perm) if self.dim == 3
-                       else np.empty(0, np.int64))
+        # 3-D Perlin reads the same gradients packed per corner (``gradient_codes``); None
+        # (simplex, 2-D) keeps the Perlin block walk out of the compiled kernel, and the reverse.
+        self._codes = (gradient_codes(self._table, self._perm)
+                       if self.dim == 3 and self.params.kind == "perlin" else None)
         self._scale = self.params.scale(self.lattice_dim)
         # Calibrate: scale the unit-amplitude potential so that the RMS speed is `speed`.
         unit_rms = self._unit_rms_speed()

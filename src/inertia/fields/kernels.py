@@ -994,8 +994,8 @@ def perlin_block(points, s0, n, f, o0, o1, o2, w, timed, perm, codes, a, af, wor
 
 
 @njit(cache=True, fastmath=_FAST)
-def potential3_block(points, s0, n, t, offsets, perm, table, codes, kind, frequency, lacunarity,
-                     gain, octaves, time_frequency, scale, work, ints):
+def potential3_block(points, s0, n, t, offsets, perm, table, codes, frequency, lacunarity, gain,
+                     octaves, time_frequency, scale, work, ints):
     """Fractal vector potential psi and its Jacobian at the 3-D points s0 .. s0 + n - 1 and
     time t, into rows 9-20 of the flat scratch work (21 _BLOCK,): row 9 + c = psi_c,
     row 12 + 3 c + b = d psi_c / d x_b (rows 0-8 are scratch; ints (16 _BLOCK,) int64 too).
@@ -1004,40 +1004,46 @@ def potential3_block(points, s0, n, t, offsets, perm, table, codes, kind, freque
 
     offsets is (octaves, 4): one lattice offset per octave, shared by the components. Every
     octave's lattice walk serves all three components (the ``*_block`` kernels above).
-    Perlin reads the gradients from `codes` (`perlin_block`), scaled by `unit`, the magnitude
-    of the table's nonzero entries (1/sqrt 2 in 3-D, 1/sqrt 3 in 4-D: ``noise.py``).
+    codes None: simplex noise (gradients from `table`); else improved Perlin noise, which reads
+    the gradients from `codes` (`perlin_block`) scaled by `unit`, the magnitude of the table's
+    nonzero entries (1/sqrt 2 in 3-D, 1/sqrt 3 in 4-D: ``noise.py``).
     """
     B = _BLOCK
     timed = time_frequency != 0.0
     for r in range(9 * B, 21 * B):
         work[r] = 0.0
     acc = work[9 * B:].reshape((12, B))
-    unit = 0.0
-    if kind != KIND_SIMPLEX:
-        for h in range(table.shape[0]):
-            for c in range(table.shape[1]):
-                for b in range(table.shape[2]):
-                    unit = max(unit, abs(table[h, c, b]))
     f = frequency
     ft = time_frequency
     a = scale
-    for o in range(octaves):
-        w = t * ft + offsets[o, 3]
-        if kind == KIND_SIMPLEX:
-            fs = work[:9 * B].reshape((9, B))
-            js = ints[:8 * B].reshape((8, B))
+    # `codes is None` is decided when Numba compiles: a scene compiles one kind's path only.
+    if codes is None:
+        fs = work[:9 * B].reshape((9, B))
+        js = ints[:8 * B].reshape((8, B))
+        for o in range(octaves):
+            w = t * ft + offsets[o, 3]
             if timed:
                 simplex4_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w,
                                perm, table, a, a * f, acc, fs, js)
             else:
                 simplex3_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2],
                                perm, table, a, a * f, acc, fs, js)
-        else:
+            f *= lacunarity
+            ft *= lacunarity
+            a *= gain
+    else:
+        unit = 0.0
+        for h in range(table.shape[0]):
+            for c in range(table.shape[1]):
+                for b in range(table.shape[2]):
+                    unit = max(unit, abs(table[h, c, b]))
+        for o in range(octaves):
+            w = t * ft + offsets[o, 3]
             perlin_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w, timed,
                          perm, codes, a * unit, a * f * unit, work, ints)
-        f *= lacunarity
-        ft *= lacunarity
-        a *= gain
+            f *= lacunarity
+            ft *= lacunarity
+            a *= gain
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1099,8 +1105,10 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
     per octave):
       2-D: scalar psi, the noise with gradients `grads` (256, 2);   v = (dpsi/dy, -dpsi/dx)
       3-D: psi = (psi0, psi1, psi2), three noises on the same lattice points with the gradient
-           tables table[:, c] (256, 3, D) (Perlin: the same tables as the codes (512,) int64 of
-           ``noise.gradient_codes``), one lattice walk per octave (`potential3_block`);
+           tables table[:, c] (256, 3, D) (Perlin: also as codes (512,) int64 of
+           ``noise.gradient_codes``; codes is None for simplex and in 2-D, so that a scene
+           compiles only its own kind's lattice walk), one lattice walk per octave
+           (`potential3_block`);
            v = curl psi
     Boundaries: point i has bnd_count[i] walls within `boundary_width` = d0, at rows
     slot[i] .. slot[i] + bnd_count[i] - 1 of the bnd_* arrays (slot[i] = -1: none). Wall k has
@@ -1146,7 +1154,7 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
     acc = work[9 * _BLOCK:].reshape((12, _BLOCK))
     for s0 in range(start, stop, _BLOCK):
         n_block = min(_BLOCK, stop - s0)
-        potential3_block(points, s0, n_block, t, shared, perm, table, codes, kind, frequency,
+        potential3_block(points, s0, n_block, t, shared, perm, table, codes, frequency,
                          lacunarity, gain, octaves, time_frequency, scale, work, ints)
         for e in range(n_block):
             i = s0 + e
