@@ -10,11 +10,14 @@ it is incompressible by construction; its derivatives are the analytic derivativ
 The three 3-D potentials sample the same lattice points (one seeded offset per octave) with
 three gradient tables (``noise.component_gradients``: zero mean, exactly zero covariance
 between tables), so each octave's lattice walk (cell, corner hashes and weights) serves all
-three and a corner costs three dot products; simplex noise walks the lattice for a block of
-128 points at a time, corner by corner without branches (``kernels.potential3_block``). At
-10^6 points, 3 octaves, one thread, against inertia before the batched walk (commit
-13a834f): simplex 3.3-4.4 times faster (steady or time-varying, free, sphere or container),
-Perlin 2.2-3.1 times (``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each potential is
+three and a corner costs three dot products. Both kinds walk the lattice for a block of 128
+points at a time, corner by corner without branches (``kernels.potential3_block``); Perlin
+reads each corner's three gradients as one packed code (``noise.gradient_codes``), so its
+corner loop has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against
+inertia before the batched walk (commit 13a834f), median of two interleaved rounds on a
+shared 2-core machine (load average 4.5-8.6): simplex 2.5-3.2 times faster, Perlin 2.3-3.9
+times (steady or time-varying, free, sphere or container; ``benchmarks/bench_curl_noise.py
+--compare-with``, CPU time; nearly idle, simplex measured 3.1-4.1 times). Each potential is
 still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
