@@ -17,8 +17,8 @@ corner loop has no gather and vectorises. At 10^6 points, 3 octaves, one thread,
 inertia before the batched walk (commit 13a834f), median of two interleaved rounds on a
 shared 2-core machine (load average 4.5-8.6): simplex 2.5-3.2 times faster, Perlin 2.3-3.9
 times (steady or time-varying, free, sphere or container; ``benchmarks/bench_curl_noise.py
---compare-with``, CPU time; nearly idle, simplex measured 3.1-4.1 times). Each potential is
-still a gradient noise with the range and statistics of ``noise.py``.
+--compare-with``, CPU time; with less load the simplex walk measured 3.1-4.1 times). Each
+potential is still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
 walls within the boundary width d0: a collider is one wall, a ``Container`` one wall per plane
