@@ -22,7 +22,8 @@ with gradient per point):
 ``--threads 2`` for the wall clock on two threads),
 alternating, round by round, between this source tree and another one (for instance
 ``/work/main/src``, before the batched lattice walk) in subprocesses, and prints each
-configuration's best time on both and their ratio: both trees see the same machine load.
+configuration's median over rounds (of each round's best time) on both and their ratio,
+and the ratio of the best times: both trees see the same machine load.
 
     python benchmarks/bench_curl_noise.py --compare-with /work/main/src --rounds 3
 
@@ -230,7 +231,7 @@ def compare(args):
     """The sampling table on this tree and on args.compare_with, alternating round by round."""
     here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "src")
     trees = {"this": os.path.abspath(here), "other": os.path.abspath(args.compare_with)}
-    best = {"this": {}, "other": {}}
+    runs = {"this": {}, "other": {}}  # label -> each round's best of --repeat
     for r in range(args.rounds):
         for name, src in trees.items():
             env = dict(os.environ, PYTHONPATH=src, NUMBA_NUM_THREADS=str(args.threads))
@@ -241,16 +242,19 @@ def compare(args):
                                   "--points", str(args.points), "--repeat", str(args.repeat)],
                                  env=env, capture_output=True, text=True, check=True)
             for label, s in json.loads(run.stdout.strip().splitlines()[-1]).items():
-                best[name][label] = min(s, best[name].get(label, np.inf))
+                runs[name].setdefault(label, []).append(s)
         print(f"round {r + 1} of {args.rounds} done, load average {os.getloadavg()[0]:.1f}", flush=True)
     M = args.points
     clock = "CPU time" if args.threads == 1 else "wall clock"
-    print(f"3-D curl-noise, 3 octaves, {M:,} points, {args.threads} thread(s), {clock}, best of "
-          f"{args.rounds} rounds x {args.repeat}: this tree {trees['this']}, other {trees['other']}")
-    print(f"{'configuration':30s} {'other Mpts/s':>12s} {'this Mpts/s':>12s} {'speed-up':>9s}")
-    for label in best["this"]:
-        a, b = best["other"].get(label, np.nan), best["this"][label]
-        print(f"{label:30s} {M / a / 1e6:12.2f} {M / b / 1e6:12.2f} {a / b:8.2f}x")
+    print(f"3-D curl-noise, 3 octaves, {M:,} points, {args.threads} thread(s), {clock}, "
+          f"{args.rounds} rounds x best of {args.repeat}: this tree {trees['this']}, other "
+          f"{trees['other']}; speed-up of the medians over rounds (and of the bests)")
+    print(f"{'configuration':30s} {'other Mpts/s':>12s} {'this Mpts/s':>12s} {'speed-up':>9s} {'(best)':>8s}")
+    for label in runs["this"]:
+        a = np.median(runs["other"].get(label, [np.nan]))
+        b = np.median(runs["this"][label])
+        best = min(runs["other"].get(label, [np.nan])) / min(runs["this"][label])
+        print(f"{label:30s} {M / a / 1e6:12.2f} {M / b / 1e6:12.2f} {a / b:8.2f}x {best:7.2f}x")
 
 
 def threshold():
@@ -262,7 +266,7 @@ def threshold():
     empty = _no_boundaries(3)
 
     def call(kernel, pts, out):
-        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, *empty,
+        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, field._codes, *empty,
                field.mean_velocity, out, 0.25, p.kind_code, p.frequency, p.lacunarity, p.gain,
                p.octaves, p.time_frequency, field._scale, field.boundary_width)
 

@@ -209,3 +209,23 @@ def test_component_gradient_tables_are_balanced_and_uncorrelated(D):
     # Different seeds give different tables 1 and 2; the same seed the same.
     np.testing.assert_array_equal(component_gradients(7, 3, D), T)
     assert np.any(component_gradients(8, 3, D)[1] != T[1])
+
+
+@pytest.mark.parametrize("D", [3, 4])
+def test_gradient_codes_decode_to_the_tables(D):
+    # 3-D Perlin curl-noise reads its gradients as 2-bit codes (kernels.perlin_block):
+    # entry (c, k) of the corner reached through perm[x] is u * (((codes[x] >> (8 c + 2 k)) & 3) - 1),
+    # u the tables' one nonzero magnitude (1/sqrt(D - 1)). Decoding every code must give back
+    # table[perm[x]] exactly, and entries the table lacks (k = 3 in 3-D) must decode to 0.
+    from inertia.fields.noise import component_gradients, gradient_codes, lattice_tables
+    perm, _ = lattice_tables(5, 1, 1)
+    table = np.ascontiguousarray(component_gradients(5, 3, D).transpose(1, 0, 2))  # (256, 3, D)
+    codes = gradient_codes(table, perm)
+    assert codes.shape == (512,) and codes.dtype == np.int64
+    u = 1.0 / np.sqrt(D - 1.0)
+    shifts = 8 * np.arange(3)[:, None] + 2 * np.arange(4)[None, :]
+    decoded = u * (((codes[:, None, None] >> shifts) & 3) - 1)  # (512, 3, 4)
+    np.testing.assert_array_equal(decoded[:, :, :D], table[perm])
+    assert np.all(decoded[:, :, D:] == 0.0)
+    with pytest.raises(ValueError, match="0 or \\+-u"):
+        gradient_codes(table * np.linspace(1.0, 2.0, 256)[:, None, None], perm)

@@ -10,12 +10,15 @@ it is incompressible by construction; its derivatives are the analytic derivativ
 The three 3-D potentials sample the same lattice points (one seeded offset per octave) with
 three gradient tables (``noise.component_gradients``: zero mean, exactly zero covariance
 between tables), so each octave's lattice walk (cell, corner hashes and weights) serves all
-three and a corner costs three dot products; simplex noise walks the lattice for a block of
-128 points at a time, corner by corner without branches (``kernels.potential3_block``). At
-10^6 points, 3 octaves, one thread, against inertia before the batched walk (commit
-13a834f): simplex 3.3-4.4 times faster (steady or time-varying, free, sphere or container),
-Perlin 2.2-3.1 times (``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each potential is
-still a gradient noise with the range and statistics of ``noise.py``.
+three and a corner costs three dot products. Both kinds walk the lattice for a block of 128
+points at a time, corner by corner without branches (``kernels.potential3_block``); Perlin
+reads each corner's three gradients as one packed code (``noise.gradient_codes``), so its
+corner loop has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against
+inertia before the batched walk (commit 13a834f), median of two interleaved rounds on a
+shared 2-core machine (load average 4.5-8.6): simplex 2.5-3.2 times faster, Perlin 2.3-3.9
+times (steady or time-varying, free, sphere or container; ``benchmarks/bench_curl_noise.py
+--compare-with``, CPU time; with less load the simplex walk measured 3.1-4.1 times). Each
+potential is still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
 walls within the boundary width d0: a collider is one wall, a ``Container`` one wall per plane
@@ -91,7 +94,7 @@ from .._validate import as_points, as_vector, positive_scalar
 from ..collision.shapes import Plane, Sphere
 from . import kernels as K
 from .base import Field
-from .noise import NoiseParameters, component_gradients, lattice_tables
+from .noise import NoiseParameters, component_gradients, gradient_codes, lattice_tables
 
 __all__ = ["CurlNoise"]
 
@@ -164,6 +167,10 @@ class CurlNoise(Field):
         self._perm, self._offsets = lattice_tables(self.params.seed, 1, self.params.octaves)
         self._grads = component_gradients(self.params.seed, self.components, self.lattice_dim)
         self._table = np.ascontiguousarray(self._grads.transpose(1, 0, 2))
+        # 3-D Perlin reads the same gradients packed per corner (``gradient_codes``); None
+        # (simplex, 2-D) keeps the Perlin block walk out of the compiled kernel, and the reverse.
+        self._codes = (gradient_codes(self._table, self._perm)
+                       if self.dim == 3 and self.params.kind == "perlin" else None)
         self._scale = self.params.scale(self.lattice_dim)
         # Calibrate: scale the unit-amplitude potential so that the RMS speed is `speed`.
         unit_rms = self._unit_rms_speed()
@@ -200,6 +207,7 @@ class CurlNoise(Field):
         p = self.params
         # The serial build: a scene with a few tracers then never compiles the parallel one.
         self._kernel.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
+                            self._codes,
                             *_no_boundaries(D), np.zeros(D), out,
                             0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                             p.time_frequency, self._scale, 1.0)
@@ -212,7 +220,8 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, *bnd,
+        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, self._codes,
+                     *bnd,
                      self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                      p.time_frequency, self._scale, self.boundary_width)

@@ -697,13 +697,15 @@ def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
 # with n_c in lattice units (af = a f: the chain rule of x -> f x + s); the time axis'
 # derivative is never needed. Per corner with weight W(x) and offset d:
 #   n_c += W (g_c . d),   dn_c/dx_b += dW/dx_b (g_c . d) + W g_cb.
-# Simplex, structure of arrays: a first loop over the block finds each point's cell and ranks
-# into the scratch rows fs (float) and js (int); then, corner by corner, a second loop over the
-# block adds that corner's terms. The per-corner loops have no branch (a corner outside its
-# kernel radius gets weight max(q, 0)^4 = 0), so they pipeline (and in part vectorise) across
-# points: 1.5-1.7 times faster than one point at a time. Perlin keeps the point-by-point sweep
-# (`perlin3_batch`, `perlin4_batch`), whose corners share the hash chain's inner lookups; a
-# structure-of-arrays Perlin sweep measured slower.
+# Both kinds work on structures of arrays: a first loop over the block finds each point's cell
+# and its ranks (simplex) or fractions, fades, fade derivatives and corner codes (Perlin) into
+# scratch rows; then, corner by corner, a second loop over the block adds that corner's terms.
+# The per-corner loops have no branch (a simplex corner outside its kernel radius gets weight
+# max(q, 0)^4 = 0), so they pipeline and vectorise across points. Simplex reads the gradients
+# from `table` (1.5-1.7 times faster than one point at a time); Perlin decodes them from a
+# 2-bit-per-entry code per corner (`perlin_block`), which leaves its corner loop without
+# gathers, so it vectorises (a Perlin sweep that gathered the table measured slower than one
+# point at a time).
 # ---------------------------------------------------------------------------------------------
 
 # Points per structure-of-arrays block: the scratch rows stay in the L1 cache.
@@ -855,181 +857,193 @@ def simplex4_block(points, s0, n, f, o0, o1, o2, w, perm, table, a, af, acc, fs,
             acc[11, e] += wz * u2 + Wf * g22
 
 
-@njit(cache=True, fastmath=_FAST, inline="never")
-def perlin3_batch(x, y, z, perm, table):
-    """Three 3-D improved Perlin noises (shared lattice, own gradients) and their gradients."""
-    fx = math.floor(x)
-    fy = math.floor(y)
-    fz = math.floor(z)
-    i = np.int64(fx) & 255
-    j = np.int64(fy) & 255
-    k = np.int64(fz) & 255
-    ux = x - fx
-    uy = y - fy
-    uz = z - fz
-    sx, dsx, _ = _fade(ux)
-    sy, dsy, _ = _fade(uy)
-    sz, dsz, _ = _fade(uz)
-    # The hash chain's inner lookups are shared by the corners: 2 + 4 + 8 reads, not 24.
-    hz0 = perm[k]
-    hz1 = perm[k + 1]
-    n0 = n1 = n2 = 0.0
-    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
-    for bz in range(2):
-        hz = hz1 if bz else hz0
-        dz = uz - bz
-        wz = sz if bz else 1.0 - sz
-        dwz = dsz if bz else -dsz
-        for by in range(2):
-            hy = perm[j + by + hz]
-            dy = uy - by
-            wy = sy if by else 1.0 - sy
-            dwy = dsy if by else -dsy
+@njit(cache=True, fastmath=_FAST, inline="always")
+def _perlin_pass(work, codes, row, n, a, af, dw, timed):
+    """The 8 corners of one lattice slice (codes rows row .. row + 7) for the points of the
+    block, added to the accumulators work[9 * _BLOCK:]; see `perlin_block`.
+
+    Corner (bx, by, bz) has the weight W = w_x w_y w_z, w = s or 1 - s (s the fade), so
+    w = o + q s with o = 1 - b, q = 2 b - 1 per axis, and dW/dx = q s'_x w_y w_z; its
+    offset is d = u - b (u the fraction in the cell), d_w = dw on the time axis (`timed`).
+    Gradient entry (c, k) is unit * (((code >> (8 c + 2 k)) & 3) - 1): decoded in registers,
+    so the loop over the block has no table gather and no branch, and vectorises.
+    """
+    B = _BLOCK
+    for c in range(8):
+        bx = float(c & 1)
+        by = float((c >> 1) & 1)
+        bz = float((c >> 2) & 1)
+        qx = 2.0 * bx - 1.0
+        qy = 2.0 * by - 1.0
+        qz = 2.0 * bz - 1.0
+        r = (row + c) * B
+        for e in range(n):
+            dx = work[e] - bx
+            dy = work[B + e] - by
+            dz = work[2 * B + e] - bz
+            wx = 1.0 - bx + qx * work[3 * B + e]
+            wy = 1.0 - by + qy * work[4 * B + e]
+            wz = 1.0 - bz + qz * work[5 * B + e]
+            h = codes[r + e]
+            g00 = float(h & 3) - 1.0
+            g01 = float((h >> 2) & 3) - 1.0
+            g02 = float((h >> 4) & 3) - 1.0
+            g10 = float((h >> 8) & 3) - 1.0
+            g11 = float((h >> 10) & 3) - 1.0
+            g12 = float((h >> 12) & 3) - 1.0
+            g20 = float((h >> 16) & 3) - 1.0
+            g21 = float((h >> 18) & 3) - 1.0
+            g22 = float((h >> 20) & 3) - 1.0
+            u0 = g00 * dx + g01 * dy + g02 * dz
+            u1 = g10 * dx + g11 * dy + g12 * dz
+            u2 = g20 * dx + g21 * dy + g22 * dz
+            if timed:
+                u0 += (float((h >> 6) & 3) - 1.0) * dw
+                u1 += (float((h >> 14) & 3) - 1.0) * dw
+                u2 += (float((h >> 22) & 3) - 1.0) * dw
             wyz = wy * wz
-            for bx in range(2):
-                g = table[perm[i + bx + hy]]
-                dx = ux - bx
-                wx = sx if bx else 1.0 - sx
-                dwx = dsx if bx else -dsx
-                W = wx * wyz
-                gx = dwx * wyz
-                gy = wx * dwy * wz
-                gz = wx * wy * dwz
-                u0 = g[0, 0] * dx + g[0, 1] * dy + g[0, 2] * dz
-                u1 = g[1, 0] * dx + g[1, 1] * dy + g[1, 2] * dz
-                u2 = g[2, 0] * dx + g[2, 1] * dy + g[2, 2] * dz
-                n0 += W * u0
-                n1 += W * u1
-                n2 += W * u2
-                j00 += gx * u0 + W * g[0, 0]
-                j01 += gy * u0 + W * g[0, 1]
-                j02 += gz * u0 + W * g[0, 2]
-                j10 += gx * u1 + W * g[1, 0]
-                j11 += gy * u1 + W * g[1, 1]
-                j12 += gz * u1 + W * g[1, 2]
-                j20 += gx * u2 + W * g[2, 0]
-                j21 += gy * u2 + W * g[2, 1]
-                j22 += gz * u2 + W * g[2, 2]
-    return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
+            W = wx * wyz
+            Wa = a * W
+            Wf = af * W
+            px = af * qx * work[6 * B + e] * wyz
+            py = af * qy * work[7 * B + e] * wx * wz
+            pz = af * qz * work[8 * B + e] * wx * wy
+            work[9 * B + e] += Wa * u0
+            work[10 * B + e] += Wa * u1
+            work[11 * B + e] += Wa * u2
+            work[12 * B + e] += px * u0 + Wf * g00
+            work[13 * B + e] += py * u0 + Wf * g01
+            work[14 * B + e] += pz * u0 + Wf * g02
+            work[15 * B + e] += px * u1 + Wf * g10
+            work[16 * B + e] += py * u1 + Wf * g11
+            work[17 * B + e] += pz * u1 + Wf * g12
+            work[18 * B + e] += px * u2 + Wf * g20
+            work[19 * B + e] += py * u2 + Wf * g21
+            work[20 * B + e] += pz * u2 + Wf * g22
 
 
 @njit(cache=True, fastmath=_FAST, inline="never")
-def perlin4_batch(x, y, z, w, perm, table):
-    """Three 4-D improved Perlin noises (shared lattice, own gradients), spatial gradients."""
-    fx = math.floor(x)
-    fy = math.floor(y)
-    fz = math.floor(z)
-    fw = math.floor(w)
-    i = np.int64(fx) & 255
-    j = np.int64(fy) & 255
-    k = np.int64(fz) & 255
-    l = np.int64(fw) & 255
-    ux = x - fx
-    uy = y - fy
-    uz = z - fz
-    uw = w - fw
-    sx, dsx, _ = _fade(ux)
-    sy, dsy, _ = _fade(uy)
-    sz, dsz, _ = _fade(uz)
-    sw, _, _ = _fade(uw)
-    n0 = n1 = n2 = 0.0
-    j00 = j01 = j02 = j10 = j11 = j12 = j20 = j21 = j22 = 0.0
-    for bw in range(2):
-        hw = perm[l + bw]
-        dw = uw - bw
-        ww = sw if bw else 1.0 - sw
-        for bz in range(2):
-            hz = perm[k + bz + hw]
-            dz = uz - bz
-            wz = (sz if bz else 1.0 - sz) * ww
-            dwz = (dsz if bz else -dsz) * ww
-            for by in range(2):
-                hy = perm[j + by + hz]
-                dy = uy - by
-                wy = sy if by else 1.0 - sy
-                dwy = dsy if by else -dsy
-                wyz = wy * wz
-                for bx in range(2):
-                    g = table[perm[i + bx + hy]]
-                    dx = ux - bx
-                    wx = sx if bx else 1.0 - sx
-                    dwx = dsx if bx else -dsx
-                    W = wx * wyz
-                    gx = dwx * wyz
-                    gy = wx * dwy * wz
-                    gz = wx * wy * dwz
-                    u0 = g[0, 0] * dx + g[0, 1] * dy + g[0, 2] * dz + g[0, 3] * dw
-                    u1 = g[1, 0] * dx + g[1, 1] * dy + g[1, 2] * dz + g[1, 3] * dw
-                    u2 = g[2, 0] * dx + g[2, 1] * dy + g[2, 2] * dz + g[2, 3] * dw
-                    n0 += W * u0
-                    n1 += W * u1
-                    n2 += W * u2
-                    j00 += gx * u0 + W * g[0, 0]
-                    j01 += gy * u0 + W * g[0, 1]
-                    j02 += gz * u0 + W * g[0, 2]
-                    j10 += gx * u1 + W * g[1, 0]
-                    j11 += gy * u1 + W * g[1, 1]
-                    j12 += gz * u1 + W * g[1, 2]
-                    j20 += gx * u2 + W * g[2, 0]
-                    j21 += gy * u2 + W * g[2, 1]
-                    j22 += gz * u2 + W * g[2, 2]
-    return n0, n1, n2, j00, j01, j02, j10, j11, j12, j20, j21, j22
-
-
-@njit(cache=True, fastmath=_FAST, inline="never")
-def perlin_block(points, s0, n, f, o0, o1, o2, w, timed, perm, table, a, af, acc):
+def perlin_block(points, s0, n, f, o0, o1, o2, w, timed, perm, codes, a, af, work, hashes):
     """One octave of three improved Perlin noises at points s0 .. s0 + n - 1 (3-D, or 4-D at
-    lattice time w when `timed`), one point at a time: the corner sweep of `perlin3_batch`
-    shares the hash chain's inner lookups between the corners (14 reads, not 24), which a
-    structure-of-arrays sweep over the block did not beat."""
+    lattice time w when `timed`), added to the accumulators of `work` (see `potential3_block`).
+
+    `codes` (512,) int64 is the gradient code of the corner reached through each entry of the
+    permutation: codes[x] = code[perm[x]], with bits 8 c + 2 k .. + 1 holding
+    table[h, c, k] / unit + 1 (`gradient_codes`). A first, scalar loop finds each point's cell,
+    its fractions u, fades s and fade derivatives s' (rows 0-8 of `work`) and walks the hash
+    chain perm[i + perm[j + perm[k + perm[l]]]] once per corner (its inner lookups shared:
+    14 reads for 8 corners), keeping the corner codes in `hashes`; the time axis' cell, fade
+    and first lookups are the same for every point and computed once. Then `_perlin_pass`
+    adds the corners, one lattice slice at a time (one in 3-D; two in 4-D, weighted by the
+    time fade 1 - s_w and s_w), each a branch-free loop over the block.
+    """
+    B = _BLOCK
+    fw = math.floor(w)
+    l = np.int64(fw) & 255
+    uw = w - fw
+    sw = uw * uw * uw * (uw * (uw * 6.0 - 15.0) + 10.0)
+    hw0 = perm[l] if timed else 0
+    hw1 = perm[l + 1] if timed else 0
     for e in range(n):
         x = points[s0 + e, 0] * f + o0
         y = points[s0 + e, 1] * f + o1
         z = points[s0 + e, 2] * f + o2
-        if timed:
-            r = perlin4_batch(x, y, z, w, perm, table)
-        else:
-            r = perlin3_batch(x, y, z, perm, table)
-        acc[0, e] += a * r[0]
-        acc[1, e] += a * r[1]
-        acc[2, e] += a * r[2]
-        for k in range(3, 12):
-            acc[k, e] += af * r[k]
+        fx = math.floor(x)
+        fy = math.floor(y)
+        fz = math.floor(z)
+        i = np.int64(fx) & 255
+        j = np.int64(fy) & 255
+        k = np.int64(fz) & 255
+        ux = x - fx
+        uy = y - fy
+        uz = z - fz
+        # s(u) = 6 u^5 - 15 u^4 + 10 u^3, s'(u) = 30 u^2 (u - 1)^2
+        work[e] = ux
+        work[B + e] = uy
+        work[2 * B + e] = uz
+        work[3 * B + e] = ux * ux * ux * (ux * (ux * 6.0 - 15.0) + 10.0)
+        work[4 * B + e] = uy * uy * uy * (uy * (uy * 6.0 - 15.0) + 10.0)
+        work[5 * B + e] = uz * uz * uz * (uz * (uz * 6.0 - 15.0) + 10.0)
+        work[6 * B + e] = 30.0 * ux * ux * (ux - 1.0) * (ux - 1.0)
+        work[7 * B + e] = 30.0 * uy * uy * (uy - 1.0) * (uy - 1.0)
+        work[8 * B + e] = 30.0 * uz * uz * (uz - 1.0) * (uz - 1.0)
+        # Corner codes, rows 8 bw + 4 bz + 2 by + bx.
+        for bw in range(2 if timed else 1):
+            hw = hw1 if bw else hw0
+            hz0 = perm[k + hw]
+            hz1 = perm[k + 1 + hw]
+            h00 = perm[j + hz0]
+            h10 = perm[j + 1 + hz0]
+            h01 = perm[j + hz1]
+            h11 = perm[j + 1 + hz1]
+            r = 8 * bw * B + e
+            hashes[r] = codes[i + h00]
+            hashes[r + B] = codes[i + 1 + h00]
+            hashes[r + 2 * B] = codes[i + h10]
+            hashes[r + 3 * B] = codes[i + 1 + h10]
+            hashes[r + 4 * B] = codes[i + h01]
+            hashes[r + 5 * B] = codes[i + 1 + h01]
+            hashes[r + 6 * B] = codes[i + h11]
+            hashes[r + 7 * B] = codes[i + 1 + h11]
+    if timed:
+        # n = (1 - s_w) n(slice l, d_w = u_w) + s_w n(slice l + 1, d_w = u_w - 1)
+        _perlin_pass(work, hashes, 0, n, a * (1.0 - sw), af * (1.0 - sw), uw, True)
+        _perlin_pass(work, hashes, 8, n, a * sw, af * sw, uw - 1.0, True)
+    else:
+        _perlin_pass(work, hashes, 0, n, a, af, 0.0, False)
 
 
 @njit(cache=True, fastmath=_FAST)
-def potential3_block(points, s0, n, t, offsets, perm, table, kind, frequency, lacunarity, gain,
-                     octaves, time_frequency, scale, acc, fs, js):
+def potential3_block(points, s0, n, t, offsets, perm, table, codes, frequency, lacunarity, gain,
+                     octaves, time_frequency, scale, work, ints):
     """Fractal vector potential psi and its Jacobian at the 3-D points s0 .. s0 + n - 1 and
-    time t, into acc (12, _BLOCK): acc[c] = psi_c, acc[3 + 3 c + b] = d psi_c / d x_b.
+    time t, into rows 9-20 of the flat scratch work (21 _BLOCK,): row 9 + c = psi_c,
+    row 12 + 3 c + b = d psi_c / d x_b (rows 0-8 are scratch; ints (16 _BLOCK,) int64 too).
 
         psi_c = scale * sum_o gain^o n_c(f_o p + s_o, f_o tf t + s_o,t),  f_o = frequency lacunarity^o
 
     offsets is (octaves, 4): one lattice offset per octave, shared by the components. Every
     octave's lattice walk serves all three components (the ``*_block`` kernels above).
+    codes None: simplex noise (gradients from `table`); else improved Perlin noise, which reads
+    the gradients from `codes` (`perlin_block`) scaled by `unit`, the magnitude of the table's
+    nonzero entries (1/sqrt 2 in 3-D, 1/sqrt 3 in 4-D: ``noise.py``).
     """
+    B = _BLOCK
     timed = time_frequency != 0.0
-    for r in range(12):
-        for e in range(n):
-            acc[r, e] = 0.0
+    for r in range(9 * B, 21 * B):
+        work[r] = 0.0
+    acc = work[9 * B:].reshape((12, B))
     f = frequency
     ft = time_frequency
     a = scale
-    for o in range(octaves):
-        w = t * ft + offsets[o, 3]
-        if kind == KIND_SIMPLEX:
+    # `codes is None` is decided when Numba compiles: a scene compiles one kind's path only.
+    if codes is None:
+        fs = work[:9 * B].reshape((9, B))
+        js = ints[:8 * B].reshape((8, B))
+        for o in range(octaves):
+            w = t * ft + offsets[o, 3]
             if timed:
                 simplex4_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w,
                                perm, table, a, a * f, acc, fs, js)
             else:
                 simplex3_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2],
                                perm, table, a, a * f, acc, fs, js)
-        else:
+            f *= lacunarity
+            ft *= lacunarity
+            a *= gain
+    else:
+        unit = 0.0
+        for h in range(table.shape[0]):
+            for c in range(table.shape[1]):
+                for b in range(table.shape[2]):
+                    unit = max(unit, abs(table[h, c, b]))
+        for o in range(octaves):
+            w = t * ft + offsets[o, 3]
             perlin_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w, timed,
-                         perm, table, a, a * f, acc)
-        f *= lacunarity
-        ft *= lacunarity
-        a *= gain
+                         perm, codes, a * unit, a * f * unit, work, ints)
+            f *= lacunarity
+            ft *= lacunarity
+            a *= gain
 
 
 # ---------------------------------------------------------------------------------------------
@@ -1078,7 +1092,7 @@ def _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, base, m, ski
 
 
 @njit(cache=True, fastmath=_FAST)
-def curl_noise3_range(start, stop, points, offsets, perm, grads, table,
+def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
                      slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                      rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                      out,
@@ -1091,7 +1105,10 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table,
     per octave):
       2-D: scalar psi, the noise with gradients `grads` (256, 2);   v = (dpsi/dy, -dpsi/dx)
       3-D: psi = (psi0, psi1, psi2), three noises on the same lattice points with the gradient
-           tables table[:, c] (256, 3, D), one lattice walk per octave (`potential3_block`);
+           tables table[:, c] (256, 3, D) (Perlin: also as codes (512,) int64 of
+           ``noise.gradient_codes``; codes is None for simplex and in 2-D, so that a scene
+           compiles only its own kind's lattice walk), one lattice walk per octave
+           (`potential3_block`);
            v = curl psi
     Boundaries: point i has bnd_count[i] walls within `boundary_width` = d0, at rows
     slot[i] .. slot[i] + bnd_count[i] - 1 of the bnd_* arrays (slot[i] = -1: none). Wall k has
@@ -1132,13 +1149,13 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table,
     ramp_value = np.empty(most)
     ramp_slope = np.empty(most)
     # 3-D: the potential and its Jacobian a block of points at a time (`potential3_block`).
-    acc = np.empty((12, _BLOCK))
-    fs = np.empty((9, _BLOCK))
-    js = np.empty((8, _BLOCK), np.int64)
+    work = np.empty(21 * _BLOCK)
+    ints = np.empty(16 * _BLOCK, np.int64)
+    acc = work[9 * _BLOCK:].reshape((12, _BLOCK))
     for s0 in range(start, stop, _BLOCK):
         n_block = min(_BLOCK, stop - s0)
-        potential3_block(points, s0, n_block, t, shared, perm, table, kind, frequency,
-                         lacunarity, gain, octaves, time_frequency, scale, acc, fs, js)
+        potential3_block(points, s0, n_block, t, shared, perm, table, codes, frequency,
+                         lacunarity, gain, octaves, time_frequency, scale, work, ints)
         for e in range(n_block):
             i = s0 + e
             p = points[i]
@@ -1256,7 +1273,7 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table,
 
 
 @njit(cache=True, fastmath=_FAST)
-def curl_noise2_range(start, stop, points, offsets, perm, grads, table,
+def curl_noise2_range(start, stop, points, offsets, perm, grads, table, codes,
                      slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                      rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                      out,
@@ -1335,7 +1352,7 @@ def curl_noise2_range(start, stop, points, offsets, perm, grads, table,
 
 
 @parallel_kernel(serial_below=SERIAL_BELOW)
-def curl_noise3(points, offsets, perm, grads, table,
+def curl_noise3(points, offsets, perm, grads, table, codes,
                 slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                 rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                 out,
@@ -1346,14 +1363,14 @@ def curl_noise3(points, offsets, perm, grads, table,
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
         curl_noise3_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
-                          table, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
+                          table, codes, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
                           bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2,
                           mean_velocity, out, t, kind, frequency, lacunarity, gain, octaves,
                           time_frequency, scale, boundary_width)
 
 
 @parallel_kernel(serial_below=SERIAL_BELOW)
-def curl_noise2(points, offsets, perm, grads, table,
+def curl_noise2(points, offsets, perm, grads, table, codes,
                 slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                 rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                 out,
@@ -1364,7 +1381,7 @@ def curl_noise2(points, offsets, perm, grads, table,
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
         curl_noise2_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
-                          table, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
+                          table, codes, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
                           bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2,
                           mean_velocity, out, t, kind, frequency, lacunarity, gain, octaves,
                           time_frequency, scale, boundary_width)

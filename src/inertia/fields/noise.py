@@ -169,6 +169,34 @@ def component_gradients(seed: int, components: int, D: int) -> np.ndarray:
     return tables
 
 
+def gradient_codes(table: np.ndarray, perm: np.ndarray) -> np.ndarray:
+    """The gradients of `table` (256, C, D) (C <= 3, D <= 4; entries 0 or +-u, one u for the
+    whole table, as every table of this module has) packed 2 bits an entry, and read through
+    the permutation: (512,) int64, codes[x] = code[perm[x]] with bits 8 c + 2 k .. 8 c + 2 k + 1
+    of code[h] holding table[h, c, k] / u + 1 (0, 1 or 2).
+
+    3-D Perlin curl-noise reads these instead of the tables (``kernels.perlin_block``):
+    decoded in registers they need no gather, so the corner loop vectorises.
+    """
+    table = np.asarray(table, dtype=np.float64)
+    if table.ndim != 3 or table.shape[0] != 256 or table.shape[1] > 3 or table.shape[2] > 4:
+        raise ValueError(f"table must be (256, C <= 3, D <= 4); got {table.shape}")
+    unit = np.abs(table).max()
+    steps = np.rint(table / unit)
+    if not np.array_equal(steps * unit, table):
+        raise ValueError("table entries must all be 0 or +-u for one u")
+    code = np.zeros(256, dtype=np.int64)
+    for c in range(table.shape[1]):
+        for k in range(table.shape[2]):
+            code |= (steps[:, c, k].astype(np.int64) + 1) << (8 * c + 2 * k)
+    # Entries a table lacks decode to 0 (code 1).
+    for c in range(3):
+        for k in range(4):
+            if c >= table.shape[1] or k >= table.shape[2]:
+                code |= np.int64(1) << (8 * c + 2 * k)
+    return np.ascontiguousarray(code[np.asarray(perm, dtype=np.int64)])
+
+
 @dataclass(frozen=True)
 class NoiseParameters:
     """Validated fractal-noise parameters shared by ``Noise`` and ``CurlNoise``."""
