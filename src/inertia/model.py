@@ -134,7 +134,10 @@ class Model:
     (overlap events, no response), ``shape_vert_start``, ``shape_vert_count (S,) int32`` into
     ``geom_vertices (V, 3)`` m (hull vertices, mesh triangle lists, heightfield grid points; shape frame);
     ``geom_bvh_bounds (N, 6)``, ``geom_bvh_nodes (N, 3) int32`` mesh BVH nodes from
-    ``shape_bvh_start (S,) int32`` (-1: no BVH; `inertia.geometry.bvh`).
+    ``shape_bvh_start (S,) int32`` (-1: no BVH; `inertia.geometry.bvh`). Baked ``SDF`` rows: their packed
+    distance grids (``inertia.collision.distance`` GRID layout) in ``sdf_grid_f (F,)`` and
+    ``sdf_grid_i (I,) int64`` from ``shape_sdf_start (S, 2) int64`` (float, integer offset; -1: no grid;
+    `inertia.geometry.sdf_collide`).
 
     World: ``gravity (3,)`` m/s^2.
     """
@@ -517,10 +520,32 @@ class ModelBuilder:
             shape_is_sensor=np.array([sh["sensor"] for sh in self._shapes], np.bool_).reshape(ns),
             shape_vert_start=vstart, shape_vert_count=vcount, geom_vertices=geom_vertices,
             geom_bvh_bounds=np.concatenate(bvh_b), geom_bvh_nodes=np.concatenate(bvh_n), shape_bvh_start=bvh_start,
-            gravity=self.gravity.copy())
+            sdf_grid_f=np.zeros(0), sdf_grid_i=np.zeros(0, np.int64),
+            shape_sdf_start=np.full((ns, 2), -1, np.int64), gravity=self.gravity.copy())
         model._initial_q = q0
         model._initial_qd = qd0
         return model
+
+
+def _sdf_row(collider, row):
+    """An SDF row of ``collider``: (row, corner vertices, (cf, ci) grid) when the collider has a distance grid
+    (a baked ``SDF``, a ``Mesh``), else (row, None, None) (unbaked: rigid bodies cannot see it). The row's
+    params hold the rest-frame position of its frame (the collider's reference point, where the row sits);
+    its vertices are the 8 corners of the field's bounding box in the row's frame (for the broad phase)."""
+    from .collision import distance as _d
+    if getattr(collider, "kind", None) != _d.GRID:
+        return row, None, None
+    cf = np.ascontiguousarray(collider._cf, dtype=np.float64)
+    ci = np.ascontiguousarray(collider._ci, dtype=np.int64)
+    ref = np.asarray(collider._ref, dtype=np.float64)
+    pad = float(cf[_d.G_THICK])
+    lo = cf[_d.G_BMIN:_d.G_BMIN + 3] - pad - ref
+    hi = cf[_d.G_BMAX:_d.G_BMAX + 3] + pad - ref
+    corners = np.array([[hi[0] if v & 1 else lo[0], hi[1] if v & 2 else lo[1], hi[2] if v & 4 else lo[2]]
+                        for v in range(8)])
+    params = np.zeros(4)
+    params[:3] = ref
+    return dict(row, params=params), corners, (cf, ci)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -542,7 +567,11 @@ def with_colliders(model: Model | None, colliders, *, margin: float = 0.02, fric
     ``shape_source (S,) int32`` (the index in `colliders` a row came from, -1 for the builder's shapes)
     and ``body_source (B,) int32`` (same for bodies). Rows get ``margin``, ``friction`` and
     ``restitution`` (the rigid material; particles use the values given to ``add_collider``).
-    Colliders of another dimension than 3 are skipped (the shape table is 3-D).
+    Colliders of another dimension than 3 are skipped (the shape table is 3-D). An ``SDF`` row (an
+    ``SDF`` collider, or a mesh whose triangles the rigid side cannot use) of a collider with a distance
+    grid (baked ``SDF``, ``Mesh``) appends that grid to ``sdf_grid_f``/``sdf_grid_i``
+    (``shape_sdf_start``) so rigid bodies collide with it (`inertia.geometry.sdf_collide`); an unbaked
+    ``SDF`` row has none.
     """
     from .geometry.trimesh_collide import mesh_soup
     from .math import mat3_to_quat as _m2q
@@ -565,14 +594,16 @@ def with_colliders(model: Model | None, colliders, *, margin: float = 0.02, fric
             pose = np.array(row["pose"], dtype=np.float64)
             if body < 0:
                 pose[:3] += col._ref
-            verts, bvh = None, None
+            verts, bvh, grid = None, None, None
             if row["type"] == S.TRIANGLE_MESH:
                 try:
                     verts, bvh = mesh_soup(row["vertices"], row["triangles"])
-                except ValueError:     # e.g. zero-area triangles: particles only (an SDF-type row)
+                except ValueError:     # e.g. zero-area triangles: an SDF-type row on the mesh's distance grid
                     row = dict(row, type=S.SDF)
+            if row["type"] == S.SDF:
+                row, verts, grid = _sdf_row(col, row)
             shapes.append(dict(type=int(row["type"]), body=body, pose=pose, params=np.asarray(row["params"], float),
-                               verts=verts, bvh=bvh, source=ci))
+                               verts=verts, bvh=bvh, source=ci, grid=grid))
     nb, ns = nb0 + len(bodies), ns0 + len(shapes)
 
     def grow(name, extra, dtype=None):
@@ -633,6 +664,22 @@ def with_colliders(model: Model | None, colliders, *, margin: float = 0.02, fric
     arrays["geom_bvh_bounds"] = np.concatenate(bvh_b)
     arrays["geom_bvh_nodes"] = np.concatenate(bvh_n)
     arrays["shape_bvh_start"] = grow("shape_bvh_start", bvh_start)
+    # baked SDF rows: the colliders' packed grids appended (geometry/sdf_collide.py)
+    grid_f = [getattr(base, "sdf_grid_f", np.zeros(0))]
+    grid_i = [getattr(base, "sdf_grid_i", np.zeros(0, np.int64))]
+    nf, ni = len(grid_f[0]), len(grid_i[0])
+    sdf_start = np.full((k, 2), -1, np.int64)
+    for j, sh in enumerate(shapes):
+        if sh["grid"] is not None:
+            sdf_start[j] = nf, ni
+            grid_f.append(sh["grid"][0])
+            grid_i.append(sh["grid"][1])
+            nf += len(sh["grid"][0])
+            ni += len(sh["grid"][1])
+    arrays["sdf_grid_f"] = np.concatenate(grid_f).astype(np.float64)
+    arrays["sdf_grid_i"] = np.concatenate(grid_i).astype(np.int64)
+    arrays["shape_sdf_start"] = np.concatenate([getattr(base, "shape_sdf_start", np.full((ns0, 2), -1, np.int64)),
+                                                sdf_start]).astype(np.int64)
     arrays["shape_source"] = np.concatenate([getattr(base, "shape_source", np.full(ns0, -1, np.int32)),
                                              np.array([sh["source"] for sh in shapes], np.int32)]).astype(np.int32)
     # bounding radius of the new kinematic bodies (finite shapes; planes are unbounded and skipped)

@@ -261,3 +261,64 @@ def test_a_reused_scratch_gives_the_bits_of_a_fresh_one():
             depth2, ok2 = C._epa(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS, True, scr)
             assert (depth2, ok2) == (depth, ok)
             assert np.array_equal(scr.vec[6:9], np.array([wa, wb, n]))
+
+
+def _touching_pairs():
+    """Pairs whose GJK ends with fewer than four simplex points (touching faces, edges and corners,
+    coincident boxes, a sphere's or capsule's core on a box face): EPA must grow the simplex itself."""
+    box = params(0.1, 0.1, 0.1)
+    at = [(0, 0, 0.2), (0.2, 0.2, 0.2), (0.2, 0, 0.2), (0, 0, 0)]
+    pairs = [(BOX, box, pose((0, 0, 0), (1, 0, 0, 0)), BOX, box, pose(p, (1, 0, 0, 0))) for p in at]
+    pairs.append((SPHERE, params(0.05), pose((0, 0, 0.1), (1, 0, 0, 0)), BOX, box, pose((0, 0, 0), (1, 0, 0, 0))))
+    pairs.append((CAPSULE, params(0.05, 0.1), pose((0, 0, 0.2), (1, 0, 0, 0)), BOX, box,
+                  pose((0, 0, 0), (1, 0, 0, 0))))
+    return pairs
+
+
+def test_epa_seeds_a_short_gjk_simplex_in_the_scratch_without_allocating():
+    """EPA's rare path (GJK stops with 1, 2 or 3 simplex points: touching or coincident shapes) grows the
+    simplex into a tetrahedron in the `GjkScratch` too: Numba's NRT allocation counter over 40 calls on one
+    scratch equals that over 2 calls (before: support points, differences and cross products as new arrays,
+    ~20 allocations per call), for every pair whose GJK simplex is short; the results are the public
+    function's (fresh scratch) bit for bit."""
+    from numba import njit
+    from numba.core.runtime import _nrt_python, rtsys
+
+    @njit
+    def repeat(k, ta, pa_, posa, tb, pb_, posb, verts, with_radius, scr):
+        depth, ok = 0.0, False
+        for _ in range(k):
+            depth, ok = C._epa(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, verts, with_radius, scr)
+        return depth, ok
+
+    @njit
+    def simplex_size(ta, pa_, posa, tb, pb_, posb, verts, with_radius, scr):
+        return C._gjk(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, verts, with_radius, scr.pw, scr.pa, scr.pb, scr)[1]
+
+    scr = C.new_gjk_scratch()
+    sizes = set()
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+    try:
+        for ta, pa_, posa, tb, pb_, posb in _touching_pairs():
+            for with_radius in (False, True):
+                n = simplex_size(ta, pa_, posa, tb, pb_, posb, NO_VERTS, with_radius, scr)
+                if n == 4:
+                    continue
+                sizes.add(n)
+                repeat(1, ta, pa_, posa, tb, pb_, posb, NO_VERTS, with_radius, scr)       # compile / warm
+                counts = []
+                for k in (2, 40):
+                    a0 = rtsys.get_allocation_stats().alloc
+                    repeat(k, ta, pa_, posa, tb, pb_, posb, NO_VERTS, with_radius, scr)
+                    counts.append(rtsys.get_allocation_stats().alloc - a0)
+                assert counts[0] == counts[1], (ta, tb, n, counts)
+                if with_radius:
+                    depth, ok = C._epa(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS, True, scr)
+                    ref = C.epa_penetration(ta, pa_, posa, 0, 0, tb, pb_, posb, 0, 0, NO_VERTS)
+                    assert (depth, ok) == (ref[0], ref[4])
+                    assert np.array_equal(scr.vec[6:9], np.array(ref[1:4]))
+    finally:
+        if not was_on:
+            _nrt_python.memsys_disable_stats()
+    assert sizes == {1, 2, 3}                     # every branch of the seeding was exercised

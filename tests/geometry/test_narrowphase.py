@@ -198,13 +198,13 @@ def test_speculative_distance_grows_with_speed():
 
 
 def test_pair_families_route_each_pair_to_one_kernel_and_a_scene_compiles_only_its_own():
-    """Each canonical type pair belongs to exactly one family (closed form, general convex, mesh, none),
+    """Each canonical type pair belongs to exactly one family (closed form, general convex, mesh, SDF, none),
     matching the routes of the module docstring; ``scene_families`` of a box + sphere + plane scene asks
     for neither the GJK/EPA kernel nor the mesh kernel (their compile is skipped), a box + capsule scene
     needs GJK/EPA (box-capsule is general), a heightfield scene the mesh kernel."""
     from inertia.geometry import shapes as S
     from inertia.geometry.narrowphase import (FAMILY_CLOSED, FAMILY_GENERAL, FAMILY_MESH, FAMILY_NONE,
-                                              pair_family, scene_families)
+                                              FAMILY_SDF, pair_family, scene_families)
     fam = pair_family.py_func
     closed = {(S.SPHERE, S.SPHERE), (S.SPHERE, S.BOX), (S.SPHERE, S.CAPSULE), (S.SPHERE, S.PLANE),
               (S.BOX, S.BOX), (S.BOX, S.PLANE), (S.CAPSULE, S.CAPSULE), (S.CAPSULE, S.PLANE),
@@ -214,15 +214,19 @@ def test_pair_families_route_each_pair_to_one_kernel_and_a_scene_compiles_only_i
             f = fam(ta, tb)
             if tb in (S.TRIANGLE_MESH, S.HEIGHTFIELD):
                 assert f == FAMILY_MESH
+            elif tb == S.SDF and ta <= S.CONVEX_HULL:
+                assert f == FAMILY_SDF
             elif (ta, tb) in closed:
                 assert f == FAMILY_CLOSED
             elif tb <= S.CONVEX_HULL:
                 assert f == FAMILY_GENERAL
             else:
                 assert f == FAMILY_NONE
-    assert scene_families([S.PLANE, S.BOX, S.SPHERE, S.BOX]) == (False, False)
-    assert scene_families([S.PLANE, S.BOX, S.CAPSULE]) == (True, False)
-    assert scene_families([S.HEIGHTFIELD, S.SPHERE]) == (False, True)
+    assert scene_families([S.PLANE, S.BOX, S.SPHERE, S.BOX]) == (False, False, False)
+    assert scene_families([S.PLANE, S.BOX, S.CAPSULE]) == (True, False, False)
+    assert scene_families([S.HEIGHTFIELD, S.SPHERE]) == (False, True, False)
+    assert scene_families([S.SDF, S.SPHERE]) == (False, False, True)
+    assert scene_families([S.SDF, S.PLANE, S.HEIGHTFIELD]) == (False, True, False)
 
 
 def test_general_and_mesh_kernels_fill_their_pairs_after_the_closed_form_kernel():

@@ -371,7 +371,9 @@ class SDF(Collider):
         ``{"bounds": (lo, hi), "resolution": n}`` samples the function once on a grid with n
         cells along the longest side; the collider then runs inside the compiled kernels (fast)
         with the grid's limitations (see ``inertia.collision.distance``). Unbaked, the function is
-        called from Python once or a few times per step on the candidate particles.
+        called from Python once or a few times per step on the candidate particles. Rigid bodies
+        collide with the collider only when it is baked (its grid is their distance field,
+        ``inertia.geometry.sdf_collide``).
     motion : Motion or callable, optional
     rest_point : (D,), optional
         Reference point for ``motion`` (default: the origin).
@@ -467,7 +469,8 @@ class BodyShape(Collider):
     Mapping: SPHERE, BOX, CAPSULE, CYLINDER, PLANE to the closed-form kinds; CONVEX_HULL (its outward
     triangulated hull) and TRIANGLE_MESH to a distance-grid ``Mesh`` (``inertia.collision.mesh``);
     HEIGHTFIELD to the ``Mesh`` of its triangles closed below (``collision.heightfield_distance``);
-    SDF rows are not seen by particles (limitation).
+    SDF rows are not mapped: they always come from particle colliders, which particles see directly
+    (``system.add_collider``), and rigid bodies collide with the baked ones (``geometry.sdf_collide``).
     """
 
     def __init__(self, model, shape: int, body_pose=None):

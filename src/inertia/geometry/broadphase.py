@@ -76,7 +76,8 @@ def _bounds_one(s, geom_vertices, shape_body, shape_local_pose, shape_margin, sh
               p[0] * math.sqrt(max(0.0, 1.0 - az[2] * az[2])) + abs(az[2]) * p[1])
     lo = [0.0, 0.0, 0.0]
     hi = [0.0, 0.0, 0.0]
-    if t == S.CONVEX_HULL or t == S.TRIANGLE_MESH or t == S.HEIGHTFIELD:
+    if t == S.CONVEX_HULL or t == S.TRIANGLE_MESH or t == S.HEIGHTFIELD or t == S.SDF:
+        # vertices (an SDF row's: the 8 corners of its field's box)
         v0 = shape_vert_start[s]
         for k in range(3):
             lo[k] = _BIG

@@ -174,9 +174,11 @@ class GjkScratch(NamedTuple):
     edges: np.ndarray   # (_EPA_MAX_EDGES, 2) int64 horizon edges
     axes: np.ndarray    # (6, 3) the +-coordinate axes (constant)
     tri: np.ndarray     # (4, 3) int64 faces of the initial tetrahedron (constant)
-    vec: np.ndarray     # (9, 3) 3-vectors: search direction, local direction, local support, GJK's v,
+    vec: np.ndarray     # (11, 3) 3-vectors: search direction, local direction, local support, GJK's v,
                         # the support points on A and on B of the current iteration; results: witness on
-                        # A, witness on B, unit normal A -> B
+                        # A, witness on B, unit normal A -> B; EPA's seed: a unit perpendicular, the unit
+                        # segment direction
+    quat: np.ndarray    # (4,) EPA's seed: the rotation about the segment
 
 
 @njit(cache=True)
@@ -187,7 +189,7 @@ def new_gjk_scratch():
     return GjkScratch(np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)), np.empty((_EPA_MAX_VERTS, 3)),
                       np.zeros(4), np.zeros(4), np.empty((_EPA_MAX_FACES, 3), dtype=np.int64),
                       np.empty((_EPA_MAX_FACES, 3)), np.empty(_EPA_MAX_FACES), np.zeros(_EPA_MAX_FACES, dtype=np.bool_),
-                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((9, 3)))
+                      np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((11, 3)), np.zeros(4))
 
 
 @njit(cache=True)
@@ -568,6 +570,26 @@ def _epa_face(pw, i, j, k, faces, face_n, face_d, f):
     return True
 
 
+@njit(inline="always")
+def _axis_angle_into(axis, angle, q):
+    """``inertia.math.quat_from_axis_angle`` (same arithmetic) written into ``q`` (4,); axis non-zero."""
+    n = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
+    s = math.sin(0.5 * angle) / n
+    q[0] = math.cos(0.5 * angle)
+    q[1] = axis[0] * s
+    q[2] = axis[1] * s
+    q[3] = axis[2] * s
+
+
+@njit(inline="always")
+def _set_vertex(pw, pa, pb, i, p1, p2):
+    """Polytope vertex i: the support points p1 on A and p2 on B, and p1 - p2 on A - B."""
+    for k in range(3):
+        pw[i, k] = p1[k] - p2[k]
+        pa[i, k] = p1[k]
+        pb[i, k] = p2[k]
+
+
 @njit(cache=True)
 def epa_penetration(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, start_b, count_b,
                     verts):
@@ -600,51 +622,65 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
     normal[:] = 0.0
     if dist > 1e-12:
         return 0.0, False
-    # grow the GJK simplex into a tetrahedron (or bipyramid) that encloses the origin
+    # grow the GJK simplex into a tetrahedron (or bipyramid) that encloses the origin (in the scratch:
+    # support points into vec[4], vec[5], directions in vec[3], vec[9], vec[10] and quat)
     axes = scr.axes
+    p1, p2, d = scr.vec[4], scr.vec[5], scr.vec[3]
     nv = n
     if nv == 1:
         for a in range(6):
-            p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, axes[a], with_radius)
-            p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -axes[a], with_radius)
-            w = p1 - p2
-            if np.sum((w - pw[0]) ** 2) > 1e-20:
-                pw[1], pa[1], pb[1] = w, p1, p2
+            _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, axes[a], 1.0, with_radius, p1,
+                                scr)
+            _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, axes[a], -1.0, with_radius, p2,
+                                scr)
+            w0, w1, w2 = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+            if (w0 - pw[0, 0]) ** 2 + (w1 - pw[0, 1]) ** 2 + (w2 - pw[0, 2]) ** 2 > 1e-20:
+                _set_vertex(pw, pa, pb, 1, p1, p2)
                 nv = 2
                 break
     if nv == 2:
-        e = pw[1] - pw[0]
+        e0, e1, e2 = pw[1, 0] - pw[0, 0], pw[1, 1] - pw[0, 1], pw[1, 2] - pw[0, 2]
         # a direction perpendicular to the segment, rotated about it in 60 degree steps
-        k = 0 if abs(e[0]) <= abs(e[1]) and abs(e[0]) <= abs(e[2]) else (1 if abs(e[1]) <= abs(e[2]) else 2)
-        perp = _m.cross(e, axes[k])
-        perp /= math.sqrt(np.sum(perp ** 2))
-        e_unit = e / math.sqrt(np.sum(e ** 2))
+        k = 0 if abs(e0) <= abs(e1) and abs(e0) <= abs(e2) else (1 if abs(e1) <= abs(e2) else 2)
+        ax = axes[k]
+        perp, e_unit, q = scr.vec[9], scr.vec[10], scr.quat
+        perp[0] = e1 * ax[2] - e2 * ax[1]
+        perp[1] = e2 * ax[0] - e0 * ax[2]
+        perp[2] = e0 * ax[1] - e1 * ax[0]
+        ln = math.sqrt(perp[0] ** 2 + perp[1] ** 2 + perp[2] ** 2)
+        ee = e0 ** 2 + e1 ** 2 + e2 ** 2
+        le = math.sqrt(ee)
+        e_unit[0], e_unit[1], e_unit[2] = e0 / le, e1 / le, e2 / le
+        for c in range(3):
+            perp[c] /= ln
         for step in range(6):
-            q = _m.quat_from_axis_angle(e_unit, step * math.pi / 3.0)
-            d = _m.quat_rotate(q, perp)
-            p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, d, with_radius)
-            p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -d, with_radius)
-            w = p1 - p2
-            area = _m.cross(pw[1] - pw[0], w - pw[0])
-            if np.sum(area ** 2) > 1e-20 * np.sum(e ** 2) ** 2:
-                pw[2], pa[2], pb[2] = w, p1, p2
+            _axis_angle_into(e_unit, step * math.pi / 3.0, q)
+            _m.quat_rotate_into(q, perp, d)
+            _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, d, 1.0, with_radius, p1, scr)
+            _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, d, -1.0, with_radius, p2, scr)
+            # area of the triangle (pw0, pw1, w): (pw1 - pw0) x (w - pw0)
+            f0, f1, f2 = p1[0] - p2[0] - pw[0, 0], p1[1] - p2[1] - pw[0, 1], p1[2] - p2[2] - pw[0, 2]
+            c0, c1, c2 = e1 * f2 - e2 * f1, e2 * f0 - e0 * f2, e0 * f1 - e1 * f0
+            if c0 ** 2 + c1 ** 2 + c2 ** 2 > 1e-20 * ee ** 2:
+                _set_vertex(pw, pa, pb, 2, p1, p2)
                 nv = 3
                 break
     if nv == 3:
         # apex: the support along +-normal farther from the triangle's plane.  The tetrahedron then holds the
         # origin (inside or on its boundary) and its centroid is strictly inside, which orients the faces.
-        nrm = _m.cross(pw[1] - pw[0], pw[2] - pw[0])
+        a0, a1, a2 = pw[1, 0] - pw[0, 0], pw[1, 1] - pw[0, 1], pw[1, 2] - pw[0, 2]
+        b0, b1, b2 = pw[2, 0] - pw[0, 0], pw[2, 1] - pw[0, 1], pw[2, 2] - pw[0, 2]
+        d[0], d[1], d[2] = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
         best_height = 0.0
         for sgn in (1.0, -1.0):
-            d = sgn * nrm
-            p1 = _support_world(type_a, params_a, pose_a, verts, start_a, count_a, d, with_radius)
-            p2 = _support_world(type_b, params_b, pose_b, verts, start_b, count_b, -d, with_radius)
-            w = p1 - p2
-            height = abs(_m.dot(w - pw[0], nrm))
+            _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, d, sgn, with_radius, p1, scr)
+            _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, d, -sgn, with_radius, p2, scr)
+            height = abs((p1[0] - p2[0] - pw[0, 0]) * d[0] + (p1[1] - p2[1] - pw[0, 1]) * d[1]
+                         + (p1[2] - p2[2] - pw[0, 2]) * d[2])
             if height > best_height:
                 best_height = height
-                pw[3], pa[3], pb[3] = w, p1, p2
-        if best_height <= 1e-12 * np.sum(nrm ** 2):
+                _set_vertex(pw, pa, pb, 3, p1, p2)
+        if best_height <= 1e-12 * (d[0] ** 2 + d[1] ** 2 + d[2] ** 2):
             return 0.0, False
         nv = 4
     faces, face_n, face_d, alive = scr.faces, scr.face_n, scr.face_d, scr.alive
@@ -717,7 +753,9 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
                             shared = g
                             break
                     if shared >= 0:
-                        edges[shared] = edges[ne - 1]
+                        # element-wise: a row-to-row slice assignment within one array makes a temporary copy
+                        edges[shared, 0] = edges[ne - 1, 0]
+                        edges[shared, 1] = edges[ne - 1, 1]
                         ne -= 1
                     else:
                         edges[ne, 0] = u

@@ -10,6 +10,9 @@ Speculative contacts (continuous collision): a pair keeps every point whose gap 
 close in one step -- and the solver lets the gap close to zero but not beyond (Catto 2024, "soft step"
 speculative contacts). A fast sphere therefore stops at a thin wall instead of passing it.
 
+Convex shapes against baked signed-distance rows (``SDF``): sampled surface points against the distance
+grid, ``inertia.geometry.sdf_collide`` (``narrow_phase_sdf``).
+
 Closed-form pairs (A has the lower type code): sphere-sphere, sphere-box, sphere-capsule, sphere-plane,
 box-box, box-plane, capsule-capsule, capsule-plane, cylinder-plane, hull-plane. Every other pair of convex
 shapes (sphere, box, capsule, cylinder, hull; box-capsule included) takes the general path
@@ -33,14 +36,15 @@ References
 - Gilbert, Johnson and Keerthi (1988) GJK; van den Bergen (2001) EPA: see ``inertia.geometry.convex``.
 
 Kernels and compilation: pairs fall in families (``pair_family``): closed forms, the general convex path
-(GJK/EPA) and triangle meshes/heightfields. ``narrow_phase_closed`` writes every pair's row (shapes,
-bodies, key, combined material, zeroed impulses) and the closed-form manifolds; ``narrow_phase_general``
-and ``narrow_phase_mesh`` then fill their own pairs' manifolds. A world calls the last two only when its
-shape types can form such pairs (``scene_families``), so a scene of boxes, spheres and planes never
-compiles GJK/EPA or the triangle routines (the largest part of the narrow phase's cold compile). Each
-run of pairs unpacks the bundles into locals once and hands the pair routines a four-array
-``ManifoldOut``, not the whole contact buffer (passing and reading members of a large bundle per pair
-cost half the stage's time). ``narrow_phase`` runs the three in that order.
+(GJK/EPA), triangle meshes/heightfields and baked SDFs (``sdf_collide.narrow_phase_sdf``).
+``narrow_phase_closed`` writes every pair's row (shapes, bodies, key, combined material, zeroed impulses)
+and the closed-form manifolds; ``narrow_phase_general``, ``narrow_phase_mesh`` and ``narrow_phase_sdf``
+then fill their own pairs' manifolds. A world calls the last three only when its shape types can form
+such pairs (``scene_families``), so a scene of boxes, spheres and planes never compiles GJK/EPA, the
+triangle or the SDF routines (the largest part of the narrow phase's cold compile). Each run of pairs
+unpacks the bundles into locals once and hands the pair routines a four-array ``ManifoldOut``, not the
+whole contact buffer (passing and reading members of a large bundle per pair cost half the stage's
+time). ``narrow_phase`` runs the four in that order.
 
 Limitations
 - Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`
@@ -850,7 +854,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
 # ------------------------------------------------------------------------------------------ dispatch
 # Pair families, each with its own kernel so a scene compiles only the pair routines it can meet (module
 # docstring, "Compilation"): closed forms, the general convex path (GJK/EPA), meshes and heightfields.
-FAMILY_CLOSED, FAMILY_GENERAL, FAMILY_MESH, FAMILY_NONE = 0, 1, 2, 3
+FAMILY_CLOSED, FAMILY_GENERAL, FAMILY_MESH, FAMILY_NONE, FAMILY_SDF = 0, 1, 2, 3, 4
 
 
 @njit(inline="always")
@@ -858,6 +862,8 @@ def pair_family(ta, tb):
     """Family of the canonical pair (ta <= tb) of shape types."""
     if tb == S.TRIANGLE_MESH or tb == S.HEIGHTFIELD:
         return FAMILY_MESH
+    if tb == S.SDF:
+        return FAMILY_SDF if ta <= S.CONVEX_HULL else FAMILY_NONE
     if ta == S.SPHERE:
         if tb == S.SPHERE or tb == S.BOX or tb == S.CAPSULE or tb == S.PLANE:
             return FAMILY_CLOSED
@@ -872,12 +878,12 @@ def pair_family(ta, tb):
     return FAMILY_NONE
 
 
-def scene_families(shape_type) -> tuple[bool, bool]:
-    """(general, mesh): whether any pair of the shape types present can take the general convex path or
-    the mesh path (conservative: every type pair, same body or not)."""
+def scene_families(shape_type) -> tuple[bool, bool, bool]:
+    """(general, mesh, sdf): whether any pair of the shape types present can take the general convex path,
+    the mesh path or the SDF path (conservative: every type pair, same body or not)."""
     types = sorted({int(t) for t in np.asarray(shape_type)})
     fams = {pair_family.py_func(ta, tb) for i, ta in enumerate(types) for tb in types[i:]}
-    return FAMILY_GENERAL in fams, FAMILY_MESH in fams
+    return FAMILY_GENERAL in fams, FAMILY_MESH in fams, FAMILY_SDF in fams
 
 
 @njit(cache=True)
@@ -1069,16 +1075,23 @@ def narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, d
                            body_bound_radius, dt, ca)
 
 
-def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, families=None):
+def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, families=None, sdf=None):
     """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring): the closed-form
-    kernel, then the general and mesh kernels when the scene's shape types can form such pairs
-    (``families = (general, mesh)``, default ``scene_families(shapes.shape_type)``)."""
-    general, mesh = scene_families(shapes.shape_type) if families is None else families
+    kernel, then the general, mesh and SDF kernels when the scene's shape types can form such pairs
+    (``families = (general, mesh, sdf)``, default ``scene_families(shapes.shape_type)``). ``sdf``: the
+    baked SDF rows (`inertia.geometry.sdf_collide.SdfArrays`; needed when the scene has SDF pairs)."""
+    general, mesh, with_sdf = scene_families(shapes.shape_type) if families is None else families
     narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
     if general:
         narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
     if mesh:
         narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+    if with_sdf:
+        if sdf is None:
+            raise ValueError("sdf must be the model's SdfArrays (inertia.geometry.sdf_collide.sdf_arrays(model)) "
+                             "when the shapes include SDF rows")
+        from .sdf_collide import narrow_phase_sdf
+        narrow_phase_sdf(pairs, npairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca)
 
 
 @njit(cache=True)

@@ -65,6 +65,10 @@ Continuous collision, two layers:
 Solve stage: on the serial path the substep loop is one compiled call (``solver.substeps_serial``);
 on the parallel path each stage kernel is a call (colour batches in parallel).
 
+Baked signed-distance colliders (``SDF`` rows with a grid, ``inertia.geometry.sdf_collide``) collide with
+the dynamic bodies' convex shapes through surface samples; unbaked ones cannot (a warning at build names
+them).
+
 Limitations: no joints yet; no particles in the same step (the lead merges this world with
 ``inertia.world.World``); bodies whose shapes the narrow phase does not pair (see
 ``inertia.geometry.narrowphase``) pass through each other.
@@ -87,6 +91,7 @@ from ..geometry import shapes as S
 from ..geometry.broadphase import shape_world_bounds, sort_and_sweep
 from ..geometry.narrowphase import (compact_active, match_warm_start, narrow_phase_closed, narrow_phase_general,
                                     narrow_phase_mesh, scene_families)
+from ..geometry.sdf_collide import narrow_phase_sdf, sdf_arrays
 from ..geometry.toi import time_of_impact_batch
 from ..model import Control, Model, State
 
@@ -101,6 +106,7 @@ class _Kernels:
         self.narrow_phase_closed = narrow_phase_closed
         self.narrow_phase_general = narrow_phase_general
         self.narrow_phase_mesh = narrow_phase_mesh
+        self.narrow_phase_sdf = narrow_phase_sdf
         self.time_of_impact_batch = time_of_impact_batch
         if parallel:
             self.integrate_velocities = sv.integrate_velocities
@@ -118,6 +124,7 @@ class _Kernels:
             self.narrow_phase_closed = serial_twin(narrow_phase_closed)
             self.narrow_phase_general = serial_twin(narrow_phase_general)
             self.narrow_phase_mesh = serial_twin(narrow_phase_mesh)
+            self.narrow_phase_sdf = serial_twin(narrow_phase_sdf)
             self.time_of_impact_batch = serial_twin(time_of_impact_batch)
 
 
@@ -190,7 +197,9 @@ class RigidWorld:
         m = self.model
         nb, ns = m.body_count, m.shape_count
         self._shapes = m.shapes()
-        self._families = scene_families(m.shape_type)      # (general convex pairs, mesh pairs) possible
+        self._families = scene_families(m.shape_type)      # (general convex, mesh, SDF pairs) possible
+        self._sdf = sdf_arrays(m)
+        self._warn_unbaked_sdf()
         self._shape_pose = np.zeros((ns, 7))
         self._aabb = np.zeros((ns, 6))
         self._order = np.zeros(ns, np.int64)
@@ -215,6 +224,20 @@ class RigidWorld:
         if bullet is not None:
             self._bullet[:len(bullet)] = bullet
         self._min_half_extent = _body_min_half_extent(m)
+
+    def _warn_unbaked_sdf(self):
+        """Once, at build: the SDF rows without a distance grid (unbaked ``SDF`` colliders), which the
+        dynamic bodies cannot collide with."""
+        m = self.model
+        rows = np.flatnonzero((m.shape_type == S.SDF) & (self._sdf.shape_sdf_start[:, 0] < 0))
+        if rows.size == 0 or not np.any(m.body_type == S.DYNAMIC):
+            return
+        source = getattr(m, "shape_source", np.full(m.shape_count, -1))
+        names = ", ".join(f"colliders[{int(source[s])}] (shape row {int(s)})" if source[s] >= 0
+                          else f"shape row {int(s)}" for s in rows[:10])
+        warnings.warn(f"rigid bodies do not collide with the unbaked SDF collider(s) {names}: pass "
+                      "bake={'bounds': (lo, hi), 'resolution': n} to inertia.colliders.SDF so they collide "
+                      "with its distance grid", stacklevel=4)
 
     def _grow_pairs(self, cap):
         self._pairs = np.zeros((cap, 2), np.int32)
@@ -290,6 +313,9 @@ class RigidWorld:
         if self._families[1]:
             self._k.narrow_phase_mesh(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
                                       m.body_bound_radius, dt, ca)
+        if self._families[2]:
+            self._k.narrow_phase_sdf(self._pairs, npairs, self._shapes, self._sdf, self._shape_pose, st.body_qd,
+                                     m.body_bound_radius, dt, ca)
         c.count = npairs
         c.active_count = compact_active(ca, npairs)
         if self.rolling_resistance > 0.0:
