@@ -3,14 +3,34 @@
 Scene (the one of ``/work/shared/peers/bench_sph.py``, so the figures sit side by side): tank
 [0, 4] x [0, 4] m, water column [0, 1] x [0, 2] m against the left wall, g = -9.81, rho0 = 1000.
   2D: spacing 0.01 m -> 100 x 200 = 20 000 fluid particles.
-  3D: the column extruded 1.08 m in z (tank depth), spacing 0.027 m -> 37 x 74 x 40 = 109 520
-      particles (the peers' SPlisHSPlasH block is 37 x 74 x 37 = 101 306; ours fills the tank
-      depth from wall to wall).
+  3D: spacing 0.027 m, tank [0, 4] x [0, 4] x [0, 1.08] m (40 spacings deep, SPlisHSPlasH's box),
+      the peers' SPlisHSPlasH block: 37 x 74 x 37 = 101 306 particles, a column 37 spacings
+      (0.999 m) wide and deep and 74 (1.998 m) tall, centred in z (1.5 spacings of air to each
+      side wall, as SPlisHSPlasH's block). Against the back wall and on the floor the lattice
+      starts half a spacing from the wall (Inertia's rest distance, boundary particles on the
+      same lattice); SPlisHSPlasH's block starts 2 spacings from its volume-map walls (its own
+      rest distance is larger; with 1 spacing its column starts 30 % over-dense, peers' script). (Until 2026-11-27 the block filled the depth, 37 x 74 x 40 = 109 520, in
+      a tank 2.2 m tall with a ceiling: particles squeezed up the back corners hit the ceiling
+      at t ~ 0.14 s and were thrown sideways at 8-12 m/s, and those few set the CFL step for
+      the rest of the window: 1.36 ms mean over t = 0.05-0.30 s against SPlisHSPlasH's 3.0 ms.)
 Timing: like the peers, one sample = the steps that advance 0.01 s of simulated time inside
-t = 0.05-0.30 s (2D); the 3D case times ``--steps3d`` steps after reaching t = 0.02 s (a full
-window takes minutes), and "per simulated s" then uses their mean dt. Printed per case: ms per
+t = 0.05-0.30 s (2D, and 3D with ``--steps3d 0``); with ``--steps3d N`` > 0 the 3D case times N
+steps after reaching t = 0.02 s (quicker, an indication only: the iteration count and the CFL
+step vary along the surge), and "per simulated s" then uses their mean dt. Printed per case: ms per
 step (median, min, max over samples), ms per simulated second, mean dt and DFSPH iterations,
 the neighbour search's share (sort + neighbour lists), and the surge front at 0.1 / 0.2 / 0.3 s.
+
+Settings (``--settings``): "default" runs Inertia's defaults on this scene (inviscid water,
+slip walls, CFL 0.4, steps of at most 5 ms, mean density error 0.1 % in 2D and 0.05 % in 3D as
+the peers' scenes, divergence 0.1 %); "matched" also gives the fluid SPlisHSPlasH's viscosity:
+its scene's "standard" viscosity 0.01 (Viscosity_Standard: a_i = 2 (D + 2) nu sum_j (m_j / rho_j)
+(v_ij . x_ij) / (|x_ij|^2 + 0.01 h^2) grad W_ij, fluid-fluid only, walls slip) is Inertia's laminar
+term with rho_j in place of (rho_i + rho_j) / 2, but Inertia divides nu by the lattice's shear
+response (``fluid.lattice_shear_response``, 0.75 in 2D and 0.81 in 3D at h = dx), so the same
+operator is ``viscosity = 0.01 * lattice_shear_response``. Both use the same CFL rule:
+SPlisHSPlasH's dt = cflFactor 0.4 (2 r) / max|v + a dt_prev| (Simulation::updateTimeStepSizeCFL,
+cflMethod 1, 2 r = spacing, a = gravity + viscosity) is Inertia's ``cfl`` 0.4 x spacing /
+(v_max + |g| dt).
 
 Peers in the same run: the Numba WCSPH reference of the peers' script (imported from
 ``/work/shared/peers/bench_sph.py``, run in this process with the same window; 2D only), and
@@ -23,8 +43,9 @@ builds from source and did not finish within a 400 s timeout under load.) Their 
 
 Same rules on both sides (docs/fluids-sph.md, "Speed"): CFL 0.4 spacing per step at the
 largest speed (SPlisHSPlasH cflFactor 1), steps of at most 5 ms, mean density error 0.1 % (2D) /
-0.05 % (3D), divergence 0.1 %. The step counts still differ: SPlisHSPlasH's scene carries its
-viscosity 0.01, which slows the surge and lengthens its CFL steps; Inertia's water is inviscid.
+0.05 % (3D), divergence 0.1 %. With ``--settings default`` the step counts still differ:
+SPlisHSPlasH's scene carries its viscosity 0.01, which slows the surge and lengthens its CFL
+steps; Inertia's water is inviscid. ``--settings matched`` gives Inertia the same viscosity.
 Under load, parallel regions of both (Numba's OpenMP layer, SPlisHSPlasH's OpenMP) wait for
 descheduled threads: alternate the cases (``--cases dfsph:2d splishsplash:2d dfsph:2d ...``), or
 compare one thread each (``NUMBA_NUM_THREADS=1 OMP_NUM_THREADS=1``), and re-measure idle.
@@ -34,7 +55,8 @@ particles wide: ms per step and ns per particle and solver pass over ``--scale-s
 after 5 warm-up steps.
 
 Run:  PYTHONPATH=src python benchmarks/bench_sph.py [--cases dfsph:2d numba:2d splishsplash:2d dfsph:3d
-          splishsplash:3d pysph:2d scaling] [--steps3d 10] [--million] [--t-stop 0.3]
+          splishsplash:3d pysph:2d scaling] [--steps3d 10] [--settings default|matched] [--million]
+          [--t-stop 0.3]
       (defaults: all cases, about 10 min on 2 cores; --million adds the 10^6 scaling point)
 """
 
@@ -50,6 +72,7 @@ import numpy as np
 
 import inertia as ia
 from inertia.fluids.sph import SPHFluid, sample_block
+from inertia.fluids.sph.fluid import lattice_shear_response
 
 PEERS = "/work/shared/peers"
 T_WARM, T_STOP, SAMPLE_DT = 0.05, 0.30, 0.01
@@ -60,32 +83,43 @@ BASELINES = {  # /work/shared/peers/BASELINES.md, "SPH dam break" rows (median m
 }
 
 
-def dam_break(dim, dx, method="dfsph"):
-    """The peers' dam break (see the module docstring) as an SPHFluid."""
+SPLISHSPLASH_VISCOSITY = 0.01   # its shipped dam-break scenes' "standard" viscosity (peers' bench_sph.py)
+SETTINGS = ("default", "matched")
+
+
+def dam_break(dim, dx, method="dfsph", settings="default"):
+    """The peers' dam break (see the module docstring) as an SPHFluid; settings "default"
+    (inviscid) or "matched" (SPlisHSPlasH's viscosity operator, see the module docstring)."""
+    if settings not in SETTINGS:
+        raise ValueError(f"settings must be one of {SETTINGS}; got {settings!r}")
     if dim == 2:
         x = sample_block((0.0, 0.0), (1.0, 2.0), dx)
         lo, hi = (0.0, 0.0), (4.0, 4.0)
     else:
         depth = 40 * dx
-        x = sample_block((0.0, 0.0, 0.0), (1.0, 2.0, depth), dx)
-        lo, hi = (0.0, 0.0, 0.0), (4.0, 2.2, depth)
-    fluid = SPHFluid(x, spacing=dx, domain=(lo, hi), method=method, viscosity=0.0, xsph=0.0,
-                     density_tolerance=1e-3 if dim == 2 else 5e-4)
+        x = sample_block((0.0, 0.0, 1.5 * dx), (37 * dx, 74 * dx, 38.5 * dx), dx)   # 37 x 74 x 37
+        lo, hi = (0.0, 0.0, 0.0), (4.0, 4.0, depth)
+    nu = 0.0
+    if settings == "matched":
+        nu = SPLISHSPLASH_VISCOSITY * lattice_shear_response("cubic_spline", dim, dx, dx)
+    fluid = SPHFluid(x, spacing=dx, domain=(lo, hi), method=method, viscosity=nu, xsph=0.0,
+                     density_tolerance=1e-3 if dim == 2 else 5e-4, cfl=0.4, dt_max=0.005,
+                     divergence_tolerance=1e-3)
     centre = 0.5 * (np.array(lo) + np.array(hi))
     fluid.add_boundary(ia.colliders.Container(center=centre, half_extents=0.5 * (np.array(hi) - np.array(lo))),
                        slip=True)
     return fluid
 
 
-def run_inertia(dim, dx, steps3d):
-    fluid = dam_break(dim, dx)
+def run_inertia(dim, dx, steps3d, settings="default"):
+    fluid = dam_break(dim, dx, settings=settings)
     t0 = time.perf_counter()
     fluid.step()
     first = time.perf_counter() - t0
     fronts, samples, iters, dts = [], [], [], []
     checks = [0.1, 0.2, 0.3]
     start_profile = None
-    if dim == 2:
+    if dim == 2 or steps3d <= 0:
         while fluid.time < T_WARM:
             fluid.step()
         start_profile = dict(fluid.profile)
@@ -208,7 +242,10 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--cases", nargs="+", default=["dfsph:2d", "numba:2d", "splishsplash:2d", "dfsph:3d",
                                                    "splishsplash:3d", "pysph:2d", "scaling"])
-    ap.add_argument("--steps3d", type=int, default=10)
+    ap.add_argument("--steps3d", type=int, default=10, help="3D: steps timed after t = 0.02 s; 0 = the peers' "
+                    "window t = 0.05-0.30 s")
+    ap.add_argument("--settings", choices=SETTINGS, default="default",
+                    help="Inertia's defaults, or SPlisHSPlasH's viscosity as well (see the module docstring)")
     ap.add_argument("--scale-steps", type=int, default=10)
     ap.add_argument("--million", action="store_true")
     ap.add_argument("--peer-timeout", type=float, default=600.0, help="seconds per peer subprocess")
@@ -216,13 +253,14 @@ def main():
     a = ap.parse_args()
     T_STOP = a.t_stop
     import numba
-    print(f"numba {numba.__version__}, {numba.get_num_threads()} threads, {os.cpu_count()} cpus")
+    print(f"numba {numba.__version__}, {numba.get_num_threads()} threads, {os.cpu_count()} cpus; Inertia settings "
+          f"{a.settings!r}; load average {os.getloadavg()[0]:.1f}")
     ours = ours3 = None
     for case in a.cases:
         if case in ("dfsph:2d", "dfsph:3d"):
             dim = int(case[-2])
             try:
-                r = run_inertia(dim, 0.01 if dim == 2 else 0.027, a.steps3d)
+                r = run_inertia(dim, 0.01 if dim == 2 else 0.027, a.steps3d, a.settings)
             except ia.errors.SimulationDiverged as e:
                 print(f"inertia {dim}D  diverged: {e}")
                 continue

@@ -116,6 +116,10 @@ MAX_CELLS = 1 << 26
 TAIT_EXPONENT = 7.0
 RELAXATION = 0.5  # relaxed Jacobi for the DFSPH solves (see kernels.pressure_increment)
 UNCONVERGED_SHRINK = 0.5
+# a step after which more than this share of the fluid (and at least ESCAPE_MIN particles) lies
+# beyond the domain bounds raised SimulationDiverged (see SPHFluid._check_escaped)
+ESCAPE_SHARE = 0.25
+ESCAPE_MIN = 8
 # weight of k_i in the boundary term (see SPHFluid)
 BOUNDARY_PRESSURE = {"extrapolated": 1.0, "akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
 
@@ -958,6 +962,8 @@ class SPHFluid:
         cap = self.capacity
         self._K.bin_cells(F.x, self._n, self.grid, self.support, self._outflow_lo, self._outflow_hi, self._cell_of)
         n = _bp.counting_sort(self._cell_of, self._ncells, self._cell_start, self._order)
+        if n < self._n:
+            self._check_escaped()
         o = self._order
         for arr, tmp in ((F.x, self._tmp2), (F.v, self._tmp2), (F.k_dens, self._tmp1), (F.k_div, self._tmp1),
                          (self._id, self._tmpi)):
@@ -1234,6 +1240,34 @@ class SPHFluid:
                 self._next_id += room
                 self._n = b
 
+    def _check_escaped(self):
+        """Called by the sort when rows were dropped: more than ``ESCAPE_SHARE`` of the fluid (and
+        at least ``ESCAPE_MIN`` particles) beyond the domain bounds after one step is a blow-up.
+        With the CFL step (at most ``cfl`` <= 1 spacing per step) a flow leaving through an open
+        side loses at most about one lattice layer per step; a fluid whose step is unstable shoots
+        out all at once (and would otherwise end with no particles and no error)."""
+        n_before = self._n
+        escaped = _nb.count_escaped(self._cell_of, n_before)
+        self.stats["escaped"] = self.stats.get("escaped", 0) + escaped
+        if escaped < ESCAPE_MIN or escaped <= ESCAPE_SHARE * n_before:
+            return
+        rows = np.flatnonzero(self._cell_of[:n_before] == _nb.ESCAPED)   # the error path only
+        ids = self._id[rows]
+        step, dt = self.step_count - 1, self.last_dt
+        raise SimulationDiverged(
+            f"SPH step {step} (t = {self.time - dt:g} s, dt = {dt:g} s) blew up: {escaped} of {n_before} fluid "
+            f"particles ({100.0 * escaped / n_before:.0f} %) left the domain by more than one kernel support "
+            f"(not through an outflow region), particle ids {ids[:10].tolist()}{' ...' if escaped > 10 else ''}; "
+            f"likely cause: {self._likely_cause()}", step=step, time=self.time - dt, indices=ids)
+
+    def _likely_cause(self):
+        if self.method == "wcsph":
+            return ("stiffness/time step: the sound speed is too low for the flow (lower density_tolerance) or dt "
+                    "too large")
+        return ("time step / pressure-solve tolerance: the DFSPH solve leaves compression that builds up "
+                f"({self.stats.get('unconverged_solves', 0)} unconverged solves so far; raise max_iterations, "
+                "lower dt_max, cfl or local_density_tolerance)")
+
     def _runaway(self, what):
         n = self._n
         self._K.speed_squared(self._F.v, n, self._tmp1)
@@ -1241,12 +1275,7 @@ class SPHFluid:
         ids = self._id[:n][worst]
         where = ", ".join(f"{i} at {np.round(self._F.x[k], 4).tolist()} ({math.sqrt(self._tmp1[k]):.3g} m/s)"
                           for i, k in zip(ids[:3], worst[:3]))
-        if self.method == "wcsph":
-            cause = "stiffness/time step: the sound speed is too low for the flow (lower density_tolerance) or dt too large"
-        else:
-            cause = ("time step / pressure-solve tolerance: the DFSPH solve leaves compression that builds up "
-                     f"({self.stats.get('unconverged_solves', 0)} unconverged solves so far; raise max_iterations, "
-                     "lower dt_max, cfl or local_density_tolerance)")
+        cause = self._likely_cause()
         raise SimulationDiverged(
             f"SPH step {self.step_count} (t = {self.time:g} s) ran away: {what}. Fastest particles (ids): {where}; "
             f"likely cause: {cause}", step=self.step_count, time=self.time, indices=ids)

@@ -5,9 +5,11 @@ Each step (``SPHFluid._neighbours``):
 1. ``bin_cells``: the cell of every active fluid particle in a dense grid over the domain, cells
    at least half a kernel support wide (``REACH`` = 2 cells per support; on a periodic axis the
    cell is ``L / floor(2 L / support)`` so that the cells tile the period). A fluid particle
-   more than one support outside the domain on a non-periodic axis gets cell -1 and is dropped
-   by the sort (this is how outflow works; closer ones, e.g. pressed into a wall's band, are
-   clamped into the edge cells, as every boundary particle is).
+   more than one support outside the domain on a non-periodic axis gets cell ``ESCAPED`` (-2),
+   one inside an outflow box ``OUTFLOW`` (-1); both are dropped by the sort (closer ones, e.g.
+   pressed into a wall's band, are clamped into the edge cells, as every boundary particle is).
+   ``count_escaped`` counts the former: ``SPHFluid`` treats a large share of the fluid leaving
+   through the domain bounds in one step as a blow-up.
 2. ``inertia.collision.broadphase.counting_sort`` (reused: serial, stable, so the order is the
    same at any thread count) and ``broadphase.gather``: the fluid arrays are *reordered* into
    cell order and stay in that order ("sorted space"): neighbours become neighbours in memory.
@@ -59,6 +61,9 @@ from .smoothing import kernel_norm, w_and_dwdr
 # the 36 h^2 of 3 x 3 cells of 2h (125 h^3 instead of 216 h^3 in 3D) for the pi 4 h^2 (33.5 h^3)
 # that hold its neighbours.
 REACH = 2
+# bin_cells' marks for dropped rows (the counting sort drops every negative cell)
+OUTFLOW = -1   # inside an outflow box, or an inactive slot (i >= n)
+ESCAPED = -2   # more than ``margin`` outside the domain on a non-periodic axis
 
 
 class Grid(NamedTuple):
@@ -87,13 +92,14 @@ def _cell_coord(v, d, grid, margin):
 
 @njit(cache=True, parallel=True)
 def bin_cells(x, n, grid, margin, outflow_lo, outflow_hi, cell_of):
-    """cell_of[i] = linear cell of particle i < n: -1 beyond ``margin`` [m] outside the domain
-    (particles within it are clamped into the edge cells) and inside any outflow box
-    [outflow_lo[k], outflow_hi[k]) (K, 3); -1 for i >= n (inactive slots)."""
+    """cell_of[i] = linear cell of particle i < n: ``OUTFLOW`` (-1) inside any outflow box
+    [outflow_lo[k], outflow_hi[k]) (K, 3) and for i >= n (inactive slots), ``ESCAPED`` (-2)
+    beyond ``margin`` [m] outside the domain (particles within it are clamped into the edge
+    cells)."""
     dim = x.shape[1]
     for i in prange(cell_of.shape[0]):
         if i >= n:
-            cell_of[i] = -1
+            cell_of[i] = OUTFLOW
             continue
         drop = False
         for k in range(outflow_lo.shape[0]):
@@ -104,15 +110,26 @@ def bin_cells(x, n, grid, margin, outflow_lo, outflow_hi, cell_of):
             if inside:
                 drop = True
         if drop:
-            cell_of[i] = -1
+            cell_of[i] = OUTFLOW
             continue
         cx = _cell_coord(x[i, 0], 0, grid, margin)
         cy = _cell_coord(x[i, 1], 1, grid, margin)
         cz = _cell_coord(x[i, 2], 2, grid, margin) if dim == 3 else 0
         if cx < 0 or cy < 0 or cz < 0:
-            cell_of[i] = -1
+            cell_of[i] = ESCAPED
         else:
             cell_of[i] = cx + grid.dims[0] * (cy + grid.dims[1] * cz)
+
+
+@njit(cache=True)
+def count_escaped(cell_of, n):
+    """Number of rows i < n that ``bin_cells`` marked ``ESCAPED`` (serial: one pass over ints,
+    run only in steps that dropped particles)."""
+    count = 0
+    for i in range(n):
+        if cell_of[i] == ESCAPED:
+            count += 1
+    return count
 
 
 @njit(cache=True, inline="always")
