@@ -94,8 +94,8 @@ Heightfield rows are seen by particles as the solid under the rigid side's trian
 are recorded only in worlds with bodies (a world of static colliders has no Contacts buffer), for the
 table's rows (not for colliders attached with ``system.add_collider``), for 3-D particle groups (not
 tracers); a particle row's impulse includes particle-particle impulses of particles touching the row
-(the coupling's attribution). Rigid bodies do not collide with ``SDF`` colliders,
-and a ``Container``'s walls are infinite planes for them.
+(the coupling's attribution). Rigid bodies collide only with baked ``SDF`` colliders (sampled surface
+points, ``inertia.geometry.sdf_collide``), and a ``Container``'s walls are infinite planes for them.
 """
 
 from __future__ import annotations
