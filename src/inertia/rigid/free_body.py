@@ -38,6 +38,7 @@ import numpy as np
 from numba import prange
 
 from inertia._jit import parallel_kernel
+from inertia.math import rotate_vectors
 from inertia.ode.system import PhaseSpaceSystem
 
 __all__ = ["FreeBodies", "QuaternionRenormalization"]
@@ -223,10 +224,10 @@ class FreeBodies(PhaseSpaceSystem):
         self.body_momentum = self.state[POSE_SIZE * count:].reshape(count, MOMENTUM_SIZE)
         self.body_pose[:, :3] = x
         self.body_pose[:, 3:] = q
-        # L = R diag(I) R^T w, P = m v
-        for b in range(count):
-            r = _quat_matrix(q[b])
-            self.body_momentum[b, :3] = r @ (inertia[b] * (r.T @ w[b]))
+        # L = R diag(I) R^T w, P = m v (quaternion rotations in plain arithmetic: a BLAS matrix product
+        # rounds differently with the CPU's kernel, and the state would hash differently per machine)
+        q_inv = q * np.array([1.0, -1.0, -1.0, -1.0])
+        self.body_momentum[:, :3] = rotate_vectors(q, inertia * rotate_vectors(q_inv, w))
         self.body_momentum[:, 3:] = mass[:, None] * v
         self.stages = [QuaternionRenormalization()]
         self.state_revision = 0
@@ -296,14 +297,6 @@ class FreeBodies(PhaseSpaceSystem):
 
     def body_frame_angular_momentum(self) -> np.ndarray:
         """(B, 3) angular momentum in each body's principal frame, R^T L."""
-        out = np.zeros((self.body_count, 3))
-        for b in range(self.body_count):
-            out[b] = _quat_matrix(self.body_pose[b, 3:]).T @ self.body_momentum[b, :3]
-        return out
-
-
-def _quat_matrix(q) -> np.ndarray:
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+        q = self.body_pose[:, 3:]
+        q_inv = q * np.array([1.0, -1.0, -1.0, -1.0]) / np.linalg.norm(q, axis=1)[:, None]
+        return rotate_vectors(q_inv, self.body_momentum[:, :3])
