@@ -35,7 +35,7 @@ import numpy as np
 from ._validate import positive_scalar
 from .geometry import shapes as S
 from .geometry.mass import shape_mass_properties
-from .math import mat3_to_quat, quat_to_mat3, transform_inv, transform_mul
+from .math import mat3_mul, mat3_to_quat, mat3_transpose, mat3_vec, quat_to_mat3, transform_inv, transform_mul
 
 __all__ = ["ModelBuilder", "Model", "State", "Control", "Material", "BodyArrays", "ShapeArrays"]
 
@@ -85,7 +85,7 @@ def _unit_quat(value, name):
     q = np.asarray(value, dtype=np.float64).reshape(-1)
     if q.shape != (4,) or not np.all(np.isfinite(q)):
         raise ValueError(f"{name} must be a finite quaternion (w, x, y, z); got {value!r}")
-    n = float(np.linalg.norm(q))
+    n = math.sqrt(float(np.sum(q * q)))   # not np.linalg.norm: its BLAS dot rounds by CPU kernel
     if abs(n - 1.0) > 1e-6:
         raise ValueError(f"{name} must be a unit quaternion (w, x, y, z) with |q| = 1 within 1e-6; "
                          f"got |q| = {n:.9g} for {q.tolist()}")
@@ -416,7 +416,8 @@ class ModelBuilder:
                     continue
                 props = shape_mass_properties(sh["type"], sh["params"], sh["density"], vertices=sh["verts"])
                 r = quat_to_mat3(np.ascontiguousarray(sh["pose"][3:], dtype=np.float64))
-                parts.append((props.mass, sh["pose"][:3] + r @ props.com, r @ props.inertia @ r.T))
+                parts.append((props.mass, sh["pose"][:3] + mat3_vec(r, props.com),
+                              mat3_mul(mat3_mul(r, props.inertia), mat3_transpose(r))))
             for m, c, _ in parts:
                 m_tot += m
                 com += m * c
@@ -424,7 +425,7 @@ class ModelBuilder:
                 com /= m_tot
                 for m, c, i_c in parts:
                     d = c - com
-                    itensor += i_c + m * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+                    itensor += i_c + m * (float(np.sum(d * d)) * np.eye(3) - np.outer(d, d))
             if bd["mass"] is not None:
                 if m_tot > 0:
                     itensor *= bd["mass"] / m_tot

@@ -188,7 +188,7 @@ x = np.linspace(-2, 2, 9)
 b = ModelBuilder()
 b.add_heightfield(0.2 * np.sin(x)[:, None] * np.cos(x)[None, :], (0.5, 0.5))
 for k in range(12):
-    q = rng.normal(size=4); q /= np.linalg.norm(q)
+    q = rng.normal(size=4); q /= np.sqrt(np.sum(q * q))
     body = b.add_body(position=(rng.uniform(-1, 1), rng.uniform(-1, 1), 0.6 + 0.3 * k), orientation=q)
     if k % 2:
         b.add_sphere(body, 0.1)

@@ -110,7 +110,7 @@ def _mixed_scene(parallel):
     hull = rng.normal(size=(10, 3)) * 0.06
     for k in range(10):
         q = rng.normal(size=4)
-        q /= np.linalg.norm(q)
+        q /= np.sqrt(np.sum(q * q))
         pos = (0.6, 0.6, 0.6) if k == 0 else (rng.uniform(-0.5, 0.5), rng.uniform(-0.5, 0.5), 0.3 + 0.1 * k)
         body = b.add_body(position=pos, orientation=q)
         [lambda: b.add_box(body, (0.06, 0.04, 0.05)), lambda: b.add_sphere(body, 0.05),

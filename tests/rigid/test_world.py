@@ -286,7 +286,7 @@ def _pile_hash_script(threads):
         b = ModelBuilder()
         b.add_plane()
         for k in range(48):
-            q = rng.normal(size=4); q /= np.linalg.norm(q)
+            q = rng.normal(size=4); q /= np.sqrt(np.sum(q * q))
             body = b.add_body(position=(rng.uniform(-0.3, 0.3), rng.uniform(-0.3, 0.3), 0.3 + 0.25 * k / 4),
                               orientation=q)
             if k % 3 == 0:

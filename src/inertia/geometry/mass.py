@@ -303,7 +303,7 @@ def parallel_axis(inertia_com, mass: float, offset) -> np.ndarray:
     """Inertia about a point displaced by ``offset`` from the centre of mass (parallel-axis theorem,
     Steiner): I_P = I_com + m (|d|^2 E - d d^T)."""
     d = np.asarray(offset, dtype=np.float64).reshape(3)
-    return np.asarray(inertia_com, dtype=np.float64) + mass * (d @ d * np.eye(3) - np.outer(d, d))
+    return np.asarray(inertia_com, dtype=np.float64) + mass * (float(np.sum(d * d)) * np.eye(3) - np.outer(d, d))
 
 
 def transform_mass_properties(props: MassProperties, pose) -> MassProperties:
@@ -312,7 +312,9 @@ def transform_mass_properties(props: MassProperties, pose) -> MassProperties:
     pose = np.asarray(pose, dtype=np.float64).reshape(7)
     q = im.quat_normalize(pose[3:7])
     r = im.quat_to_mat3(q)
-    return MassProperties(props.mass, pose[:3] + r @ props.com, r @ props.inertia @ r.T)
+    # explicit 3x3 products, not BLAS (whose rounding depends on the CPU's kernel)
+    inertia = im.mat3_mul(im.mat3_mul(r, np.ascontiguousarray(props.inertia, dtype=np.float64)), im.mat3_transpose(r))
+    return MassProperties(props.mass, pose[:3] + im.mat3_vec(r, np.ascontiguousarray(props.com, dtype=np.float64)), inertia)
 
 
 def compound_mass_properties(parts: Sequence[MassProperties], poses=None) -> MassProperties:
