@@ -71,3 +71,31 @@ def test_stage_runs_the_kernels_of_its_kind_set():
     # a moving collider compiles the moving-collider code in (rest frames, surface velocities)
     ps.add_collider(C.Sphere(center=(2, 0, 0), radius=0.5, motion=lambda t: (2.0 + t, 0.0, 0.0)))
     assert pk.kernels_for(ps._collision.cint).moving
+
+
+def test_query_points_compiles_the_collider_kind_only_with_the_same_bits_serial_and_parallel():
+    # Collider.query passes kinds_token((kind,)): its results must equal the generic dispatch's
+    # (ALL_KINDS: every branch, what query_points computed before it took a token) and the
+    # parallel build's bit for bit (each point is written by one iteration).
+    rng = np.random.default_rng(5)
+    pts = rng.uniform(-1.2, 1.2, (200, 3))
+    shapes = [C.Sphere(center=(0.2, 0, 0), radius=0.5, motion=lambda t: (0.2 + t, 0.1 * t, 0.0)),
+              C.Box(center=(0, 0.1, 0), half_extents=(0.3, 0.4, 0.5)),
+              C.Plane(point=(0, 0, 0.1), normal=(0, 0.6, 0.8))]
+    t = 0.3
+    for shape in shapes:
+        got = shape._query_new(pts, t)  # 600 elements: the serial twin
+        m = len(pts)
+        args = (shape.kind, shape._cf, shape._ci, shape._packed_pose(t), shape._ref, shape.moving,
+                *shape._rigid_velocity(t))
+        for kernel, kinds in ((D.query_points.serial, D.ALL_KINDS),
+                              (D.query_points.parallel, D.kinds_token((shape.kind,)))):
+            want = np.empty(m), np.empty((m, 3)), np.empty((m, 3))
+            kernel(pts, kinds, *args, *want)
+            for a, b in zip(got, want):
+                np.testing.assert_array_equal(a, b)
+        assert np.isfinite(got[0]).all() and (got[0] < 0).any() and (got[0] > 0).any()
+    assert np.any(shapes[0].velocity(pts, t) != 0.0)  # the moving sphere carries its velocity
+    # the serial twin was typed with one-kind tokens only (no box code in the sphere's build)
+    tokens = {tuple(str(x) for x in sig[1].types) for sig in D.query_points.serial.signatures}
+    assert ("none", "bool", "none", "none", "none", "none", "none") in tokens

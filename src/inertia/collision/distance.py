@@ -47,6 +47,8 @@ import math
 from numba import njit, prange, types
 from numba.extending import overload
 
+from .._jit import parallel_kernel
+
 PLANE, SPHERE, BOX, CAPSULE, CYLINDER, CONTAINER, GRID, CALLABLE = range(8)
 KIND_NAMES = ("plane", "sphere", "box", "capsule", "cylinder", "container", "grid", "callable")
 
@@ -484,13 +486,23 @@ def distance_lower_bound(kind, cf, o, ci, io, x, y, z):
     return lower_bound_in(ALL_KINDS, kind, cf, o, ci, io, x, y, z)
 
 
-@njit(cache=True, parallel=True)
-def query_points(points, kind, cf, ci, pose, ref, moving, lin_vel, ang_vel, distance_out,
+# Elements of ``points`` below which ``query_points`` runs its serial twin: the threshold the
+# curl-noise kernels measured (``fields/kernels.py``, 8,192 3-D points), since a query per point
+# costs about as much as a noise sample (grids and meshes more) and curl-noise boundaries are
+# its main caller. Never above ``inertia._jit.SERIAL_BELOW``.
+QUERY_SERIAL_BELOW = 24576
+
+
+@parallel_kernel(serial_below=QUERY_SERIAL_BELOW)
+def query_points(points, kinds, kind, cf, ci, pose, ref, moving, lin_vel, ang_vel, distance_out,
                  normal_out, velocity_out):
     """Distance, outward normal and surface velocity of one collider at many world points.
 
-    points (M, D); pose (12,) = [p, R] at the query time; lin_vel (3,) velocity of the
-    reference point; ang_vel (3,) angular velocity; outputs (M,), (M, D), (M, D).
+    points (M, D); kinds: ``kinds_token((kind,))`` (only that kind's distance is compiled; a
+    kind set holding ``kind`` gives the same bits); pose (12,) = [p, R] at the query time;
+    lin_vel (3,) velocity of the reference point; ang_vel (3,) angular velocity; outputs (M,),
+    (M, D), (M, D). Calls from Python run the serial twin below ``QUERY_SERIAL_BELOW`` points
+    (same bits: each point is written by one iteration).
     """
     m, dim = points.shape
     for i in prange(m):
@@ -501,7 +513,7 @@ def query_points(points, kind, cf, ci, pose, ref, moving, lin_vel, ang_vel, dist
             lx, ly, lz = to_rest(pose, ref, x, y, z)
         else:
             lx, ly, lz = x, y, z
-        d, gx, gy, gz = sdf(kind, cf, 0, ci, 0, lx, ly, lz)
+        d, gx, gy, gz = sdf_in(kinds, kind, cf, 0, ci, 0, lx, ly, lz)
         if moving:
             gx, gy, gz = rotate(pose, gx, gy, gz)
         distance_out[i] = d

@@ -145,7 +145,8 @@ class Collider:
         points = self._points(points)
         pose = self._packed_pose(t)
         v, w = self._rigid_velocity(t)
-        _d.query_points(points, self.kind, self._cf, self._ci, pose, self._ref, self.moving, v, w,
+        kinds = _d.kinds_token((self.kind,))   # compile this kind's distance only
+        _d.query_points(points, kinds, self.kind, self._cf, self._ci, pose, self._ref, self.moving, v, w,
                         distance_out, normal_out, velocity_out)
 
     def _query_new(self, points, t):

@@ -438,8 +438,8 @@ class PlaneSlice:
         self.motion = getattr(collider, "motion", None)
         self._fast = isinstance(collider, Collider) and type(collider).query is Collider.query
         if self._fast:
-            from . import kernels as K
-            self._kernel = K.version(_d.query_points, False)
+            self._kernel = _d.query_points.serial   # small batches: the serial twin
+            self._kinds = _d.kinds_token((collider.kind,))   # compile this kind's distance only
 
     def query(self, points, t=0.0):
         """(distance (M,), normal (M, dim), velocity (M, dim)) at points (M, dim) (new arrays)."""
@@ -454,7 +454,7 @@ class PlaneSlice:
         c = self.collider
         if self._fast:
             vel, omega = c._rigid_velocity(t)
-            self._kernel(pts, c.kind, c._cf, c._ci, c._packed_pose(t), c._ref, c.moving,
+            self._kernel(pts, self._kinds, c.kind, c._cf, c._ci, c._packed_pose(t), c._ref, c.moving,
                          np.ascontiguousarray(vel, dtype=np.float64),
                          np.ascontiguousarray(omega, dtype=np.float64), d, n, v)
             return d, n, v
