@@ -619,8 +619,8 @@ def _ball_far(cx, cy, cz, rad, reach0, l1, ex, ey, ez):
 def _far_from_one_each(p0, p1, p2, p3, b0, b1, b2, b3, r, tol, ex, ey, ez, dx, dy, dz):
     """``_far_from_slots`` for exactly one plane row (p) and one ball row (b) passed as scalars
     (the common scene: a ground and one obstacle). The same operations, so the same result; with
-    the rows in registers and no loop over rows, the integrating loop runs about 20 % faster
-    (``benchmarks/bench_collisions.py --only colliders``)."""
+    the rows in registers and no loop over rows, the fused semi-implicit step at 1M particles
+    took about 0.82x the time of the loop over rows (kernel timed on a saved state, load 2-5)."""
     reach0 = r + 2.0 * tol
     l1 = abs(dx) + abs(dy) + abs(dz)
     return (_plane_far(p0, p1, p2, p3, reach0, l1, ex, ey, ez)
