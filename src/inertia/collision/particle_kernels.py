@@ -592,13 +592,39 @@ def _far_from_slots(planes, balls, r, tol, ex, ey, ez, dx, dy, dz):
     l1 = abs(dx) + abs(dy) + abs(dz)
     far = True
     for p in range(planes.shape[0]):
-        lin = planes[p, 0] * ex + planes[p, 1] * ey + planes[p, 2] * ez - planes[p, 3]
-        far &= lin - reach0 > l1
+        far &= _plane_far(planes[p, 0], planes[p, 1], planes[p, 2], planes[p, 3], reach0, l1, ex, ey, ez)
     for b in range(balls.shape[0]):
-        bx, by, bz = ex - balls[b, 0], ey - balls[b, 1], ez - balls[b, 2]
-        reach = balls[b, 3] + (reach0 + l1)
-        far &= (reach > 0.0) & (bx * bx + by * by + bz * bz > reach * reach)
+        far &= _ball_far(balls[b, 0], balls[b, 1], balls[b, 2], balls[b, 3], reach0, l1, ex, ey, ez)
     return far
+
+
+@njit(cache=True, inline="always")
+def _plane_far(nx, ny, nz, off, reach0, l1, ex, ey, ez):
+    """One plane row of ``_far_from_slots``: the end point's height above the plane beyond the
+    reach (r + 2 tol) plus |d|_1."""
+    lin = nx * ex + ny * ey + nz * ez - off
+    return lin - reach0 > l1
+
+
+@njit(cache=True, inline="always")
+def _ball_far(cx, cy, cz, rad, reach0, l1, ex, ey, ez):
+    """One ball row of ``_far_from_slots``: the end point outside the ball grown by the reach and
+    |d|_1 (compared squared: no square root)."""
+    bx, by, bz = ex - cx, ey - cy, ez - cz
+    reach = rad + (reach0 + l1)
+    return (reach > 0.0) & (bx * bx + by * by + bz * bz > reach * reach)
+
+
+@njit(cache=True, inline="always")
+def _far_from_one_each(p0, p1, p2, p3, b0, b1, b2, b3, r, tol, ex, ey, ez, dx, dy, dz):
+    """``_far_from_slots`` for exactly one plane row (p) and one ball row (b) passed as scalars
+    (the common scene: a ground and one obstacle). The same operations, so the same result; with
+    the rows in registers and no loop over rows, the fused semi-implicit step at 1M particles
+    took about 0.82x the time of the loop over rows (kernel timed on a saved state, load 2-5)."""
+    reach0 = r + 2.0 * tol
+    l1 = abs(dx) + abs(dy) + abs(dz)
+    return (_plane_far(p0, p1, p2, p3, reach0, l1, ex, ey, ez)
+            & _ball_far(b0, b1, b2, b3, reach0, l1, ex, ey, ez))
 
 
 @njit(cache=True)
@@ -822,6 +848,16 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     gz = gravity[2] if dim == 3 else 0.0
     fx, fy = force[0], force[1]
     fz = force[2] if dim == 3 else 0.0
+    # one plane row and one ball row (a ground and an obstacle): the rows as scalars
+    one_each = (far_planes.shape[0] == 1) & (far_balls.shape[0] == 1)
+    p0 = far_planes[0, 0] if one_each else 0.0
+    p1 = far_planes[0, 1] if one_each else 0.0
+    p2 = far_planes[0, 2] if one_each else 0.0
+    p3 = far_planes[0, 3] if one_each else 0.0
+    b0 = far_balls[0, 0] if one_each else 0.0
+    b1 = far_balls[0, 1] if one_each else 0.0
+    b2 = far_balls[0, 2] if one_each else 0.0
+    b3 = far_balls[0, 3] if one_each else 0.0
     for c in prange(chunks):
         lo = c * STEP_CHUNK
         hi = min(lo + STEP_CHUNK, n)
@@ -839,9 +875,13 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
             ex, evx = _affine_step(sx, svx, gx, fx, damping, w, dt, rk4)
             ey, evy = _affine_step(sy, svy, gy, fy, damping, w, dt, rk4)
             ez, evz = _affine_step(sz, svz, gz, fz, damping, w, dt, rk4)
-            far = (active[i] & (w != 0.0) & (rest_k[i] < 0)
-                   & _far_from_slots(far_planes, far_balls, radius[i], tol, ex, ey, ez, ex - sx, ey - sy,
-                                     ez - sz))
+            if one_each:
+                far_c = _far_from_one_each(p0, p1, p2, p3, b0, b1, b2, b3, radius[i], tol, ex, ey, ez,
+                                           ex - sx, ey - sy, ez - sz)
+            else:
+                far_c = _far_from_slots(far_planes, far_balls, radius[i], tol, ex, ey, ez, ex - sx, ey - sy,
+                                        ez - sz)
+            far = active[i] & (w != 0.0) & (rest_k[i] < 0) & far_c
             # the end of step where far, the start (unchanged) otherwise
             ox, ovx = (ex, evx) if far else (sx, svx)
             oy, ovy = (ey, evy) if far else (sy, svy)
