@@ -27,7 +27,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from ..._jit import serial_twin
+from ..._jit import SizeDispatched, serial_twin
 
 NEUMANN = 0
 DIRICHLET = 1
@@ -1113,7 +1113,9 @@ PARALLEL_CELLS = 65536
 
 
 def version(kernel, parallel: bool):
-    """The parallel kernel or its (lazily compiled) serial twin."""
+    """The parallel kernel or its (lazily compiled) serial twin (a size-dispatched kernel's own twin)."""
+    if isinstance(kernel, SizeDispatched):
+        return kernel.parallel if parallel else kernel.serial
     if parallel:
         return kernel
     twin = _TWINS.get(kernel)

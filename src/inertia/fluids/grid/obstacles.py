@@ -287,12 +287,14 @@ def query_into(o, pts, t, d, nrm, vel, kernel):
     written in place: a `PlaneSlice` or a plain `Collider` through the query kernel (no (M,)
     array made), a collider with its own ``query`` through it, anything else through its
     ``signed_distance`` and ``velocity`` (new arrays)."""
+    from ...collision import distance as _d
     from ...collision.shapes import Collider
     if isinstance(o, PlaneSlice):
         o.query_into(pts, t, d, nrm, vel)
     elif isinstance(o, Collider) and type(o).query is Collider.query:
         v, w = o._rigid_velocity(t)
-        kernel(pts, o.kind, o._cf, o._ci, o._packed_pose(t), o._ref, o.moving, v, w, d, nrm, vel)
+        kernel(pts, _d.kinds_token((o.kind,)), o.kind, o._cf, o._ci, o._packed_pose(t), o._ref, o.moving, v, w,
+               d, nrm, vel)
     elif isinstance(o, Collider):
         o.query(pts, t, d, nrm, vel)
     else:
