@@ -218,8 +218,13 @@ def quat_rotate_inv(q, v):
 @_jit
 def quat_to_mat3(q):
     """The rotation matrix R(q) of a unit quaternion."""
+    return quat_to_mat3_into(q, np.empty((3, 3)))
+
+
+@_jit
+def quat_to_mat3_into(q, m):
+    """R(q) of a unit quaternion written into m (3, 3) (no allocation); returns m."""
     w, x, y, z = q[0], q[1], q[2], q[3]
-    m = np.empty((3, 3))
     m[0, 0] = 1.0 - 2.0 * (y * y + z * z)
     m[0, 1] = 2.0 * (x * y - w * z)
     m[0, 2] = 2.0 * (x * z + w * y)
@@ -377,8 +382,13 @@ def transform_inv(a):
 @_jit
 def world_inertia_inv(q, inv_inertia_diag):
     """World-frame inverse inertia R diag(I^-1) R^T for a body whose frame is on its principal axes."""
-    r = quat_to_mat3(q)
-    out = np.empty((3, 3))
+    return world_inertia_inv_into(q, inv_inertia_diag, np.empty((3, 3)), np.empty((3, 3)))
+
+
+@_jit
+def world_inertia_inv_into(q, inv_inertia_diag, r, out):
+    """`world_inertia_inv` into out (3, 3), with R(q) into r (3, 3) (no allocation); returns out."""
+    quat_to_mat3_into(q, r)
     for i in range(3):
         for j in range(i, 3):
             s = (r[i, 0] * inv_inertia_diag[0] * r[j, 0] + r[i, 1] * inv_inertia_diag[1] * r[j, 1]

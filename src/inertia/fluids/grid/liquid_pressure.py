@@ -39,6 +39,7 @@ import warnings
 import numpy as np
 from numba import njit
 
+from ...math import world_inertia_inv_into
 from . import pressure as P
 from .obstacles import face_cells
 
@@ -201,31 +202,9 @@ def apply_inverse_mass(s6, dyn, inv_mass, inv_inertia, body_q, kappa, y6, rot, i
         y6[b, 0] = m * s6[b, 0]
         y6[b, 1] = m * s6[b, 1]
         y6[b, 2] = m * s6[b, 2]
-        _world_inertia_inv_into(body_q[b, 3:7], inv_inertia[b], rot, iw)
+        world_inertia_inv_into(body_q[b, 3:7], inv_inertia[b], rot, iw)
         for r in range(3):
             y6[b, 3 + r] = kappa * (iw[r, 0] * s6[b, 3] + iw[r, 1] * s6[b, 4] + iw[r, 2] * s6[b, 5])
-
-
-@njit(cache=True, inline="always")
-def _world_inertia_inv_into(q, d, rot, out):
-    """`math.world_inertia_inv(q, d)` into out, R(q) (`math.quat_to_mat3`) into rot: the same
-    expressions, so the same bits, without allocating."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    rot[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    rot[0, 1] = 2.0 * (x * y - w * z)
-    rot[0, 2] = 2.0 * (x * z + w * y)
-    rot[1, 0] = 2.0 * (x * y + w * z)
-    rot[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    rot[1, 2] = 2.0 * (y * z - w * x)
-    rot[2, 0] = 2.0 * (x * z - w * y)
-    rot[2, 1] = 2.0 * (y * z + w * x)
-    rot[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-    for i in range(3):
-        for j in range(i, 3):
-            s = (rot[i, 0] * d[0] * rot[j, 0] + rot[i, 1] * d[1] * rot[j, 1]
-                 + rot[i, 2] * d[2] * rot[j, 2])
-            out[i, j] = s
-            out[j, i] = s
 
 
 class BodyCoupling:
