@@ -32,9 +32,10 @@ from numba import njit
 
 __all__ = [
     "quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_rotate_inv", "quat_rotate_into",
-    "quat_rotate_inv_into", "quat_to_mat3", "mat3_to_quat", "quat_from_axis_angle", "quat_integrate",
+    "quat_rotate_inv_into", "quat_to_mat3", "quat_to_mat3_into", "mat3_to_quat", "quat_from_axis_angle", "quat_from_axis_angle_into", "quat_integrate",
     "quat_integrate_into", "transform_point", "transform_point_inv", "transform_mul", "transform_inv",
     "cross", "dot", "skew", "mat3_mul", "mat3_vec", "mat3_transpose", "mat3_inv_sym", "world_inertia_inv",
+    "world_inertia_inv_into",
     "spatial_cross_motion", "spatial_cross_force", "rotate_vectors", "compose_poses",
 ]
 
@@ -276,10 +277,18 @@ def mat3_to_quat(m):
 @_jit
 def quat_from_axis_angle(axis, angle):
     """Rotation by ``angle`` radians about ``axis`` (normalised here; a zero axis gives the identity)."""
+    return quat_from_axis_angle_into(axis, angle, np.empty(4))
+
+
+@_jit
+def quat_from_axis_angle_into(axis, angle, q):
+    """`quat_from_axis_angle` written into q (4,) (no allocation); returns q."""
     n = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
-    q = np.zeros(4)
     if n == 0.0:
         q[0] = 1.0
+        q[1] = 0.0
+        q[2] = 0.0
+        q[3] = 0.0
         return q
     s = math.sin(0.5 * angle) / n
     q[0] = math.cos(0.5 * angle)

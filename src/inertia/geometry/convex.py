@@ -571,17 +571,6 @@ def _epa_face(pw, i, j, k, faces, face_n, face_d, f):
 
 
 @njit(inline="always")
-def _axis_angle_into(axis, angle, q):
-    """``inertia.math.quat_from_axis_angle`` (same arithmetic) written into ``q`` (4,); axis non-zero."""
-    n = math.sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2])
-    s = math.sin(0.5 * angle) / n
-    q[0] = math.cos(0.5 * angle)
-    q[1] = axis[0] * s
-    q[2] = axis[1] * s
-    q[3] = axis[2] * s
-
-
-@njit(inline="always")
 def _set_vertex(pw, pa, pb, i, p1, p2):
     """Polytope vertex i: the support points p1 on A and p2 on B, and p1 - p2 on A - B."""
     for k in range(3):
@@ -654,7 +643,7 @@ def _epa(type_a, params_a, pose_a, start_a, count_a, type_b, params_b, pose_b, s
         for c in range(3):
             perp[c] /= ln
         for step in range(6):
-            _axis_angle_into(e_unit, step * math.pi / 3.0, q)
+            _m.quat_from_axis_angle_into(e_unit, step * math.pi / 3.0, q)
             _m.quat_rotate_into(q, perp, d)
             _support_world_into(type_a, params_a, pose_a, verts, start_a, count_a, d, 1.0, with_radius, p1, scr)
             _support_world_into(type_b, params_b, pose_b, verts, start_b, count_b, d, -1.0, with_radius, p2, scr)
