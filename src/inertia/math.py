@@ -32,7 +32,8 @@ from numba import njit
 
 __all__ = [
     "quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_rotate_inv", "quat_rotate_into",
-    "quat_rotate_inv_into", "quat_to_mat3", "quat_to_mat3_into", "mat3_to_quat", "quat_from_axis_angle", "quat_from_axis_angle_into", "quat_integrate",
+    "quat_rotate_inv_into", "quat_to_mat3", "quat_to_mat3_into", "mat3_to_quat", "quat_from_axis_angle",
+    "quat_from_axis_angle_into", "quat_integrate",
     "quat_integrate_into", "transform_point", "transform_point_inv", "transform_mul", "transform_inv",
     "cross", "dot", "skew", "mat3_mul", "mat3_vec", "mat3_transpose", "mat3_inv_sym", "world_inertia_inv",
     "world_inertia_inv_into",
