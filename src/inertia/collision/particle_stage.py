@@ -43,7 +43,10 @@ begin_step (before the integrator)
               colliders are static and compiled (no moving collider, no unbaked SDF, no
               self-collisions), nothing is saved: the integrator's kernel runs the collision pass
               per particle with the step's start in registers (``particle_kernels.step_and_collide``,
-              the same bits as the separate pass below, one pass over memory instead of three)
+              the same bits as the separate pass below, one pass over memory instead of three);
+              in a World that wants Contacts rows (``coupling`` set) the kernel's near loop also
+              credits each particle's change over the pass to its contact slot of a table row
+              (``pass_record``), as ``coupling.after_collisions`` does after the separate pass
 integrator
     non-fused steps: the force filter ``RestingContactFilter`` runs in every force evaluation:
     for resting particles it cancels the applied force into the surface and applies Coulomb

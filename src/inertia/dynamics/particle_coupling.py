@@ -20,6 +20,9 @@ particle received to its contact slot of that row (`ContactSlots`, two per parti
 static rows, which push no body, included), and `fill_particle_contacts` turns the slots, the row a
 particle rests on at the end of the step and the sensor rows it overlaps into buffer rows. The slots'
 impulses on a body's rows sum to minus what the body received (the same numbers, summed in another order).
+In a world whose bodies are all static the particle groups take the fused integrator step, whose near
+loop writes the same slots itself (``particle_kernels.step_and_collide``, attribution by the shared
+``particle_kernels.pass_row``): the rows are those of the separate pass, bit for bit.
 
 Impulses are summed per body in particle order, group order and substep order (serial, fixed order:
 deterministic at any thread count), then applied once per world step by `apply_body_impulses`:
