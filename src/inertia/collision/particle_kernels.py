@@ -46,7 +46,9 @@ lookups, not the response.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
+import numpy as np
 from numba import njit, prange
 
 from . import distance as _d
@@ -817,8 +819,8 @@ STEP_CHUNK = 1024
 @njit(cache=True, parallel=True)
 def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk4, cint, cnear, cmat, cf,
                      ci, far_planes, far_balls, pose, ref, rest_k, rest_n, rest_u, load, static_ok,
-                     near_list, chunk_counts, dt, tol, rest_speed, a_priori, max_sub, max_iter, kinds,
-                     motion):
+                     near_list, chunk_counts, rec, record, dt, tol, rest_speed, a_priori, max_sub, max_iter,
+                     kinds, motion):
     """The fused integrator step (rk4 or semi-implicit Euler, affine forces) and the collision
     pass against static colliders, in one pass over memory.
 
@@ -838,8 +840,15 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     thus stays a small loop free of the response code. pose (K, 12): the static colliders'
     poses (unused by static shapes). chunk_counts (>= chunks, 3) int64: scratch for each chunk's
     (changed, resting, non-finite values) counts, summed in chunk order after the parallel loop
-    (no scalar reduction inside it). Returns (changed, resting, finite), finite False when any
-    value of the state (pinned and inactive particles included) is NaN or infinite.
+    (no scalar reduction inside it). rec (``PassRecord``), record: when ``record`` (a world that
+    wants its Contacts rows, decided once), the near loop also adds each particle's momentum change
+    over the collision pass to its contact slot of the row ``pass_row`` credits -- what
+    ``gather_pass_impulses`` adds after a separate pass, the same bits -- so impacts get their rows
+    with the impulse (a particle's slots are its own: no write is shared between chunks; the
+    world's ``fill_particle_contacts`` then lists the rows in particle order, as after the separate
+    pass). Far particles do not change in the pass and have nothing to record. Returns (changed,
+    resting, finite), finite False when any value of the state (pinned and inactive particles
+    included) is NaN or infinite.
     """
     n, dim = x.shape
     chunks = (n + STEP_CHUNK - 1) // STEP_CHUNK
@@ -921,10 +930,14 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
                 near = _near_mask(cnear, cf, kr, radius[i], tol, ex, ey, ez, ex - sx, ey - sy, ez - sz)
                 mod = rests = False
                 if near != 0 or kr >= 0:  # the exact test (the first loop's may send far particles)
+                    ix, iy, iz, ivx, ivy, ivz = ex, ey, ez, evx, evy, evz  # the integrator's end
                     ex, ey, ez, evx, evy, evz, mod, rests = _collide_near(
                         i, radius, cint, cnear, cmat, cf, ci, pose, pose, ref, rest_k, rest_n, rest_u, load,
                         static_ok, near, kr, sx, sy, sz, svx, svy, svz, ex, ey, ez, evx, evy, evz, dt, tol,
                         rest_speed, a_priori, max_sub, max_iter, True, unfiltered, True, kinds, motion)
+                    if record and mod:  # the contact row of the pass's impulse (Contacts rows wanted)
+                        _record_pass(i, w, radius, cint, cf, ci, pose, ref, rec, ix, iy, iz, ivx, ivy, ivz,
+                                     ex, ey, ez, evx, evy, evz, kinds, motion)
                 chunk_changed += mod
                 chunk_resting += rests
                 chunk_bad += (ex + ey + ez + evx + evy + evz) * 0.0 != 0.0
@@ -941,6 +954,92 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
         resting += chunk_counts[c, 1]
         bad += chunk_counts[c, 2]
     return changed, resting, bad == 0
+
+
+class PassRecord(NamedTuple):
+    """Kernel bundle: where ``step_and_collide`` records the rows the collision pass credits (the
+    world's contact slots, ``inertia.dynamics.particle_coupling.ContactSlots``), when ``record``.
+
+    slot_entry (N, S) int64, slot_impulse (N, S, 3) N s: per particle the packed rows it touched in
+    the world step and the impulse each gave it (``slot_add``); entry_body, entry_shape (K,) int64:
+    the dynamic body and shape-table row of each packed row (-1 none); tol: the attribution
+    tolerance (``pass_row``). ``no_record(k)`` is the 1-particle placeholder when nothing is recorded.
+    """
+    slot_entry: np.ndarray
+    slot_impulse: np.ndarray
+    entry_body: np.ndarray
+    entry_shape: np.ndarray
+    tol: float
+
+
+def no_record(k: int) -> PassRecord:
+    """A placeholder ``PassRecord`` (nothing is written to it: ``record`` False)."""
+    return PassRecord(np.full((1, 2), -1, np.int64), np.zeros((1, 2, 3)), np.full(max(k, 1), -1, np.int64),
+                      np.full(max(k, 1), -1, np.int64), 0.0)
+
+
+@njit(cache=True)
+def pass_row(cint, cf, ci, pose, ref, entry_body, entry_shape, r, tol, x0, y0, z0, x1, y1, z1, kinds, motion):
+    """The packed row a particle's change over the collision pass is credited to: the row nearest to
+    the particle at the start (x0) or end (x1) of the pass (signed distance at ``pose``), if it is a
+    table row or a body's row and within tol + |x1 - x0| (+ 1e-9 m) of the particle's surface; -1
+    otherwise. One rule for the coupling (``particle_coupling.gather_pass_impulses``) and the fused
+    step's contact rows (``step_and_collide``)."""
+    best, kbest = 1e300, -1
+    for k in range(cint.shape[0]):
+        if cint[k, 0] == _d.CALLABLE:
+            continue
+        d0 = _eval(cint, cf, ci, pose, ref, k, x0, y0, z0, kinds, motion)[0]
+        d1 = _eval(cint, cf, ci, pose, ref, k, x1, y1, z1, kinds, motion)[0]
+        d = min(d0, d1)
+        if d < best:
+            best, kbest = d, k
+    if kbest < 0:
+        return -1
+    if entry_body[kbest] < 0 and entry_shape[kbest] < 0:
+        return -1
+    dx, dy, dz = x1 - x0, y1 - y0, z1 - z0
+    reach = tol + math.sqrt(dx * dx + dy * dy + dz * dz) + 1e-9
+    if best - r > reach:
+        return -1
+    return kbest
+
+
+@njit(cache=True)
+def slot_add(entry, impulse, i, k, jx, jy, jz):
+    """Add the impulse (jx, jy, jz) on particle i from packed row k to i's contact slot of k (the
+    first free slot when k has none; the last slot when all are taken)."""
+    s = -1
+    for c in range(entry.shape[1]):
+        if entry[i, c] == k:
+            s = c
+            break
+        if entry[i, c] < 0:
+            entry[i, c] = k
+            s = c
+            break
+    if s < 0:
+        s = entry.shape[1] - 1
+    impulse[i, s, 0] += jx
+    impulse[i, s, 1] += jy
+    impulse[i, s, 2] += jz
+
+
+@njit(cache=True)
+def _record_pass(i, w, radius, cint, cf, ci, pose, ref, rec, x0, y0, z0, u0, v0, w0, x1, y1, z1, u1, v1, w1,
+                 kinds, motion):
+    """The fused step's twin of ``gather_pass_impulses`` for one particle (static rows only: no body
+    is pushed): its momentum change over the collision pass, from (x0, u0) to (x1, u1), added to its
+    contact slot of the row ``pass_row`` credits."""
+    dvx, dvy, dvz = u1 - u0, v1 - v0, w1 - w0
+    if dvx == 0.0 and dvy == 0.0 and dvz == 0.0 and x1 - x0 == 0.0 and y1 - y0 == 0.0 and z1 - z0 == 0.0:
+        return
+    k = pass_row(cint, cf, ci, pose, ref, rec.entry_body, rec.entry_shape, radius[i], rec.tol, x0, y0, z0,
+                 x1, y1, z1, kinds, motion)
+    if k < 0 or rec.entry_shape[k] < 0:
+        return
+    m = 1.0 / w
+    slot_add(rec.slot_entry, rec.slot_impulse, i, k, m * dvx, m * dvy, m * dvz)
 
 
 @njit(cache=True, parallel=True)

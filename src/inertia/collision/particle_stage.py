@@ -43,7 +43,10 @@ begin_step (before the integrator)
               colliders are static and compiled (no moving collider, no unbaked SDF, no
               self-collisions), nothing is saved: the integrator's kernel runs the collision pass
               per particle with the step's start in registers (``particle_kernels.step_and_collide``,
-              the same bits as the separate pass below, one pass over memory instead of three)
+              the same bits as the separate pass below, one pass over memory instead of three);
+              in a World that wants Contacts rows (``coupling`` set) the kernel's near loop also
+              credits each particle's change over the pass to its contact slot of a table row
+              (``pass_record``), as ``coupling.after_collisions`` does after the separate pass
 integrator
     non-fused steps: the force filter ``RestingContactFilter`` runs in every force evaluation:
     for resting particles it cancels the applied force into the surface and applies Coulomb
@@ -207,6 +210,7 @@ class ParticleCollisionData:
         # two-way coupling with bodies (``inertia.dynamics.particle_coupling.ParticleBodyCoupling``,
         # set by the world): particle momentum changes go back into the bodies
         self.coupling = None
+        self._no_record = None  # the fused step's placeholder ``PassRecord`` (nothing recorded)
         self._pack()
 
     # --- model -------------------------------------------------------------------------------
@@ -262,11 +266,11 @@ class ParticleCollisionData:
         static compiled colliders (no moving ones, no unbaked SDFs) and no self-collisions.
 
         In a World whose bodies do not move (static bodies and body -1 rows only: every row is a
-        static collider) the coupling has no body to push, so the fused path stays on; the
-        world's Contacts buffer then lists each particle's resting contact at the end of the
-        step (zero impulse), not the impulses of impacts on static rows (the fused kernel keeps
-        no pre-collision state to gather them from). Rows of dynamic or kinematic bodies are
-        moving colliders (``any_moving``), which always take the separate pass."""
+        static collider) the coupling has no body to push, so the fused path stays on; its near
+        loop writes the coupling's contact slots itself (``pass_record``), so the world's
+        Contacts buffer gets the same rows as after the separate pass (impacts and resting
+        contacts, with the impulses). Rows of dynamic or kinematic bodies are moving colliders
+        (``any_moving``), which always take the separate pass."""
         return self.any_kernel and not self.any_moving and not self.callables and not self.self_collisions
 
     def run_fused(self, system, affine, rk4, dt):
@@ -274,13 +278,27 @@ class ParticleCollisionData:
         g, force, damping = affine
         self.fused_armed = False
         tic = time.perf_counter()
+        rec, record = self.pass_record()
         self.fused_result = pk.kernels_for(self.cint).step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
             self.cint, self.cnear, self.cmat, self.cf, self.ci, self.far_planes, self.far_balls, self.pose1,
             self.ref, self.rest_k,
-            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, self.chunk_counts, dt, self.distance_tolerance,
+            self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, self.chunk_counts, rec, record,
+            dt, self.distance_tolerance,
             self.rest_speed, self.mode == "a_priori", self.max_substeps, self.max_iterations)
         self.profile["collide"] += time.perf_counter() - tic
+
+    def pass_record(self):
+        """(``particle_kernels.PassRecord``, record) for the fused step: the coupling's contact slots
+        when a World wants this group's Contacts rows (``coupling`` set: decided when the group is
+        attached), else a placeholder and False (the pure particle path records nothing)."""
+        c = self.coupling
+        if c is None:
+            if self._no_record is None:
+                self._no_record = pk.no_record(self.cint.shape[0])
+            return self._no_record, False
+        return pk.PassRecord(c.slot_entry, c.slot_impulse, c.entry_body, c.entry_shape,
+                             max(c.tol, self.distance_tolerance)), True
 
     def update_poses(self, t, dt):
         """pose0 / pose1 of the moving colliders at t and t + dt (rows of body shapes are written by

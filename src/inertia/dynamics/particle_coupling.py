@@ -20,6 +20,9 @@ particle received to its contact slot of that row (`ContactSlots`, two per parti
 static rows, which push no body, included), and `fill_particle_contacts` turns the slots, the row a
 particle rests on at the end of the step and the sensor rows it overlaps into buffer rows. The slots'
 impulses on a body's rows sum to minus what the body received (the same numbers, summed in another order).
+In a world whose bodies are all static the particle groups take the fused integrator step, whose near
+loop writes the same slots itself (``particle_kernels.step_and_collide``, attribution by the shared
+``particle_kernels.pass_row``): the rows are those of the separate pass, bit for bit.
 
 Impulses are summed per body in particle order, group order and substep order (serial, fixed order:
 deterministic at any thread count), then applied once per world step by `apply_body_impulses`:
@@ -53,6 +56,7 @@ import numpy as np
 from numba import njit
 
 from ..collision import distance as _d
+from ..collision import particle_kernels as _pk
 from ..geometry import shapes as S
 from ..math import world_inertia_inv
 
@@ -116,16 +120,6 @@ def apply_body_impulses(model_arrays, state, linear_impulse, angular_impulse_abo
                       m.body_bound_radius))
 
 
-@njit(cache=True)
-def _signed_distance(cint, cf, ci, pose, ref, k, x, y, z):
-    if cint[k, 1] & 1:
-        lx, ly, lz = _d.to_rest(pose[k], ref[k], x, y, z)
-    else:
-        lx, ly, lz = x, y, z
-    d, gx, gy, gz = _d.sdf(cint[k, 0], cf, cint[k, 2], ci, cint[k, 3], lx, ly, lz)
-    return d
-
-
 class PassParticles(NamedTuple):
     """Kernel bundle: the particles around the collision pass (N particles, 3-D)."""
     x_pre: np.ndarray      # (N, 3) m, before the pass
@@ -162,23 +156,7 @@ class ContactSlots(NamedTuple):
 SLOTS = 2
 
 
-@njit(cache=True)
-def _slot_add(entry, impulse, i, k, jx, jy, jz):
-    """Add the impulse (jx, jy, jz) on particle i from packed row k to i's slot of k."""
-    s = -1
-    for c in range(entry.shape[1]):
-        if entry[i, c] == k:
-            s = c
-            break
-        if entry[i, c] < 0:
-            entry[i, c] = k
-            s = c
-            break
-    if s < 0:
-        s = entry.shape[1] - 1
-    impulse[i, s, 0] += jx
-    impulse[i, s, 1] += jy
-    impulse[i, s, 2] += jz
+_slot_add = _pk.slot_add  # one home: the fused step (``step_and_collide``) writes the same slots
 
 
 class BodyImpulses(NamedTuple):
@@ -208,24 +186,12 @@ def gather_pass_impulses(P, R, out, slots, tol):
         dxx, dxy, dxz = x[i, 0] - x_pre[i, 0], x[i, 1] - x_pre[i, 1], x[i, 2] - x_pre[i, 2]
         if dvx == 0.0 and dvy == 0.0 and dvz == 0.0 and dxx == 0.0 and dxy == 0.0 and dxz == 0.0:
             continue
-        # the nearest shape at the start or end of the pass
-        best, kbest = 1e300, -1
-        for k in range(cint.shape[0]):
-            if cint[k, 0] == _d.CALLABLE:
-                continue
-            d0 = _signed_distance(cint, cf, ci, pose1, ref, k, x_pre[i, 0], x_pre[i, 1], x_pre[i, 2])
-            d1 = _signed_distance(cint, cf, ci, pose1, ref, k, x[i, 0], x[i, 1], x[i, 2])
-            d = min(d0, d1)
-            if d < best:
-                best, kbest = d, k
+        # the nearest row at the start or end of the pass, within reach (``particle_kernels.pass_row``)
+        kbest = _pk.pass_row(cint, cf, ci, pose1, ref, entry_body, entry_shape, radius[i], tol, x_pre[i, 0],
+                             x_pre[i, 1], x_pre[i, 2], x[i, 0], x[i, 1], x[i, 2], _d.ALL_KINDS, True)
         if kbest < 0:
             continue
         b = entry_body[kbest]
-        if b < 0 and entry_shape[kbest] < 0:
-            continue
-        reach = tol + math.sqrt(dxx * dxx + dxy * dxy + dxz * dxz) + 1e-9
-        if best - radius[i] > reach:
-            continue
         m = 1.0 / inv_mass[i]
         jx, jy, jz = -m * dvx, -m * dvy, -m * dvz
         if entry_shape[kbest] >= 0:
