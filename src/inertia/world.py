@@ -87,8 +87,8 @@ self-collisions and forces act within a group); the particle count is fixed for 
 coupling is explicit: bodies move first and feel the particles' impulses from the next step on;
 particles see a moving body's surface velocity as its material velocity v + w x (x - c) from
 ``body_qd`` after the rigid step, where the particle ends the (sub)step. In a world whose bodies are
-all static the particle groups keep the fused integrator path; their Contacts rows then list each
-particle's resting contact at the end of the step (zero impulse), not impacts on static rows.
+all static the particle groups keep the fused integrator path, whose step writes the same Contacts
+rows as the separate pass (impacts and resting contacts, with their impulses).
 Heightfield rows are seen by particles as the solid under the rigid side's triangles
 (`inertia.collision.heightfield_distance`), a column ``max(1 m, grid extent)`` deep. Particle rows
 are recorded only in worlds with bodies (a world of static colliders has no Contacts buffer), for the
