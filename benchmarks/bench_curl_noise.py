@@ -36,6 +36,14 @@ blend, 53 of 3000 left). Takes minutes; the test suite runs 400 tracers near the
 65,536 points (run it with ``NUMBA_NUM_THREADS=2``): where the parallel build pays sets
 ``fields.kernels.SERIAL_BELOW``.
 
+``--profile`` splits a 3-D Perlin sample (10^6 points, 3 octaves, one thread, CPU time) into
+its stages: the potential (``kernels.potential3_block`` over every block) and, within it, the
+corner passes (``kernels._perlin_pass`` on one fixed block, as many times) and by difference
+the lattice walk and fades; the curl assembly and output writes (the sample minus the
+potential); with a sphere, the wall lists (``_Boundaries.prepare``: the collider's query,
+``wall_counts`` / ``wall_rows``, normals and Hessians) and the bounded kernel's extra work.
+Stage drivers are compiled on their own, so the parts add up only roughly (a few per cent).
+
 ``--cold-compile [SRC ...]`` measures the CPU seconds a 3-D curl-noise scene (3 octaves,
 time-varying, a sphere boundary, 200 points) takes to build and sample once from an empty
 Numba cache, in a fresh process per source tree (this one and each SRC):
@@ -115,6 +123,7 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=1, help="Numba threads for --compare-with")
     parser.add_argument("--threshold", action="store_true", help="serial vs parallel build by size")
     parser.add_argument("--cold-compile", nargs="*", metavar="SRC", help="cold-compile CPU seconds")
+    parser.add_argument("--profile", action="store_true", help="Perlin sample split into stages")
     parser.add_argument("--cold-child", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--sampling-json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -124,6 +133,8 @@ def main(argv=None):
         return threshold()
     if args.cold_child:
         return cold_child()
+    if args.profile:
+        return profile(args.points, args.repeat)
     if args.cold_compile is not None:
         return cold_compile(args.cold_compile)
     if args.sampling_json:
@@ -287,6 +298,64 @@ def threshold():
         print(f"{M:6d} points: serial median {row['serial'][0] * 1e3:8.3f} ms (best "
               f"{row['serial'][1] * 1e3:.3f}), parallel median {row['parallel'][0] * 1e3:8.3f} ms "
               f"(best {row['parallel'][1] * 1e3:.3f}), load average {os.getloadavg()[0]:.1f}")
+
+
+def profile(M, repeat):
+    """Where a 3-D Perlin curl-noise sample spends its time (see the module docstring)."""
+    from numba import njit
+    from inertia.fields import kernels as K
+    B = K._BLOCK
+
+    @njit
+    def potential_only(points, t, offsets, perm, table, codes, frequency, lacunarity, gain,
+                       octaves, time_frequency, scale, work, ints):
+        for s0 in range(0, points.shape[0], B):
+            K.potential3_block(points, s0, min(B, points.shape[0] - s0), t, offsets, perm, table,
+                               codes, frequency, lacunarity, gain, octaves, time_frequency, scale,
+                               work, ints)
+
+    @njit
+    def passes_only(M, octaves, timed, work, hashes):
+        for s0 in range(0, M, B):
+            for _ in range(octaves):
+                if timed:
+                    K._perlin_pass(work, hashes, 0, min(B, M - s0), 0.3, 0.2, 0.4, True)
+                    K._perlin_pass(work, hashes, 8, min(B, M - s0), 0.3, 0.2, -0.6, True)
+                else:
+                    K._perlin_pass(work, hashes, 0, min(B, M - s0), 0.3, 0.2, 0.0, False)
+
+    numba.set_num_threads(1)
+    clock = time.process_time
+    pts = np.random.default_rng(0).uniform(-1.0, 1.0, (M, 3)) * 0.999
+    out = np.empty_like(pts)
+    sphere = ia.colliders.Sphere(center=(0.0, 0.0, 0.0), radius=0.3)
+    rng = np.random.default_rng(1)
+    print(f"3-D Perlin curl-noise, {M:,} points, 3 octaves, 1 thread, CPU ms (best of {repeat}), "
+          f"load average {os.getloadavg()[0]:.1f}")
+    for tf in (0.0, 0.5):
+        free = ia.fields.CurlNoise(dim=3, seed=1, kind="perlin", frequency=2.0, octaves=3,
+                                   time_frequency=tf)
+        ball = ia.fields.CurlNoise(dim=3, seed=1, kind="perlin", frequency=2.0, octaves=3,
+                                   time_frequency=tf, boundaries=[sphere])
+        p = free.params
+        work = rng.uniform(0.0, 1.0, 21 * B)
+        ints = np.zeros(16 * B, np.int64)
+        hashes = free._codes[rng.integers(0, 512, 16 * B)].copy()
+        t_free = best_of(lambda f=free: f.sample(pts, 0.25, out), repeat, clock)
+        t_ball = best_of(lambda f=ball: f.sample(pts, 0.25, out), repeat, clock)
+        t_prep = best_of(lambda f=ball: f.boundaries.prepare(pts, 0.25), repeat, clock)
+        t_pot = best_of(lambda: potential_only(
+            pts, 0.25, free._offsets[0], free._perm, free._table, free._codes, p.frequency,
+            p.lacunarity, p.gain, p.octaves, p.time_frequency, free._scale, work, ints),
+            repeat, clock)
+        t_pass = best_of(lambda: passes_only(M, p.octaves, tf != 0.0, work, hashes), repeat, clock)
+        label = "4-D (t)" if tf else "3-D"
+        ms = 1e3
+        print(f"perlin {label} free   {t_free * ms:7.1f}: potential {t_pot * ms:6.1f} (corner passes "
+              f"{t_pass * ms:6.1f}, lattice walk + fades {(t_pot - t_pass) * ms:6.1f}), curl + "
+              f"writes {(t_free - t_pot) * ms:6.1f}")
+        print(f"perlin {label} sphere {t_ball * ms:7.1f}: wall lists (prepare) {t_prep * ms:6.1f}, "
+              f"bounded kernel beyond the free one {(t_ball - t_free - t_prep) * ms:6.1f}")
 
 
 def cold_child():
