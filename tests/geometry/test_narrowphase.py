@@ -287,15 +287,15 @@ def test_general_pairs_reuse_one_gjk_epa_scratch_per_run():
     caller's (a world keeps a bank of them, ``new_narrow_work``); the count left is the wrapping of the
     array arguments at the call from Python."""
     from numba.core.runtime import _nrt_python, rtsys
-    from inertia.geometry.convex import new_gjk_scratch
-    from inertia.geometry.narrowphase import _narrow_range_general, new_scratch
+    from inertia.geometry.narrowphase import _narrow_range_general, new_narrow_work
     was_on = _nrt_python.memsys_stats_enabled()
     _nrt_python.memsys_enable_stats()
     try:
         counts = {}
         for npairs in (5, 50):
             c, args = _general_pairs_scene(npairs)
-            args = args + (new_scratch(), new_gjk_scratch())
+            work = new_narrow_work()
+            args = args + (work.scratch, work.gjk, 0)
             _narrow_range_general(*args)                        # compile / warm
             a0 = rtsys.get_allocation_stats().alloc
             _narrow_range_general(*args)

@@ -992,11 +992,12 @@ class ManifoldOut(NamedTuple):
 
 
 @njit(cache=True)
-def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, scr):
+def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, run):
     """Every pair of ``lo:hi``: materials, keys, zeroed impulses, and the manifold of the closed-form
-    pairs (the other families' kernels fill theirs afterwards), clipping in the run's scratch ``scr``.
-    The bundles' arrays are unpacked once into locals: reading a NamedTuple member inside the loop
+    pairs (the other families' kernels fill theirs afterwards), clipping in row ``run`` of the scratch
+    bank. The bundles' arrays are unpacked once into locals: reading a NamedTuple member inside the loop
     takes and drops a reference each time."""
+    scr = scratch_row(bank, run)
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     shape_friction, shape_restitution = shapes.shape_friction, shapes.shape_restitution
@@ -1041,9 +1042,11 @@ def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius,
 
 
 @njit(cache=True)
-def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca, scr, gscr):
-    """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents; the
-    run's scratch ``scr`` and GJK/EPA scratch ``gscr``."""
+def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, gjk_bank, run):
+    """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents; row
+    ``run`` of the clipping and GJK/EPA scratch banks."""
+    scr = scratch_row(bank, run)
+    gscr = CV.gjk_scratch_row(gjk_bank, run)
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
@@ -1080,24 +1083,24 @@ def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, 
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work):
+def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank):
     """Every candidate pair's row, and the manifolds of the closed-form pairs (runs in parallel; run
-    ``ch`` clips in row ``ch`` of ``work.scratch``, a `NarrowWork`)."""
+    ``ch`` clips in row ``ch`` of ``bank``, a `NarrowWork`'s ``scratch``)."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, keys, shapes, pose, body_qd,
-                      body_bound_radius, dt, ca, scratch_row(work.scratch, ch))
+                      body_bound_radius, dt, ca, bank, ch)
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work):
+def narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, gjk_bank):
     """The manifolds of the general convex pairs (GJK/EPA), after ``narrow_phase_closed``; run ``ch``
-    works in row ``ch`` of both banks of ``work`` (a `NarrowWork` made with ``general=True``)."""
+    works in row ``ch`` of both banks (a `NarrowWork` made with ``general=True``: its ``scratch`` and
+    ``gjk``; passed apart because a parallel loop cannot take a nested bundle)."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range_general(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, shapes, pose, body_qd,
-                              body_bound_radius, dt, ca, scratch_row(work.scratch, ch),
-                              CV.gjk_scratch_row(work.gjk, ch))
+                              body_bound_radius, dt, ca, bank, gjk_bank, ch)
 
 
 @njit(cache=True, parallel=True)
@@ -1119,9 +1122,10 @@ def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, 
     general, mesh, with_sdf = scene_families(shapes.shape_type) if families is None else families
     if work is None:
         work = new_narrow_work(general)
-    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work)
+    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch)
     if general:
-        narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work)
+        narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch,
+                             work.gjk)
     if mesh:
         narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
     if with_sdf:

@@ -65,6 +65,15 @@ Continuous collision, two layers:
 Solve stage: on the serial path the substep loop is one compiled call (``solver.substeps_serial``);
 on the parallel path each stage kernel is a call (colour batches in parallel).
 
+Memory: every work array of the step is made at build (``_allocate``: shape poses and boxes, the
+sweep's merge-sort scratch, the narrow phase's scratch banks ``NarrowWork``, constraint and colour
+arrays, the finite check's output); the pair buffers and the constraint arrays are replaced by ones of
+twice the needed size when a step's pair or constraint count exceeds them, and the contact buffers
+double likewise (``Contacts.reserve``), so growth is amortised O(log n) over a run. A warm step's
+kernels allocate nothing (tests/rigid/test_step_allocations.py counts Numba's NRT allocations and
+tracemalloc's peak); the mesh, heightfield and SDF narrow phases (``trimesh_collide``, ``sdf_collide``)
+still make small per-pair or per-run arrays.
+
 Baked signed-distance colliders (``SDF`` rows with a grid, ``inertia.geometry.sdf_collide``) collide with
 the dynamic bodies' convex shapes through surface samples; unbaked ones cannot (a warning at build names
 them).
@@ -311,12 +320,13 @@ class RigidWorld:
         # speculative=False: only the shapes' margins (dt = 0 closes nothing), as a test of the TOI sweep
         dt = self.dt if self.speculative else 0.0
         self._k.narrow_phase_closed(self._pairs, self._keys, npairs, self._shapes, self._shape_pose, st.body_qd,
-                                    m.body_bound_radius, dt, ca, self._narrow_work)
+                                    m.body_bound_radius, dt, ca, self._narrow_work.scratch)
         # the other families' kernels only when the scene's shape types can pair that way: a box-and-sphere
         # scene never compiles GJK/EPA or the triangle routines
         if self._families[0]:
             self._k.narrow_phase_general(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
-                                         m.body_bound_radius, dt, ca, self._narrow_work)
+                                         m.body_bound_radius, dt, ca, self._narrow_work.scratch,
+                                         self._narrow_work.gjk)
         if self._families[1]:
             self._k.narrow_phase_mesh(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
                                       m.body_bound_radius, dt, ca)
