@@ -539,9 +539,10 @@ class BodyShape(Collider):
         live = getattr(self, "_live", None)
         if live is None or not self._moves:
             return Collider.pose(self, t)
-        from ..math import quat_to_mat3
+        from ..math import quat_to_mat3_into
         q = np.asarray(live[0](t), dtype=np.float64)
-        return q[:3].copy(), quat_to_mat3(np.ascontiguousarray(q[3:]))
+        # R written by the kernel into an array made here: the caller owns the returned pair
+        return q[:3].copy(), quat_to_mat3_into(np.ascontiguousarray(q[3:]), np.empty((3, 3)))
 
     def _rigid_velocity(self, t):
         live = getattr(self, "_live", None)

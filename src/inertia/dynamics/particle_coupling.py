@@ -58,7 +58,7 @@ from numba import njit
 from ..collision import distance as _d
 from ..collision import particle_kernels as _pk
 from ..geometry import shapes as S
-from ..math import world_inertia_inv
+from ..math import world_inertia_inv_into
 
 __all__ = ["apply_body_impulses", "ParticleBodyCoupling", "gather_pass_impulses", "gather_resting_impulses",
            "PassParticles", "PackedRows", "BodyImpulses", "ContactSlots", "SLOTS", "fill_particle_contacts"]
@@ -66,7 +66,9 @@ __all__ = ["apply_body_impulses", "ParticleBodyCoupling", "gather_pass_impulses"
 
 @njit(cache=True)
 def _apply(body_type, inv_mass, inv_inertia, body_q, body_qd, body_awake, body_sleep_time, linear,
-           angular, wake_speed, bound_radius):
+           angular, wake_speed, bound_radius, scratch):
+    """The loop of `apply_body_impulses`; ``scratch`` (2, 3, 3): R(q) and I_world^-1 of the body at hand."""
+    r, iw = scratch[0], scratch[1]
     applied = 0
     for b in range(body_type.shape[0]):
         if body_type[b] != S.DYNAMIC or inv_mass[b] == 0.0:
@@ -75,7 +77,7 @@ def _apply(body_type, inv_mass, inv_inertia, body_q, body_qd, body_awake, body_s
         ax, ay, az = angular[b, 0], angular[b, 1], angular[b, 2]
         if jx == 0.0 and jy == 0.0 and jz == 0.0 and ax == 0.0 and ay == 0.0 and az == 0.0:
             continue
-        iw = world_inertia_inv(body_q[b, 3:7], inv_inertia[b])
+        world_inertia_inv_into(body_q[b, 3:7], inv_inertia[b], r, iw)
         dwx = iw[0, 0] * ax + iw[0, 1] * ay + iw[0, 2] * az
         dwy = iw[1, 0] * ax + iw[1, 1] * ay + iw[1, 2] * az
         dwz = iw[2, 0] * ax + iw[2, 1] * ay + iw[2, 2] * az
@@ -98,7 +100,7 @@ def _apply(body_type, inv_mass, inv_inertia, body_q, body_qd, body_awake, body_s
 
 
 def apply_body_impulses(model_arrays, state, linear_impulse, angular_impulse_about_com, *,
-                        wake_speed: float = 1e-4) -> int:
+                        wake_speed: float = 1e-4, scratch=None) -> int:
     """Apply impulses to the bodies: ``dv = M^-1 J``, ``dw = I_world^-1 A`` (body_qd written in place).
 
     Parameters
@@ -110,14 +112,22 @@ def apply_body_impulses(model_arrays, state, linear_impulse, angular_impulse_abo
     angular_impulse_about_com : (B, 3) N m s, world frame, about the centre of mass.
     wake_speed : m/s; a sleeping body wakes when ``|dv| + |dw| r_bound`` exceeds it (else the impulse is
         dropped: a sleeping body acts as static).
+    scratch : optional (2, 3, 3) float64 work array kept by the caller between steps; made here (144
+        bytes, whatever the body count) when None. The kernel itself allocates nothing.
 
     Static and kinematic bodies are unaffected. Returns the number of bodies that changed.
     """
     m = model_arrays
+    if scratch is None:
+        scratch = np.empty((2, 3, 3))
+    elif not (isinstance(scratch, np.ndarray) and scratch.shape == (2, 3, 3) and scratch.dtype == np.float64
+              and scratch.flags.c_contiguous):
+        raise ValueError(f"scratch must be None or a C-contiguous (2, 3, 3) float64 array; got "
+                         f"{getattr(scratch, 'shape', type(scratch).__name__)}")
     return int(_apply(m.body_type, m.body_inv_mass, m.body_inv_inertia, state.body_q, state.body_qd,
                       state.body_awake, state.body_sleep_time, np.ascontiguousarray(linear_impulse, np.float64),
                       np.ascontiguousarray(angular_impulse_about_com, np.float64), float(wake_speed),
-                      m.body_bound_radius))
+                      m.body_bound_radius, scratch))
 
 
 class PassParticles(NamedTuple):

@@ -693,7 +693,7 @@ def colour_constraints(cons_manifold, n_cons, contact_body, body_inv_mass, body_
                        colour_start, colour_items):
     """Greedy colouring in constraint order: the lowest colour free at both dynamic endpoints
     (bitmask per body); overflow colour ``MAX_COLOURS`` when none is free. Then a counting sort
-    (stable) into ``colour_items`` with CSR ``colour_start (MAX_COLOURS + 2,)``."""
+    (stable) into ``colour_items`` with CSR ``colour_start (MAX_COLOURS + 2,)``. Allocates nothing."""
     body_mask[:] = 0
     ncol = colour_start.shape[0] - 1
     for c in range(n_cons):
@@ -718,16 +718,20 @@ def colour_constraints(cons_manifold, n_cons, contact_body, body_inv_mass, body_
                 body_mask[ba] |= bit
             if db:
                 body_mask[bb] |= bit
+    # counting sort without a fill array: colour_start[k + 1] first holds the start of colour k and
+    # advances as its items are placed, ending at the start of colour k + 1 (the CSR offsets)
     colour_start[:] = 0
     for c in range(n_cons):
         colour_start[colour_of[c] + 1] += 1
+    run = 0
     for k in range(ncol):
-        colour_start[k + 1] += colour_start[k]
-    fill = colour_start[:ncol].copy()
+        cnt = colour_start[k + 1]
+        colour_start[k + 1] = run
+        run += cnt
     for c in range(n_cons):
         col = colour_of[c]
-        colour_items[fill[col]] = c
-        fill[col] += 1
+        colour_items[colour_start[col + 1]] = c
+        colour_start[col + 1] += 1
 
 
 @njit(cache=True)

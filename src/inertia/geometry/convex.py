@@ -35,7 +35,8 @@ Limitations
 - Cylinders are curved without a core: their EPA depth converges to ``EPA_TOLERANCE`` only within
   ``EPA_MAX_ITERATIONS`` (1e-6 m typical for unit sizes), polytopes and rounded shapes are exact to rounding.
 - Work arrays (simplex, EPA polytope ~70 KB, results) live in a `GjkScratch` (``new_gjk_scratch``): the
-  narrow phase makes one per run of pairs and calls ``gjk_distance_scratch`` / ``_epa``, which allocate
+  narrow phase takes one row per run of pairs from a bank its world makes once (``new_gjk_scratch_bank``,
+  ``gjk_scratch_row``) and calls ``gjk_distance_scratch`` / ``_epa``, which allocate
   nothing (except when EPA has to grow a GJK simplex of fewer than 4 points); the public functions
   (``gjk_distance``, ``epa_penetration``, ``shape_distance``) make a scratch per call and return copies.
 - Hull ``params`` (scale) are ignored: vertices are used as stored.
@@ -190,6 +191,31 @@ def new_gjk_scratch():
                       np.zeros(4), np.zeros(4), np.empty((_EPA_MAX_FACES, 3), dtype=np.int64),
                       np.empty((_EPA_MAX_FACES, 3)), np.empty(_EPA_MAX_FACES), np.zeros(_EPA_MAX_FACES, dtype=np.bool_),
                       np.empty((_EPA_MAX_EDGES, 2), dtype=np.int64), axes, tri, np.zeros((11, 3)), np.zeros(4))
+
+
+def new_gjk_scratch_bank(runs: int) -> GjkScratch:
+    """``runs`` GjkScratch rows in one bundle (each array with a leading axis of length ``runs``), made
+    once by a world and handed to the narrow phase: run ``i`` of a parallel loop works in
+    ``gjk_scratch_row(bank, i)``, so a step allocates no GJK/EPA work arrays."""
+    r = int(runs)
+    bank = GjkScratch(np.empty((r, _EPA_MAX_VERTS, 3)), np.empty((r, _EPA_MAX_VERTS, 3)),
+                      np.empty((r, _EPA_MAX_VERTS, 3)), np.zeros((r, 4)), np.zeros((r, 4)),
+                      np.empty((r, _EPA_MAX_FACES, 3), dtype=np.int64), np.empty((r, _EPA_MAX_FACES, 3)),
+                      np.empty((r, _EPA_MAX_FACES)), np.zeros((r, _EPA_MAX_FACES), dtype=np.bool_),
+                      np.empty((r, _EPA_MAX_EDGES, 2), dtype=np.int64), np.empty((r, 6, 3)),
+                      np.empty((r, 4, 3), dtype=np.int64), np.zeros((r, 11, 3)), np.zeros((r, 4)))
+    one = new_gjk_scratch()
+    bank.axes[:] = one.axes
+    bank.tri[:] = one.tri
+    return bank
+
+
+@njit(inline="always")
+def gjk_scratch_row(bank, i):
+    """Row ``i`` of a scratch bank (`new_gjk_scratch_bank`) as a `GjkScratch` of views (no allocation)."""
+    return GjkScratch(bank.pw[i], bank.pa[i], bank.pb[i], bank.lam[i], bank.bl[i], bank.faces[i], bank.face_n[i],
+                      bank.face_d[i], bank.alive[i], bank.edges[i], bank.axes[i], bank.tri[i], bank.vec[i],
+                      bank.quat[i])
 
 
 @njit(cache=True)

@@ -47,9 +47,10 @@ whole contact buffer (passing and reading members of a large bundle per pair cos
 time). ``narrow_phase`` runs the four in that order.
 
 Limitations
-- Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`
-  allocated once per run of pairs, GJK/EPA in a `GjkScratch` (``inertia.geometry.convex``) likewise: the
-  general family allocates nothing per pair (test_narrowphase counts Numba's NRT allocations).
+- Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`, GJK/EPA
+  in a `GjkScratch` (``inertia.geometry.convex``): one row per run of pairs of banks a world makes once
+  (`NarrowWork`, ``new_narrow_work``), so the closed and general families allocate nothing per pair nor
+  per step (test_narrowphase and tests/rigid/test_step_allocations.py count Numba's NRT allocations).
 - Curved cylinder sides converge in EPA only to its tolerance (~1e-6 m) when a cylinder's side is deep in
   a shape that is not a polytope face (parallel round sides and faces snap the normal exactly).
 - A support feature is flat within ~2 degrees (``FEATURE_SIN``); a cylinder cap is a 12-gon on its rim.
@@ -68,7 +69,7 @@ from . import convex as CV
 from ._tup import add, cross, dot, madd, norm, normalize, orthonormal_basis, qrot, qrot_inv, scale, sub
 
 __all__ = ["narrow_phase", "narrow_phase_closed", "narrow_phase_general", "narrow_phase_mesh", "scene_families",
-           "match_warm_start"]
+           "match_warm_start", "NarrowWork", "new_narrow_work"]
 
 _inl = njit(inline="always")
 
@@ -77,6 +78,10 @@ _inl = njit(inline="always")
 # _MAX_FEATURE side planes: _MAX_FEATURE + 2 * _MAX_FEATURE + 4); a hull with more vertices against a
 # plane allocates.
 SCRATCH_ROWS = 128
+
+# contiguous runs of pairs, one call each (passing the bundles costs once per run, not per pair); one row
+# of the scratch banks (`NarrowWork`) per run
+_RUNS = 16
 
 
 class NarrowScratch(NamedTuple):
@@ -100,6 +105,35 @@ def new_scratch():
     return NarrowScratch(np.empty((r, 4)), np.empty((r, 4)), np.empty((r, 3)), np.empty(r), np.empty(r, np.int64),
                          np.empty((r, 3)), np.empty((r, 3)), np.empty((r, 4)), np.empty((r, 2)),
                          np.empty(3 * r + 1, np.int64))
+
+
+def new_scratch_bank(runs: int) -> NarrowScratch:
+    """``runs`` `NarrowScratch` rows in one bundle (a leading axis of length ``runs`` on every array), made
+    once by a world: run ``i`` of the narrow phase's parallel loop works in ``scratch_row(bank, i)``, so a
+    step allocates no scratch (module docstring, "Scratch")."""
+    r, n = int(runs), SCRATCH_ROWS
+    return NarrowScratch(np.empty((r, n, 4)), np.empty((r, n, 4)), np.empty((r, n, 3)), np.empty((r, n)),
+                         np.empty((r, n), np.int64), np.empty((r, n, 3)), np.empty((r, n, 3)), np.empty((r, n, 4)),
+                         np.empty((r, n, 2)), np.empty((r, 3 * n + 1), np.int64))
+
+
+@_inl
+def scratch_row(bank, i):
+    """Row ``i`` of a scratch bank (`new_scratch_bank`) as a `NarrowScratch` of views (no allocation)."""
+    return NarrowScratch(bank.poly[i], bank.tmp[i], bank.pts[i], bank.seps[i], bank.feats[i], bank.feat_a[i],
+                         bank.feat_b[i], bank.side[i], bank.hull_xy[i], bank.hull_idx[i])
+
+
+class NarrowWork(NamedTuple):
+    """The narrow phase's scratch banks, one row per run of pairs (``RUNS``): clipping (`NarrowScratch`)
+    and GJK/EPA (`inertia.geometry.convex.GjkScratch`; one row when the scene has no general pairs)."""
+    scratch: NarrowScratch
+    gjk: CV.GjkScratch
+
+
+def new_narrow_work(general: bool = True) -> NarrowWork:
+    """The banks of `NarrowWork` (~1.2 MB with ``general``: 16 EPA polytopes; ~0.3 MB without)."""
+    return NarrowWork(new_scratch_bank(_RUNS), CV.new_gjk_scratch_bank(_RUNS if general else 1))
 
 
 @_inl
@@ -958,11 +992,12 @@ class ManifoldOut(NamedTuple):
 
 
 @njit(cache=True)
-def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca):
+def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, run):
     """Every pair of ``lo:hi``: materials, keys, zeroed impulses, and the manifold of the closed-form
-    pairs (the other families' kernels fill theirs afterwards). The bundles' arrays are unpacked once
-    into locals: reading a NamedTuple member inside the loop takes and drops a reference each time."""
-    scr = new_scratch()                 # one scratch per run of pairs: no allocation per pair
+    pairs (the other families' kernels fill theirs afterwards), clipping in row ``run`` of the scratch
+    bank. The bundles' arrays are unpacked once into locals: reading a NamedTuple member inside the loop
+    takes and drops a reference each time."""
+    scr = scratch_row(bank, run)
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     shape_friction, shape_restitution = shapes.shape_friction, shapes.shape_restitution
@@ -1007,10 +1042,11 @@ def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius,
 
 
 @njit(cache=True)
-def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
-    """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents."""
-    scr = new_scratch()
-    gscr = CV.new_gjk_scratch()         # GJK/EPA work arrays, once per run
+def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, gjk_bank, run):
+    """The general convex pairs of ``lo:hi`` (after ``_narrow_range``): manifold, count, tangents; row
+    ``run`` of the clipping and GJK/EPA scratch banks."""
+    scr = scratch_row(bank, run)
+    gscr = CV.gjk_scratch_row(gjk_bank, run)
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
@@ -1044,26 +1080,27 @@ def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, 
         _tangents(i, contact_normal, contact_tangent)
 
 
-# contiguous runs of pairs, one call each (passing the bundles costs once per run, not per pair)
-_RUNS = 16
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
-    """Every candidate pair's row, and the manifolds of the closed-form pairs (runs in parallel)."""
+def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank):
+    """Every candidate pair's row, and the manifolds of the closed-form pairs (runs in parallel; run
+    ``ch`` clips in row ``ch`` of ``bank``, a `NarrowWork`'s ``scratch``)."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, keys, shapes, pose, body_qd,
-                      body_bound_radius, dt, ca)
+                      body_bound_radius, dt, ca, bank, ch)
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
-    """The manifolds of the general convex pairs (GJK/EPA), after ``narrow_phase_closed``."""
+def narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, gjk_bank):
+    """The manifolds of the general convex pairs (GJK/EPA), after ``narrow_phase_closed``; run ``ch``
+    works in row ``ch`` of both banks (a `NarrowWork` made with ``general=True``: its ``scratch`` and
+    ``gjk``; passed apart because a parallel loop cannot take a nested bundle)."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range_general(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, shapes, pose, body_qd,
-                              body_bound_radius, dt, ca)
+                              body_bound_radius, dt, ca, bank, gjk_bank, ch)
 
 
 @njit(cache=True, parallel=True)
@@ -1075,15 +1112,20 @@ def narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, d
                            body_bound_radius, dt, ca)
 
 
-def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, families=None, sdf=None):
+def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, families=None, sdf=None,
+                 work=None):
     """Fill manifold ``i`` of ``ca`` for candidate pair ``i`` (see the module docstring): the closed-form
     kernel, then the general, mesh and SDF kernels when the scene's shape types can form such pairs
     (``families = (general, mesh, sdf)``, default ``scene_families(shapes.shape_type)``). ``sdf``: the
-    baked SDF rows (`inertia.geometry.sdf_collide.SdfArrays`; needed when the scene has SDF pairs)."""
+    baked SDF rows (`inertia.geometry.sdf_collide.SdfArrays`; needed when the scene has SDF pairs).
+    ``work``: a `NarrowWork` kept between calls (``new_narrow_work(general)``); made here when None."""
     general, mesh, with_sdf = scene_families(shapes.shape_type) if families is None else families
-    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+    if work is None:
+        work = new_narrow_work(general)
+    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch)
     if general:
-        narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+        narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch,
+                             work.gjk)
     if mesh:
         narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
     if with_sdf:

@@ -65,6 +65,15 @@ Continuous collision, two layers:
 Solve stage: on the serial path the substep loop is one compiled call (``solver.substeps_serial``);
 on the parallel path each stage kernel is a call (colour batches in parallel).
 
+Memory: every work array of the step is made at build (``_allocate``: shape poses and boxes, the
+sweep's merge-sort scratch, the narrow phase's scratch banks ``NarrowWork``, constraint and colour
+arrays, the finite check's output); the pair buffers and the constraint arrays are replaced by ones of
+twice the needed size when a step's pair or constraint count exceeds them, and the contact buffers
+double likewise (``Contacts.reserve``), so growth is amortised O(log n) over a run. A warm step's
+kernels allocate nothing (tests/rigid/test_step_allocations.py counts Numba's NRT allocations and
+tracemalloc's peak); the mesh, heightfield and SDF narrow phases (``trimesh_collide``, ``sdf_collide``)
+still make small per-pair or per-run arrays.
+
 Baked signed-distance colliders (``SDF`` rows with a grid, ``inertia.geometry.sdf_collide``) collide with
 the dynamic bodies' convex shapes through surface samples; unbaked ones cannot (a warning at build names
 them).
@@ -88,9 +97,9 @@ from ..dynamics import solver as sv
 from ..dynamics.contacts import Contacts
 from ..errors import SimulationDiverged
 from ..geometry import shapes as S
-from ..geometry.broadphase import shape_world_bounds, sort_and_sweep
+from ..geometry.broadphase import shape_world_bounds, sort_and_sweep_into
 from ..geometry.narrowphase import (compact_active, match_warm_start, narrow_phase_closed, narrow_phase_general,
-                                    narrow_phase_mesh, scene_families)
+                                    narrow_phase_mesh, new_narrow_work, scene_families)
 from ..geometry.sdf_collide import narrow_phase_sdf, sdf_arrays
 from ..geometry.toi import time_of_impact_batch
 from ..model import Control, Model, State
@@ -203,6 +212,7 @@ class RigidWorld:
         self._shape_pose = np.zeros((ns, 7))
         self._aabb = np.zeros((ns, 6))
         self._order = np.zeros(ns, np.int64)
+        self._narrow_work = new_narrow_work(self._families[0])   # clipping and GJK/EPA scratch banks
         self._grow_pairs(max(64, 4 * ns))
         self._body_dp = np.zeros((nb, 3))
         self._body_dtheta = np.zeros((nb, 3))
@@ -218,6 +228,7 @@ class RigidWorld:
         self._aabb1 = np.zeros((ns, 6))
         self._body_q0 = np.zeros((nb, 7))
         self._body_fast = np.zeros(nb, np.bool_)
+        self._bad = np.zeros(nb, np.int64)              # the finite check's output (_first_bad_bodies)
         self._body_toi = np.ones(nb)
         bullet = getattr(m, "body_bullet", None)
         self._bullet = np.zeros(nb, np.bool_)
@@ -240,8 +251,13 @@ class RigidWorld:
                       "with its distance grid", stacklevel=4)
 
     def _grow_pairs(self, cap):
+        """Pair buffers of ``cap`` rows: made once, then doubled past the pair count whenever a step's
+        sort-and-sweep finds more (amortised: O(log P) growths over a run)."""
         self._pairs = np.zeros((cap, 2), np.int32)
         self._keys = np.zeros(cap, np.int64)
+        # sort-and-sweep's merge-sort scratch
+        self._sweep_perm = np.zeros(max(cap, self.model.shape_count), np.int64)
+        self._sweep_tmp = np.zeros(max(cap, self.model.shape_count), np.int64)
         self._toi_pairs = np.zeros((cap, 2), np.int32)
         self._toi = np.zeros(cap)
         self._toi_normal = np.zeros((cap, 3))
@@ -288,8 +304,8 @@ class RigidWorld:
         self._k.shape_world_bounds(self._shapes, m.body_type, m.body_bound_radius, st.body_q, st.body_qd,
                                    self.dt, self._shape_pose, self._aabb)
         while True:
-            n = sort_and_sweep(self._aabb, self._shapes, m.body_type, st.body_awake, self._order,
-                               self._keys, self._pairs)
+            n = sort_and_sweep_into(self._aabb, self._shapes, m.body_type, st.body_awake, self._order,
+                                    self._keys, self._pairs, self._sweep_perm, self._sweep_tmp)
             if n <= len(self._pairs):
                 return n
             self._grow_pairs(2 * n)
@@ -304,12 +320,13 @@ class RigidWorld:
         # speculative=False: only the shapes' margins (dt = 0 closes nothing), as a test of the TOI sweep
         dt = self.dt if self.speculative else 0.0
         self._k.narrow_phase_closed(self._pairs, self._keys, npairs, self._shapes, self._shape_pose, st.body_qd,
-                                    m.body_bound_radius, dt, ca)
+                                    m.body_bound_radius, dt, ca, self._narrow_work.scratch)
         # the other families' kernels only when the scene's shape types can pair that way: a box-and-sphere
         # scene never compiles GJK/EPA or the triangle routines
         if self._families[0]:
             self._k.narrow_phase_general(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
-                                         m.body_bound_radius, dt, ca)
+                                         m.body_bound_radius, dt, ca, self._narrow_work.scratch,
+                                         self._narrow_work.gjk)
         if self._families[1]:
             self._k.narrow_phase_mesh(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
                                       m.body_bound_radius, dt, ca)
@@ -428,8 +445,9 @@ class RigidWorld:
 
     def _finalize(self) -> None:
         m, st, c = self.model, self.state, self.contacts
-        bad = _first_bad_bodies(st.body_q, st.body_qd, self.max_speed)
-        if bad.size:
+        n_bad = _first_bad_bodies(st.body_q, st.body_qd, self.max_speed, self._bad)
+        if n_bad:
+            bad = self._bad[:n_bad].copy()
             names = [m.body_name[b] for b in bad[:10]]
             raise SimulationDiverged(
                 f"rigid step {int(st.step_index[0])} (t = {st.time:.6g} s) produced non-finite or faster "
@@ -538,11 +556,11 @@ def _select_constraints(active, contact_body, contact_is_sensor, solver_inv_mass
 
 
 @njit(cache=True)
-def _first_bad_bodies(body_q, body_qd, max_speed):
-    nb = body_q.shape[0]
-    bad = np.zeros(nb, np.bool_)
+def _first_bad_bodies(body_q, body_qd, max_speed, out):
+    """Bodies with a non-finite pose or velocity or faster than max_speed, in order, into out (B,) int64;
+    returns their count (no allocation)."""
     count = 0
-    for b in range(nb):
+    for b in range(body_q.shape[0]):
         ok = True
         for k in range(7):
             if not math.isfinite(body_q[b, k]):
@@ -558,15 +576,9 @@ def _first_bad_bodies(body_q, body_qd, max_speed):
         if s > max_speed * max_speed:
             ok = False
         if not ok:
-            bad[b] = True
+            out[count] = b
             count += 1
-    out = np.empty(count, np.int64)
-    j = 0
-    for b in range(nb):
-        if bad[b]:
-            out[j] = b
-            j += 1
-    return out
+    return count
 
 
 def _body_min_half_extent(model):
