@@ -155,7 +155,8 @@ def test_fused_step_same_bits_through_the_vectorised_and_the_general_first_loop(
             for rows in ((planes, balls), (np.vstack([planes, planes]), balls)):
                 x, v, rest_k = ps.x.copy(), ps.v.copy(), d.rest_k.copy()
                 near_list = np.empty(len(x), np.int64)
-                res = kern(x, v, ps.radius, ps.inv_mass, ps.active, g, force, damping, rk4, d.cint, d.cnear, d.cmat, d.cf, d.ci, rows[0], rows[1],
+                res = kern(x, v, ps.radius, ps.inv_mass, ps.active, g, force, damping, rk4, d.cint, d.cnear,
+                           d.cmat, d.cf, d.ci, rows[0], rows[1],
                            d.pose1, d.ref, rest_k, d.rest_n.copy(), d.rest_u.copy(), d.load.copy(),
                            d.static_ok.copy(), near_list, d.chunk_counts.copy(), 1 / 120,
                            d.distance_tolerance, d.rest_speed, True, d.max_substeps, d.max_iterations)
