@@ -83,3 +83,86 @@ def test_far_slots_rows_walls_and_the_too_many_colliders_case():
     planes, balls = pk.far_slots(many._collision.cnear, many._collision.cf)
     assert balls.shape[0] == 0 and (planes == pk.ALWAYS_NEAR_PLANE).all()
     assert not pk._far_from_slots(planes, balls, 0.0, tol, 5.0, 5.0, 5.0, 0.0, 0.0, 0.0)
+
+
+def test_never_near_rows_only_narrow_the_far_test():
+    # step_and_collide tests a ground alone or an obstacle alone as one plane row and one ball row,
+    # the missing row being NEVER_NEAR_*: that pair must call far only what the exact mask calls
+    # far (so the results keep their bits), pass nearly every particle the scene's row passes (or
+    # the vectorised loop buys nothing), and call a NaN path near
+    ps = ia.ParticleSystem(np.zeros((1, 3)), radius=0.0)
+    ps.add_collider(C.Plane(point=(0, 0, 0.1), normal=(0, 0.6, 0.8)))
+    ps.add_collider(C.Sphere(center=(0.3, 0, 0.4), radius=0.4))
+    d = ps._collision
+    tol = d.distance_tolerance
+    rng = np.random.default_rng(8)
+    m = 4000
+    ends = rng.uniform([-1.3, -1.3, -0.1], [1.3, 1.3, 2.3], (m, 3))
+    steps = rng.normal(0.0, 0.02, (m, 3)) * rng.uniform(0, 1, (m, 1)) ** 3
+    radii = rng.uniform(0.0, 0.05, m)
+    for cnear, pad in ((d.cnear[:1], "ball"), (d.cnear[1:2], "plane")):
+        planes, balls = pk.far_slots(cnear, d.cf)
+        p = planes[0] if pad == "ball" else pk.NEVER_NEAR_PLANE
+        b = balls[0] if pad == "plane" else pk.NEVER_NEAR_BALL
+        agree = 0
+        for i in range(m):
+            e, s, r = ends[i], steps[i], radii[i]
+            far = pk._far_from_one_each(*p, *b, r, tol, *e, *s)
+            mask = pk._near_mask(cnear, d.cf, -1, r, tol, *e, *s)
+            assert not (far and mask != 0), (pad, i)
+            agree += far == pk._far_from_slots(planes, balls, r, tol, *e, *s)
+        assert agree == m, pad  # finite paths: the padding row never changes the answer
+        assert not pk._far_from_one_each(*p, *b, 0.0, tol, np.nan, 1.0, 1.0, 0.0, 0.0, 0.0)
+
+
+def _fused_inputs(dim, n, seed):
+    rng = np.random.default_rng(seed)
+    x = rng.uniform([-1.0, -1.0, 0.0][:dim], [1.0, 1.0, 1.0][:dim], (n, dim))
+    v = rng.normal(0.0, 2.0, (n, dim))
+    pinned = np.zeros(n, bool)
+    pinned[::11] = True
+    ps = ia.ParticleSystem(x, v, radius=rng.uniform(0.0, 0.02, n), pinned=pinned)
+    ps.add_force(ia.forces.Gravity((0, 0, -9.81)[:dim] if dim == 3 else (0, -9.81)))
+    normal = (0, 0, 1) if dim == 3 else (0, 1)
+    ps.add_collider(C.Plane(point=(0,) * dim, normal=normal), restitution=0.5, friction=0.3)
+    if dim == 3:
+        ps.add_collider(C.Sphere(center=(0.3, 0, 0.4), radius=0.4), restitution=0.7, friction=0.1)
+    ps.active[::13] = False
+    ps.refresh_masses()
+    sim = ia.Simulation(ps, integrator="rk4", dt=1 / 120)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # particles start inside the sphere
+        sim.run(0.25)  # some particles come to rest on the plane (rest_k >= 0)
+    assert ps._collision.fused_step == "rk4" and (ps._collision.rest_k >= 0).sum() > 10
+    return ps
+
+
+def test_fused_step_same_bits_through_the_vectorised_and_the_general_first_loop():
+    # the vectorised first loop (one plane row and one ball row, 3-D, rk4 or semi-implicit) is a
+    # reordering of the general one's arithmetic: a duplicated plane row sends the same step
+    # through the general loop (a loop over rows), which must give the same bits, the same near
+    # list and the same counts; 2-D (a plane only) goes through the general loop with dim 2
+    for dim in (3, 2):
+        ps = _fused_inputs(dim, 2500, 3 + dim)  # three chunks, the last one partial
+        d = ps._collision
+        ps.x[7] = np.nan  # a diverged particle: reported as not finite by both
+        kern = pk.kernels_for(d.cint).step_and_collide
+        g, force, damping = ps._affine_terms()
+        planes, balls = d.far_planes, d.far_balls
+        for rk4 in (True, False):
+            out = []
+            for rows in ((planes, balls), (np.vstack([planes, planes]), balls)):
+                x, v, rest_k = ps.x.copy(), ps.v.copy(), d.rest_k.copy()
+                near_list = np.empty(len(x), np.int64)
+                res = kern(x, v, ps.radius, ps.inv_mass, ps.active, g, force, damping, rk4, d.cint, d.cnear,
+                           d.cmat, d.cf, d.ci, rows[0], rows[1],
+                           d.pose1, d.ref, rest_k, d.rest_n.copy(), d.rest_u.copy(), d.load.copy(),
+                           d.static_ok.copy(), near_list, d.chunk_counts.copy(), 1 / 120,
+                           d.distance_tolerance, d.rest_speed, True, d.max_substeps, d.max_iterations)
+                out.append((x, v, rest_k, res))
+            (x1, v1, k1, r1), (x2, v2, k2, r2) = out
+            assert r1 == r2 and r1[2] is False and r1[0] > 0, (dim, rk4, r1, r2)
+            assert x1.tobytes() == x2.tobytes() and v1.tobytes() == v2.tobytes(), (dim, rk4)
+            assert (k1 == k2).all()
+            assert not np.array_equal(x1[~np.isnan(x1)], ps.x[~np.isnan(ps.x)])  # the step moved them
