@@ -1,4 +1,9 @@
 import os
+import tracemalloc
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
 
 # Tests must not depend on a display.
 os.environ.setdefault("MPLBACKEND", "Agg")
@@ -8,3 +13,73 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 # so two workers on two cores do not take turns burning each other's time. Read when Numba first
 # loads its OpenMP pool, which happens after this file.
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
+# ----------------------------------------------------------------------------- allocation counters
+# "No allocation per step" (the project standard) is checked with two counters, shared by the
+# allocation tests of each layer (tests/fluids/grid/test_step_allocations.py explains both).
+
+def _arrays_in(x):
+    if isinstance(x, np.ndarray):
+        return 1
+    if isinstance(x, tuple):
+        return sum(_arrays_in(y) for y in x)
+    return 0
+
+
+def kernel_allocations(step, n):
+    """{kernel name: NRT allocations made inside it} over n calls of step (explained in
+    tests/fluids/grid/test_step_allocations.py)."""
+    from numba import _dispatcher
+    from numba.core.registry import CPUDispatcher
+    from numba.core.runtime import _nrt_python, rtsys
+    base = _dispatcher.Dispatcher.__call__
+    inside = {}
+    calls = [0]
+
+    def counting_call(self, *args, **kwargs):
+        wrapped = _arrays_in(args) + _arrays_in(tuple(kwargs.values()))
+        a0 = rtsys.get_allocation_stats().alloc
+        out = base(self, *args, **kwargs)
+        extra = rtsys.get_allocation_stats().alloc - a0 - wrapped
+        calls[0] += 1
+        if extra:
+            name = f"{self.py_func.__module__}.{self.py_func.__qualname__}"
+            inside[name] = inside.get(name, 0) + extra
+        return out
+
+    was_on = _nrt_python.memsys_stats_enabled()
+    _nrt_python.memsys_enable_stats()
+    CPUDispatcher.__call__ = counting_call
+    try:
+        for _ in range(n):
+            step()
+    finally:
+        del CPUDispatcher.__call__
+        if not was_on:
+            _nrt_python.memsys_disable_stats()
+    assert calls[0] > 50                     # the wrapper saw the kernels (the counter works)
+    return inside
+
+
+def peak_bytes(step, n, windows=2):
+    """tracemalloc's peak above the start over n calls of step, bytes: the least of ``windows``
+    windows of n calls (an allocation made every step shows in each; a one-off, such as a lazily
+    filled cache the first time a path runs, in one only)."""
+    peaks = []
+    for _ in range(windows):
+        tracemalloc.start()
+        try:
+            c0 = tracemalloc.get_traced_memory()[0]
+            for _ in range(n):
+                step()
+            peaks.append(tracemalloc.get_traced_memory()[1] - c0)
+        finally:
+            tracemalloc.stop()
+    return min(peaks)
+
+
+@pytest.fixture
+def alloc():
+    """The allocation counters: ``alloc.kernel_allocations(step, n)``, ``alloc.peak_bytes(step, n)``."""
+    return SimpleNamespace(kernel_allocations=kernel_allocations, peak_bytes=peak_bytes)

@@ -32,7 +32,7 @@ from numba import njit
 
 __all__ = [
     "quat_mul", "quat_conj", "quat_normalize", "quat_rotate", "quat_rotate_inv", "quat_rotate_into",
-    "quat_rotate_inv_into", "quat_to_mat3", "quat_to_mat3_into", "mat3_to_quat", "quat_from_axis_angle",
+    "quat_rotate_inv_into", "quat_to_mat3", "quat_to_mat3_entries", "quat_to_mat3_into", "mat3_to_quat", "quat_from_axis_angle",
     "quat_from_axis_angle_into", "quat_integrate",
     "quat_integrate_into", "transform_point", "transform_point_inv", "transform_mul", "transform_inv",
     "cross", "dot", "skew", "mat3_mul", "mat3_vec", "mat3_transpose", "mat3_inv_sym", "world_inertia_inv",
@@ -224,18 +224,20 @@ def quat_to_mat3(q):
 
 
 @_jit
+def quat_to_mat3_entries(w, x, y, z):
+    """The nine entries of R(q) for a unit quaternion (w, x, y, z), row-major, as a tuple (no array)."""
+    return (1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y),
+            2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x),
+            2.0 * (x * z - w * y), 2.0 * (y * z + w * x), 1.0 - 2.0 * (x * x + y * y))
+
+
+@_jit
 def quat_to_mat3_into(q, m):
     """R(q) of a unit quaternion written into m (3, 3) (no allocation); returns m."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    m[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    m[0, 1] = 2.0 * (x * y - w * z)
-    m[0, 2] = 2.0 * (x * z + w * y)
-    m[1, 0] = 2.0 * (x * y + w * z)
-    m[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    m[1, 2] = 2.0 * (y * z - w * x)
-    m[2, 0] = 2.0 * (x * z - w * y)
-    m[2, 1] = 2.0 * (y * z + w * x)
-    m[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    r = quat_to_mat3_entries(q[0], q[1], q[2], q[3])
+    m[0, 0], m[0, 1], m[0, 2] = r[0], r[1], r[2]
+    m[1, 0], m[1, 1], m[1, 2] = r[3], r[4], r[5]
+    m[2, 0], m[2, 1], m[2, 2] = r[6], r[7], r[8]
     return m
 
 

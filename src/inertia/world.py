@@ -119,7 +119,7 @@ from .errors import SimulationDiverged
 from .collision.particle_kernels import NEAR_ALWAYS as _NEAR_ALWAYS
 from .collision.particle_kernels import NEAR_BALL as _NEAR_BALL
 from .geometry import shapes as _S
-from .math import quat_to_mat3
+from .math import quat_to_mat3_entries
 from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
@@ -245,6 +245,7 @@ class World:
             self._q_start = np.zeros((nb, 7))
             self._impulse_linear = np.zeros((nb, 3))
             self._impulse_angular = np.zeros((nb, 3))
+            self._impulse_scratch = np.empty((2, 3, 3))       # apply_body_impulses' work array
             # colliders with a Motion: kinematic bodies driven by the collider's pose(t)
             self._driven = [(int(b), self.colliders[int(src)]) for b, src in enumerate(self.model.body_source)
                             if src >= 0]
@@ -470,7 +471,8 @@ class World:
         t4 = clock()
         if rigid is not None:
             from .dynamics.particle_coupling import apply_body_impulses
-            apply_body_impulses(self.model, rigid.state, self._impulse_linear, self._impulse_angular)
+            apply_body_impulses(self.model, rigid.state, self._impulse_linear, self._impulse_angular,
+                                scratch=self._impulse_scratch)
             self._fill_particle_contacts()
         self.profile["coupling"] += clock() - t4
         self.step_count += 1
@@ -696,10 +698,9 @@ def _sensor_poses(body, body_q, pose):
             continue
         for c in range(3):
             pose[k, c] = body_q[b, c]
-        r = quat_to_mat3(body_q[b, 3:7])
-        for i in range(3):
-            for j in range(3):
-                pose[k, 3 + 3 * i + j] = r[i, j]
+        r = quat_to_mat3_entries(body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
+        for i in range(9):
+            pose[k, 3 + i] = r[i]
 
 
 @njit(cache=True)
@@ -728,31 +729,31 @@ def _interpolated_poses(entries, entry_body, entry_bound, q_start, q_end, s0, s1
         else:
             cnear[k, 0] = _NEAR_ALWAYS
         for out, s in ((pose0, s0), (pose1, s1)):
-            q = np.empty(4)
-            dot = 0.0
-            for c in range(4):
-                dot += q_start[b, 3 + c] * q_end[b, 3 + c]
-            sign = 1.0 if dot >= 0.0 else -1.0
-            norm = 0.0
-            for c in range(4):
-                q[c] = (1.0 - s) * q_start[b, 3 + c] + s * sign * q_end[b, 3 + c]
-                norm += q[c] * q[c]
-            norm = np.sqrt(norm)
-            for c in range(4):
-                q[c] /= norm
             if s == 1.0:
-                for c in range(4):
-                    q[c] = q_end[b, 3 + c]
+                w, x, y, z = q_end[b, 3], q_end[b, 4], q_end[b, 5], q_end[b, 6]
             elif s == 0.0:
-                for c in range(4):
-                    q[c] = q_start[b, 3 + c]
+                w, x, y, z = q_start[b, 3], q_start[b, 4], q_start[b, 5], q_start[b, 6]
+            else:
+                w, x, y, z = _nlerp(q_start[b, 3:7], q_end[b, 3:7], s)
             for c in range(3):
                 out[k, c] = (1.0 - s) * q_start[b, c] + s * q_end[b, c] if 0.0 < s < 1.0 else (
                     q_start[b, c] if s == 0.0 else q_end[b, c])
-            r = quat_to_mat3(q)
-            for i in range(3):
-                for j in range(3):
-                    out[k, 3 + 3 * i + j] = r[i, j]
+            r = quat_to_mat3_entries(w, x, y, z)
+            for i in range(9):
+                out[k, 3 + i] = r[i]
+
+
+@njit(cache=True)
+def _nlerp(qa, qb, s):
+    """(1 - s) qa + s qb (qb's sign flipped onto qa's hemisphere), normalised: four scalars."""
+    dot = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3]
+    sign = 1.0 if dot >= 0.0 else -1.0
+    w = (1.0 - s) * qa[0] + s * sign * qb[0]
+    x = (1.0 - s) * qa[1] + s * sign * qb[1]
+    y = (1.0 - s) * qa[2] + s * sign * qb[2]
+    z = (1.0 - s) * qa[3] + s * sign * qb[3]
+    norm = np.sqrt(w * w + x * x + y * y + z * z)
+    return w / norm, x / norm, y / norm, z / norm
 
 
 # ----------------------------------------------------------------------------------------------

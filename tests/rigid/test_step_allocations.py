@@ -2,8 +2,8 @@
 
 A small mixed pile (boxes, spheres, capsules, convex hulls on a plane) with one coupled particle group
 in an `inertia.world.World` (the rigid stage, the particle stage against the body rows, the impulses
-back onto the bodies), after warm-up. Two counters (the method of tests/fluids/grid/
-test_step_allocations.py, whose helpers are reused here):
+back onto the bodies), after warm-up. Two counters (the counters of tests/conftest.py,
+explained in tests/fluids/grid/test_step_allocations.py):
 
 * Numba's NRT allocation counter per kernel, minus the wrapping of each array argument at the call
   from Python: what the kernels allocate inside (``np.empty`` and friends, lists, array copies). Before
@@ -25,25 +25,12 @@ test_step_allocations.py, whose helpers are reused here):
   amortised) is an allocation by design and would show as a peak of megabytes.
 """
 
-import importlib.util
-import pathlib
-
 import numpy as np
 
 import inertia as ia
 from inertia.model import ModelBuilder
 from inertia.world import World
 
-_here = pathlib.Path(__file__).resolve().parent
-_spec = importlib.util.spec_from_file_location(
-    "_fluid_alloc_helpers", _here.parent / "fluids" / "grid" / "test_step_allocations.py")
-_helpers = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_helpers)
-kernel_allocations, peak_bytes = _helpers._kernel_allocations, _helpers._peak_bytes
-
-# kernels of other layers that the coupled step calls and that still allocate (not the rigid path):
-# inertia.world._interpolated_poses makes a quaternion and a 3x3 per moving body row per substep
-OTHER_LAYERS = {"inertia.world._interpolated_poses"}
 BOUND_BYTES = 4096 * 8             # one (4096,) float64 array
 
 
@@ -75,23 +62,22 @@ def _pile(side, layers):
     return world
 
 
-def test_warm_coupled_pile_step_allocates_nothing_that_grows_with_the_scene():
+def test_warm_coupled_pile_step_allocates_nothing_that_grows_with_the_scene(alloc):
     small = _pile(2, 2)                      # 8 bodies in two layers: stacked contacts, GJK pairs
     for _ in range(30):                      # the upper layer lands, particles land on the bodies
         small.step()
-    inside = kernel_allocations(small.step, 5)
-    assert set(inside) <= OTHER_LAYERS, inside          # no rigid-path kernel allocates
+    assert alloc.kernel_allocations(small.step, 5) == {}     # no kernel the coupled step calls allocates
     rigid = small.rigid
     assert rigid.contacts.active_count >= 8              # the pile is in contact (the plane, each other)
     assert (small.rigid.contacts.contact_point_count[:rigid.contacts.count] > 0).any()
-    peaks = [peak_bytes(small.step, 3)]
+    peaks = [alloc.peak_bytes(small.step, 3)]
     big = _pile(64, 1)                       # 4096 bodies in one layer on the plane
     for _ in range(3):
         big.step()
-    assert set(kernel_allocations(big.step, 5)) <= OTHER_LAYERS
+    assert alloc.kernel_allocations(big.step, 5) == {}
     # the rigid stage at 4096 bodies (the coupled step's particle stage makes a list per collider row,
     # see the module docstring)
-    peaks.append(peak_bytes(big.rigid.step, 3))
+    peaks.append(alloc.peak_bytes(big.rigid.step, 3))
     # one (4096,) float64 array is 32 KB: the bound, which no per-body float array made per step at 4096
     # bodies fits under; the peaks (Python's fixed overhead per step, ~10-22 KB measured at load 10)
     # are below it at 8 and at 4096 bodies

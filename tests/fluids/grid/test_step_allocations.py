@@ -19,7 +19,6 @@ Two counters, each over a few steps after warm-up of a scene with a moving obsta
   not with the cells); 12 KB at 128^2.
 """
 
-import tracemalloc
 from types import SimpleNamespace
 
 import numpy as np
@@ -33,65 +32,11 @@ N = 128                      # cells per axis
 CELL_BYTES = N * N           # the smallest grid-proportional array: one bool per cell
 
 
-def _arrays_in(x):
-    if isinstance(x, np.ndarray):
-        return 1
-    if isinstance(x, tuple):
-        return sum(_arrays_in(y) for y in x)
-    return 0
-
-
-def _kernel_allocations(step, n):
-    """{kernel name: NRT allocations made inside it} over n calls of step (see the module docstring)."""
-    from numba import _dispatcher
-    from numba.core.registry import CPUDispatcher
-    from numba.core.runtime import _nrt_python, rtsys
-    base = _dispatcher.Dispatcher.__call__
-    inside = {}
-    calls = [0]
-
-    def counting_call(self, *args, **kwargs):
-        wrapped = _arrays_in(args) + _arrays_in(tuple(kwargs.values()))
-        a0 = rtsys.get_allocation_stats().alloc
-        out = base(self, *args, **kwargs)
-        extra = rtsys.get_allocation_stats().alloc - a0 - wrapped
-        calls[0] += 1
-        if extra:
-            name = f"{self.py_func.__module__}.{self.py_func.__qualname__}"
-            inside[name] = inside.get(name, 0) + extra
-        return out
-
-    was_on = _nrt_python.memsys_stats_enabled()
-    _nrt_python.memsys_enable_stats()
-    CPUDispatcher.__call__ = counting_call
-    try:
-        for _ in range(n):
-            step()
-    finally:
-        del CPUDispatcher.__call__
-        if not was_on:
-            _nrt_python.memsys_disable_stats()
-    assert calls[0] > 50                     # the wrapper saw the kernels (the counter works)
-    return inside
-
-
-def _peak_bytes(step, n):
-    """tracemalloc's peak above the start over n calls of step, bytes."""
-    tracemalloc.start()
-    try:
-        c0 = tracemalloc.get_traced_memory()[0]
-        for _ in range(n):
-            step()
-        return tracemalloc.get_traced_memory()[1] - c0
-    finally:
-        tracemalloc.stop()
-
-
 def _moving_ball(x0, y0, r):
     return Sphere(center=(x0, y0), radius=r, motion=Motion(position=lambda t: (x0 + 0.3 * t, y0)))
 
 
-def test_smoke_step_with_a_moving_obstacle_allocates_nothing():
+def test_smoke_step_with_a_moving_obstacle_allocates_nothing(alloc):
     # viscous smoke (MacCormack, buoyancy, a source, MGPCG) around a moving no-slip ball: every step
     # rebuilds the cut cells, the viscous boundary data and the torque reference points
     f = GridFluid((N, N), 1 / N, obstacles=[_moving_ball(0.4, 0.5, 0.12)], viscosity=0.01,
@@ -99,13 +44,13 @@ def test_smoke_step_with_a_moving_obstacle_allocates_nothing():
     f.add_source((0.4, 0.05), (0.6, 0.2), density_rate=5.0, temperature_rate=5.0)
     step = lambda: f.step(0.01)    # noqa: E731
     step()
-    assert _kernel_allocations(step, 1) == {}
-    peak = _peak_bytes(step, 2)
+    assert alloc.kernel_allocations(step, 1) == {}
+    peak = alloc.peak_bytes(step, 2)
     assert peak < CELL_BYTES, peak
     assert np.any(f.obstacle_viscous_force != 0.0) and f.face_fractions[0].min() == 0.0
 
 
-def test_liquid_step_with_a_body_and_a_moving_obstacle_allocates_nothing():
+def test_liquid_step_with_a_body_and_a_moving_obstacle_allocates_nothing(alloc):
     # viscous APIC liquid with a dynamic box (body velocities in the pressure solve, viscous and
     # pressure impulses) and a moving collider: the cut cells, the body coupling, the particle
     # push-out all run every step
@@ -119,14 +64,10 @@ def test_liquid_step_with_a_body_and_a_moving_obstacle_allocates_nothing():
     f.bind_rigid(rigid)
     step = lambda: f.step(1 / 240)    # noqa: E731
     step()
-    inside = _kernel_allocations(step, 1)
-    # the fluid's kernels allocate nothing. Two kernels of other layers the step calls do, 3x3
-    # matrices per call: `BodyShape.pose` (collision/shapes.py) returns math.quat_to_mat3(q), and
-    # `apply_body_impulses` (dynamics/particle_coupling.py, `_apply`) calls math.world_inertia_inv
-    # per body (the liquid's own body term uses a non-allocating twin, liquid_pressure.py)
-    assert not [k for k in inside if k.startswith("inertia.fluids")], inside
-    assert set(inside) <= {"inertia.math.quat_to_mat3", "inertia.dynamics.particle_coupling._apply"}, inside
-    peak = _peak_bytes(step, 2)
+    # no kernel the step calls allocates: the fluid's, the body poses (`BodyShape.pose`) and the
+    # impulses onto the body (`apply_body_impulses`)
+    assert alloc.kernel_allocations(step, 1) == {}
+    peak = alloc.peak_bytes(step, 2)
     assert peak < CELL_BYTES, peak
     assert f.particle_count > CELL_BYTES           # so one (N,) bool array would exceed the bound too
     assert f.body_force[body, 1] > 0.0             # the liquid pushes the body up
