@@ -158,7 +158,7 @@ def test_fused_step_same_bits_through_the_vectorised_and_the_general_first_loop(
                 res = kern(x, v, ps.radius, ps.inv_mass, ps.active, g, force, damping, rk4, d.cint, d.cnear,
                            d.cmat, d.cf, d.ci, rows[0], rows[1],
                            d.pose1, d.ref, rest_k, d.rest_n.copy(), d.rest_u.copy(), d.load.copy(),
-                           d.static_ok.copy(), near_list, d.chunk_counts.copy(), 1 / 120,
+                           d.static_ok.copy(), near_list, d.chunk_counts.copy(), *d.pass_record(), 1 / 120,
                            d.distance_tolerance, d.rest_speed, True, d.max_substeps, d.max_iterations)
                 out.append((x, v, rest_k, res))
             (x1, v1, k1, r1), (x2, v2, k2, r2) = out
