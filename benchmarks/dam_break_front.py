@@ -48,10 +48,12 @@ def main():
     t0 = time.perf_counter()
     steps0 = fluid.step_count
     hist = []
+    its = np.zeros(2)   # DFSPH density, divergence iterations summed over the steps
     status = "ok"
     try:
         while fluid.time * scale < args.T:
             fluid.step()
+            its += (fluid.stats["density_iterations"], fluid.stats["divergence_iterations"])
             hist.append((fluid.time * scale, (fluid.x[:, 0].max() + dx / 2) / a))
     except ia.errors.SimulationDiverged as e:
         status = f"diverged at T = {fluid.time * scale:.3f}: {str(e)[:200]}"
@@ -60,7 +62,9 @@ def main():
     hist = np.array(hist)
     out = dict(options=opts, status=status, steps=steps, ms_per_step=1e3 * wall / max(steps, 1), wall_s=wall,
                T_reached=fluid.time * scale, n=fluid.particle_count,
-               unconverged=fluid.stats.get("unconverged_solves", 0))
+               unconverged=fluid.stats.get("unconverged_solves", 0),
+               density_iterations_per_step=round(float(its[0]) / max(steps, 1), 2),
+               divergence_iterations_per_step=round(float(its[1]) / max(steps, 1), 2))
     T, Z = MARTIN_MOYCE[:, 0], MARTIN_MOYCE[:, 1]
     if hist.size and hist[-1, 0] >= T[-1]:
         sim = np.interp(T, hist[:, 0], hist[:, 1])

@@ -206,20 +206,34 @@ def sample_model(model, body_q, spacing, support, lattice, world_lo, world_hi, w
 
 
 def solid_cores(model):
-    """(body, 0 sphere / 1 box, centre (3,), rotation (3, 3), size (3,)) in the body frame for every
-    sphere and box row of a dynamic or kinematic body: the solids whose hollow core (deeper than
-    the band) ``kernels.push_out_of_cores`` keeps free of fluid. Other shape types are not covered."""
+    """(body, kind, cf, ci) per sphere, box, capsule, cylinder and convex hull row of a dynamic or
+    kinematic body: the solids whose hollow core (deeper than the band) ``kernels.push_out_of_cores``
+    keeps free of fluid, packed in the body frame as the collision layer's distance kinds
+    (``inertia.collision.distance``): the first four as the shape table's rows pack them
+    (``collision.shapes.BodyShape``), a hull as the CONTAINER of its face planes (inward normals
+    -n, offsets d of n . p + d <= 0 inside; the hull's distance is minus the container's, exact
+    inside). Plane rows (infinite) and meshes have no core."""
+    from ...collision import distance as D
+    from ...collision.shapes import BodyShape
     out = []
     types = np.asarray(model.shape_type)
     for s in range(model.shape_count):
         st = int(types[s])
         body = int(model.shape_body[s])
-        if st not in (S.SPHERE, S.BOX) or body < 0 or int(model.body_type[body]) == S.STATIC:
+        if body < 0 or int(model.body_type[body]) == S.STATIC:
             continue
-        pose = np.asarray(model.shape_local_pose[s], float)
-        params = np.asarray(model.shape_params[s], float)
-        size = np.full(3, params[0]) if st == S.SPHERE else params[:3].copy()
-        out.append((body, 0 if st == S.SPHERE else 1, pose[:3].copy(), quat_to_matrices(pose[3:7])[0], size))
+        if st in (S.SPHERE, S.BOX, S.CAPSULE, S.CYLINDER):
+            row = BodyShape(model, s)
+            out.append((body, int(row.kind), row._cf.copy(), np.zeros(1, np.int64)))
+        elif st == S.CONVEX_HULL:
+            a = int(model.shape_vert_start[s])
+            verts = np.asarray(model.geom_vertices[a:a + int(model.shape_vert_count[s])], float)
+            pose = np.asarray(model.shape_local_pose[s], float)
+            eq = _hull_planes(verts)                       # shape frame: n . p + d <= 0 inside
+            n_body = eq[:, :3] @ quat_to_matrices(pose[3:7])[0].T
+            d_body = eq[:, 3] - n_body @ pose[:3]          # body frame: n' . x + d' <= 0 inside
+            cf = np.concatenate([-n_body, d_body[:, None]], axis=1).reshape(-1)
+            out.append((body, D.CONTAINER, cf, np.array([eq.shape[0]], np.int64)))
     return out
 
 

@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from ...collision import distance as _dist
 from .neighbours import _min_image
 
 
@@ -145,7 +146,8 @@ def density_and_factor(F, nf, nb, B, n, mass, w0, factor_eps, bfac):
 
 
 @njit(cache=True, parallel=True)
-def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, total, beta, partial, out):
+def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation, momentum, total, beta, partial,
+                       out):
     """One DFSPH iteration, first half (Bender & Koschier 2017, algorithms 2 and 3).
 
     density_mode: predicted density rho*_i = rho_i + dt drho_i/dt must reach rho0:
@@ -161,6 +163,8 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
     off-diagonal sum exceeds it (not diagonally dominant), so plain Jacobi (omega = 1) lets the
     checkerboard mode grow when iterated to convergence; omega = 0.5 is the relaxed Jacobi of
     Ihmsen et al. (2014), "Implicit incompressible SPH", IEEE TVCG 20(3), and converges.
+    momentum: kappa_i += momentum * (the previous iteration's kappa_i, read from F.kappa: the
+    caller zeroes it before the first iteration), the heavy ball of ``SPHFluid._solve``.
     The pressure stays non-negative (free surfaces): kappa_i is projected so that the running
     total (k_dens or k_div, passed as ``total``, added to by apply_pressure) stays >= 0.
     Fused with the reduction of err (``chunk_sum_max``'s fixed chunks, the same bits): out[0] =
@@ -210,6 +214,7 @@ def pressure_increment(F, nf, nb, B, n, mass, rho0, dt, density_mode, relaxation
             else:
                 e = rate
                 kap = relaxation * e * F_factor[i] / dt
+            kap += momentum * F_kappa[i]   # heavy ball: the previous increment (0 in the first iteration)
             # complementarity residual: compressed particles, and pressurised ones in either sign
             ei = abs(e) if (e > 0.0 or total[i] > 0.0) else 0.0
             F_err[i] = ei
@@ -913,17 +918,26 @@ def rotate_boundary_normals(nrest, body, body_rot, normal):
 
 
 # --------------------------------------------------------------------------- hollow body cores
+# The solids whose core push_out_of_cores keeps free, packed as the collision layer's distance kinds
+# (``inertia.collision.distance``, layouts in its docstring) in the body frame: sphere, box, capsule,
+# cylinder as the shape table's rows pack them (``collision.shapes.BodyShape``), a convex hull as the
+# CONTAINER of its face planes (the hull's solid is the complement of that region: d_hull = -d).
+CORE_KINDS = _dist.kinds_token((_dist.SPHERE, _dist.BOX, _dist.CAPSULE, _dist.CYLINDER, _dist.CONTAINER))
+
+
 @njit(cache=True)
-def push_out_of_cores(F, n, core_body, core_type, core_c, core_r, core_size, body_x, body_rot, body_v,
-                      body_w, depth, offset):
+def push_out_of_cores(F, n, kinds, core_body, core_kind, core_off, core_ioff, core_cf, core_ci, body_x, body_rot,
+                      body_v, body_w, depth, offset):
     """Fluid particles inside a body's solid deeper than ``depth`` (its boundary band is one kernel
     support thick; the core beyond it holds no boundary particles, and fluid that got through the
-    band, e.g. squeezed between a sinking box and the floor, stayed there) are moved out along
-    the shape's outward normal to the signed distance ``offset`` (half a spacing, where the first
-    fluid row sits) and take the body's velocity there. Shapes (box 1, sphere 0) in the body frame:
-    centre core_c (K, 3), rotation core_r (K, 3, 3) (shape -> body), half extents / radius
-    core_size (K, 3). Serial, no allocation (few particles move; the same bits at any thread
-    count). Returns the number of particles moved."""
+    band, e.g. squeezed between a sinking box and the floor, stayed there) are moved along the
+    outward normal of the nearest surface point (the gradient of the signed distance d) to the
+    signed distance ``offset`` (half a spacing, where the first fluid row sits): b += (offset - d) n
+    in the body frame, and take the body's velocity there, v = v_body + w x (x - body_x). Core s
+    belongs to body core_body[s]; its distance is ``collision.distance.sdf_in(kinds,
+    core_kind[s], core_cf, core_off[s], core_ci, core_ioff[s], .)`` in the body frame (CONTAINER:
+    a convex hull, sign flipped; see the section comment). Serial, no allocation (few particles
+    move; the same bits at any thread count). Returns the number of particles moved."""
     dim = F.x.shape[1]
     moved = 0
     for i in range(n):
@@ -932,41 +946,25 @@ def push_out_of_cores(F, n, core_body, core_type, core_c, core_r, core_size, bod
             d0 = F.x[i, 0] - body_x[k, 0]
             d1 = F.x[i, 1] - body_x[k, 1]
             d2 = (F.x[i, 2] - body_x[k, 2]) if dim == 3 else 0.0
-            # world -> body (R^T d) -> shape frame (R_s^T (b - c))
-            b0 = body_rot[k, 0, 0] * d0 + body_rot[k, 1, 0] * d1 + body_rot[k, 2, 0] * d2 - core_c[s, 0]
-            b1 = body_rot[k, 0, 1] * d0 + body_rot[k, 1, 1] * d1 + body_rot[k, 2, 1] * d2 - core_c[s, 1]
-            b2 = body_rot[k, 0, 2] * d0 + body_rot[k, 1, 2] * d1 + body_rot[k, 2, 2] * d2 - core_c[s, 2]
-            p0 = core_r[s, 0, 0] * b0 + core_r[s, 1, 0] * b1 + core_r[s, 2, 0] * b2
-            p1 = core_r[s, 0, 1] * b0 + core_r[s, 1, 1] * b1 + core_r[s, 2, 1] * b2
-            p2 = core_r[s, 0, 2] * b0 + core_r[s, 1, 2] * b1 + core_r[s, 2, 2] * b2
-            if core_type[s] == 0:   # sphere: radially out
-                r = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
-                if r - core_size[s, 0] >= -depth:
-                    continue
-                if r > 0.0:
-                    f = (core_size[s, 0] + offset) / r
-                    p0, p1, p2 = p0 * f, p1 * f, p2 * f
-                elif dim == 3:
-                    p2 = core_size[s, 0] + offset
-                else:
-                    p1 = core_size[s, 0] + offset
-            else:                   # box: out through the nearest face (largest |p_e| - half_e)
-                q0 = abs(p0) - core_size[s, 0]
-                q1 = abs(p1) - core_size[s, 1]
-                q2 = (abs(p2) - core_size[s, 2]) if dim == 3 else -np.inf
-                best = max(q0, max(q1, q2))
-                if best >= -depth:
-                    continue
-                if q0 == best:
-                    p0 = (core_size[s, 0] + offset) * (1.0 if p0 >= 0.0 else -1.0)
-                elif q1 == best:
-                    p1 = (core_size[s, 1] + offset) * (1.0 if p1 >= 0.0 else -1.0)
-                else:
-                    p2 = (core_size[s, 2] + offset) * (1.0 if p2 >= 0.0 else -1.0)
-            # back to the world: x = body_x + R (c + R_s p), v = v_body + w x (x - body_x)
-            b0 = core_c[s, 0] + core_r[s, 0, 0] * p0 + core_r[s, 0, 1] * p1 + core_r[s, 0, 2] * p2
-            b1 = core_c[s, 1] + core_r[s, 1, 0] * p0 + core_r[s, 1, 1] * p1 + core_r[s, 1, 2] * p2
-            b2 = core_c[s, 2] + core_r[s, 2, 0] * p0 + core_r[s, 2, 1] * p1 + core_r[s, 2, 2] * p2
+            # world -> body frame: b = R^T d
+            b0 = body_rot[k, 0, 0] * d0 + body_rot[k, 1, 0] * d1 + body_rot[k, 2, 0] * d2
+            b1 = body_rot[k, 0, 1] * d0 + body_rot[k, 1, 1] * d1 + body_rot[k, 2, 1] * d2
+            b2 = body_rot[k, 0, 2] * d0 + body_rot[k, 1, 2] * d1 + body_rot[k, 2, 2] * d2
+            kind = core_kind[s]
+            d, g0, g1, g2 = _dist.sdf_in(kinds, kind, core_cf, core_off[s], core_ci, core_ioff[s], b0, b1, b2)
+            if kind == _dist.CONTAINER:   # a convex hull: the complement of its planes' region
+                d, g0, g1, g2 = -d, -g0, -g1, -g2
+            if d >= -depth:
+                continue
+            if dim == 2 and g0 == 0.0 and g1 == 0.0:   # a disc's centre (its normal there is +z)
+                g1 = 1.0
+            # out along the normal to the distance offset (exact for the closed forms; the hull's
+            # nearest face plane): b + (offset - d) n
+            step = offset - d
+            b0 += step * g0
+            b1 += step * g1
+            b2 = b2 + step * g2 if dim == 3 else b2
+            # back to the world: x = body_x + R b, v = v_body + w x (x - body_x)
             r0 = body_rot[k, 0, 0] * b0 + body_rot[k, 0, 1] * b1 + body_rot[k, 0, 2] * b2
             r1 = body_rot[k, 1, 0] * b0 + body_rot[k, 1, 1] * b1 + body_rot[k, 1, 2] * b2
             r2 = body_rot[k, 2, 0] * b0 + body_rot[k, 2, 1] * b1 + body_rot[k, 2, 2] * b2

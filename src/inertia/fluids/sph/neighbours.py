@@ -266,19 +266,19 @@ def fill_neighbours(x, n, xt, cell_start, grid, kernel, h, exclude_self, start, 
 
 
 @njit(cache=True, parallel=True)
-def fill_strided(x, n, xt, cell_start, grid, h, exclude_self, stride, count, nbr):
+def fill_strided(x, n, xt, cell_start, grid, h, exclude_self, stride, count, nbr, no_w, no_g):
     """One search pass instead of count + fill: the neighbour indices of particle i go to rows
     i * stride .. of the scratch nbr (at most ``stride``), count[i] gets the full count (a count
     above stride means the rows are incomplete: the caller falls back to fill_neighbours). The
-    kernel is evaluated by ``compact`` (the search pass writes 4 bytes per pair, not 28)."""
+    kernel is evaluated by ``compact`` (the search pass writes 4 bytes per pair, not 28). no_w
+    (1,) and no_g (1, D) float placeholders for the W / grad W outputs this pass does not write
+    (the caller's, so that the kernel allocates nothing)."""
     dim = x.shape[1]
     wrap = grid.periodic[0] or grid.periodic[1] or grid.periodic[2]
-    dummy_w = np.zeros(1)
-    dummy_g = np.zeros((1, dim))
     for i in prange(n):
         x2 = x[i, 2] if dim == 3 else 0.0
         count[i] = _visit(i, x[i, 0], x[i, 1], x2, xt, cell_start, grid, 0, h, 0.0, exclude_self, 1,
-                          i * stride, stride, nbr, dummy_w, dummy_g, wrap)
+                          i * stride, stride, nbr, no_w, no_g, wrap)
 
 
 @njit(cache=True, parallel=True)
