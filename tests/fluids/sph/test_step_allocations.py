@@ -1,6 +1,7 @@
 """No allocation per step in the SPH fluid (the project standard: "no allocation inside a step").
 
-The method of ``tests/fluids/grid/test_step_allocations.py`` (read its docstring): Numba's NRT
+The counters of tests/conftest.py (fixture ``alloc``; explained in
+``tests/fluids/grid/test_step_allocations.py``): Numba's NRT
 allocation counter with the array arguments of every kernel call subtracted, so what is left is
 what the kernels allocate themselves (it must be 0 for the fluid's kernels), and tracemalloc's
 peak over a few steps after warm-up, bounded by the smallest array that grows with the particles,
@@ -13,10 +14,6 @@ tension (every optional stage of the step runs), below and above the serial-twin
 (both builds of every kernel run).
 """
 
-import importlib.util
-import pathlib
-import tracemalloc
-
 import numpy as np
 import pytest
 
@@ -24,13 +21,6 @@ import inertia as ia
 from inertia.fluids.sph import SPHFluid, sample_block
 from inertia.fluids.sph import kernels as _k
 from inertia.fluids.sph import neighbours as _nb
-
-# one home for the kernel-allocation counter: the grid fluids' test module, loaded by its path
-_spec = importlib.util.spec_from_file_location(
-    "_grid_step_allocations", pathlib.Path(__file__).parents[1] / "grid" / "test_step_allocations.py")
-_grid = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_grid)
-_kernel_allocations = _grid._kernel_allocations
 
 
 def _scene(width):
@@ -57,23 +47,16 @@ def _scene(width):
 
 
 @pytest.mark.parametrize("width", [0.6, 1.6])
-def test_sph_step_with_a_moving_body_allocates_nothing(width):
+def test_sph_step_with_a_moving_body_allocates_nothing(width, alloc):
     # 0.6 m: 5600 particles, below the serial threshold (kernels.kernel_set: the serial twins run;
     # there the search pass's former placeholders np.zeros(1), np.zeros((1, D)) made 4 allocations
     # per step, 2 per pass: this test failed on them, measured; the parallel build does not count
     # them); 1.6 m: 15600 particles, the parallel kernels
     fluid, body, step = _scene(width)
     assert (_k.kernel_set(fluid.particle_count).fill_strided is _nb.fill_strided) == (width > 1.0)
-    inside = _kernel_allocations(step, 1)
+    inside = alloc.kernel_allocations(step, 1)
     assert not [k for k in inside if k.startswith("inertia.fluids")], inside
-    tracemalloc.start()
-    try:
-        c0 = tracemalloc.get_traced_memory()[0]
-        for _ in range(2):
-            step()
-        peak = tracemalloc.get_traced_memory()[1] - c0
-    finally:
-        tracemalloc.stop()
+    peak = alloc.peak_bytes(step, 2)
     if width > 1.0:
         assert peak < fluid.particle_count, peak     # one byte per particle (measured: 6.7 KB)
     assert np.any(fluid.body_force[body] != 0.0)
