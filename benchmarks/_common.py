@@ -33,3 +33,15 @@ def copy_bandwidth(nbytes=256 * 2**20):
     t_numpy = best_time(lambda: np.copyto(dst, src), repeat=5)
     t_numba = best_time(lambda: _parallel_copy(src, dst), repeat=5)
     return 2 * src.nbytes / min(t_numpy, t_numba)
+
+
+def rain_particles(n, seed=0):
+    """The collision benchmarks' scene: n point particles (radius 0) in a 4 x 4 x 2 m box above the
+    ground, unit-normal random velocities, gravity."""
+    import inertia as ia
+    rng = np.random.default_rng(seed)
+    x = rng.uniform([-2.0, -2.0, 0.0], [2.0, 2.0, 2.0], size=(n, 3))
+    v = rng.normal(0.0, 1.0, size=(n, 3))
+    ps = ia.ParticleSystem(x, v, radius=0.0)
+    ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
+    return ps

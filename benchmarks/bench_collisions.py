@@ -35,7 +35,7 @@ import numba
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from _common import copy_bandwidth  # noqa: E402
+from _common import copy_bandwidth, rain_particles  # noqa: E402
 
 import inertia as ia  # noqa: E402
 
@@ -55,22 +55,13 @@ def _median_step_ms(sim, steps):
     return 1e3 * float(np.median(times))
 
 
-def _rain(n, seed=0):
-    rng = np.random.default_rng(seed)
-    x = rng.uniform([-2.0, -2.0, 0.0], [2.0, 2.0, 2.0], size=(n, 3))
-    v = rng.normal(0.0, 1.0, size=(n, 3))
-    ps = ia.ParticleSystem(x, v, radius=0.0)
-    ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
-    return ps
-
-
 def bench_colliders(n, integrator, steps, warmup):
     """Median ms per step without colliders and with them (both modes). The three simulations
     are stepped in turn, round after round, so that a change of machine load during the run
     affects the baseline and the collision steps alike."""
-    sims = {"none": ia.Simulation(_rain(n), integrator=integrator, dt=1e-3)}
+    sims = {"none": ia.Simulation(rain_particles(n), integrator=integrator, dt=1e-3)}
     for mode in ("a_priori", "a_posteriori", "a_priori separate"):
-        ps = _rain(n)
+        ps = rain_particles(n)
         ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.3, friction=0.3)
         ps.add_collider(C.Sphere(center=(0.5, 0.0, 0.5), radius=0.5), restitution=0.5, friction=0.1)
         ps.collision_mode = mode.split()[0]

@@ -13,35 +13,32 @@ time from the collision profile.
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 import warnings
 
 import numpy as np
 
-import inertia as ia
-from inertia.collision import particle_kernels as pk
-from inertia.model import ModelBuilder
-from inertia.world import World
+sys.path.insert(0, os.path.dirname(__file__))
+from _common import rain_particles  # noqa: E402  (the scene of bench_collisions.py)
+
+import inertia as ia  # noqa: E402
+from inertia.collision import particle_kernels as pk  # noqa: E402
+from inertia.model import ModelBuilder  # noqa: E402
+from inertia.world import World  # noqa: E402
 
 C = ia.colliders
 n = int(sys.argv[1]) if len(sys.argv) > 1 else 1_000_000
 steps = int(sys.argv[2]) if len(sys.argv) > 2 else 21
 
-def rain(seed=0):
-    rng = np.random.default_rng(seed)
-    x = rng.uniform([-2.0, -2.0, 0.0], [2.0, 2.0, 2.0], size=(n, 3))
-    v = rng.normal(0.0, 1.0, size=(n, 3))
-    ps = ia.ParticleSystem(x, v, radius=0.0)
-    ps.add_force(ia.forces.Gravity((0, 0, -9.81)))
-    return ps
 
 
 warnings.simplefilter("ignore")  # the sphere starts inside the rain: "start inside colliders"
 for integrator in ("rk4", "semi_implicit_euler"):
     runs = {}
     for name in ("off", "on"):
-        ps = rain()
+        ps = rain_particles(n)
         ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)), restitution=0.3, friction=0.3)
         ps.add_collider(C.Sphere(center=(0.5, 0.0, 0.5), radius=0.5), restitution=0.5, friction=0.1)
         sim = ia.Simulation(ps, integrator=integrator, dt=1e-3)
@@ -62,7 +59,7 @@ for integrator in ("rk4", "semi_implicit_euler"):
     ball = b.add_body(body_type="static", position=(0.5, 0.0, 0.5))
     b.add_sphere(ball, 0.5, restitution=0.5, friction=0.1)
     world = World(dt=1e-3, model=b.finalize())
-    ps = rain()
+    ps = rain_particles(n)
     world.add("rain", ps, integrator=integrator)
     runs["world"] = (world.step, ps._collision)
     for step, d in runs.values():
