@@ -26,6 +26,7 @@ explained in tests/fluids/grid/test_step_allocations.py):
 """
 
 import numpy as np
+import pytest
 
 import inertia as ia
 from inertia.model import ModelBuilder
@@ -62,6 +63,7 @@ def _pile(side, layers):
     return world
 
 
+@pytest.mark.isolated
 def test_warm_coupled_pile_step_allocates_nothing_that_grows_with_the_scene(alloc):
     small = _pile(2, 2)                      # 8 bodies in two layers: stacked contacts, GJK pairs
     for _ in range(30):                      # the upper layer lands, particles land on the bodies
@@ -70,14 +72,14 @@ def test_warm_coupled_pile_step_allocates_nothing_that_grows_with_the_scene(allo
     rigid = small.rigid
     assert rigid.contacts.active_count >= 8              # the pile is in contact (the plane, each other)
     assert (small.rigid.contacts.contact_point_count[:rigid.contacts.count] > 0).any()
-    peaks = [alloc.peak_bytes(small.step, 3)]
+    peaks = [alloc.peak_bytes(small.step, 3, BOUND_BYTES)]
     big = _pile(64, 1)                       # 4096 bodies in one layer on the plane
     for _ in range(3):
         big.step()
     assert alloc.kernel_allocations(big.step, 5) == {}
     # the rigid stage at 4096 bodies (the coupled step's particle stage makes a list per collider row,
     # see the module docstring)
-    peaks.append(alloc.peak_bytes(big.rigid.step, 3))
+    peaks.append(alloc.peak_bytes(big.rigid.step, 3, BOUND_BYTES))
     # one (4096,) float64 array is 32 KB: the bound, which no per-body float array made per step at 4096
     # bodies fits under; the peaks (Python's fixed overhead per step, ~10-22 KB measured at load 10)
     # are below it at 8 and at 4096 bodies

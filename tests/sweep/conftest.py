@@ -38,9 +38,10 @@ def ball_scene(tmp_path):
     return write
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="package")
 def cluster_client():
-    """A LocalCluster of 2 single-threaded worker processes on 127.0.0.1, no dashboard."""
+    """A LocalCluster of 2 single-threaded worker processes on 127.0.0.1, no dashboard; closed after the
+    sweep tests (its threads would otherwise run beside the rest of the suite in the same process)."""
     distributed = pytest.importorskip("distributed")
     import logging
 
