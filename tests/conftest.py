@@ -1,4 +1,3 @@
-import gc
 import os
 import subprocess
 import sys
@@ -67,33 +66,22 @@ def kernel_allocations(step, n):
 
 def peak_bytes(step, n, bound, windows=12):
     """tracemalloc's peak above the start over n calls of step, bytes: the first window of n calls
-    whose peak is below ``bound``, else the least of ``windows`` windows. tracemalloc counts every
-    thread's allocations, and those made in the cyclic collector's callbacks: a process that ran a
-    dask cluster earlier in the suite keeps threads that allocate now and then (measured: about half of
-    the windows after tests/sweep carry 20-300 KB that are not the step's). An allocation the step
-    makes every time shows in every window, so the least window still holds it; a one-off (a lazily
-    filled cache) or another thread's allocation shows in some windows only. The collector is held
-    off and other Python threads kept off the interpreter during the windows, to make those rarer."""
+    whose peak is below ``bound``, else the least of ``windows`` windows. An allocation the step makes
+    every time shows in every window, so the least window still holds it; a one-off (a lazily filled
+    cache the first time a path runs) shows in one only. tracemalloc counts every thread's
+    allocations: run such a test ``isolated`` (below), in a process with no other test's threads."""
     peaks = []
-    switch = sys.getswitchinterval()
-    sys.setswitchinterval(100.0)
-    gc.collect()
-    gc.disable()
-    try:
-        for _ in range(windows):
-            tracemalloc.start()
-            try:
-                c0 = tracemalloc.get_traced_memory()[0]
-                for _ in range(n):
-                    step()
-                peaks.append(tracemalloc.get_traced_memory()[1] - c0)
-            finally:
-                tracemalloc.stop()
-            if peaks[-1] < bound:
-                break
-    finally:
-        gc.enable()
-        sys.setswitchinterval(switch)
+    for _ in range(windows):
+        tracemalloc.start()
+        try:
+            c0 = tracemalloc.get_traced_memory()[0]
+            for _ in range(n):
+                step()
+            peaks.append(tracemalloc.get_traced_memory()[1] - c0)
+        finally:
+            tracemalloc.stop()
+        if peaks[-1] < bound:
+            break
     return min(peaks)
 
 
@@ -123,3 +111,21 @@ def pytest_pyfunc_call(pyfuncitem):
         pytest.fail(f"{pyfuncitem.nodeid} in its own process:\n{run.stdout[-6000:]}\n{run.stderr[-3000:]}",
                     pytrace=False)
     return True
+
+
+# ----------------------------------------------------------------------------- thread counts
+@pytest.fixture
+def thread_counts():
+    """``for threads in thread_counts():`` runs the loop body at 1 and at 2 Numba threads (as many as the
+    machine gives), set with ``numba.set_num_threads``; the count is restored afterwards."""
+    import numba
+    before = numba.get_num_threads()
+
+    def counts():
+        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+            numba.set_num_threads(threads)
+            yield threads
+        numba.set_num_threads(before)
+
+    yield counts
+    numba.set_num_threads(before)

@@ -138,27 +138,20 @@ def test_row_impulses_sum_to_the_particles_momentum_change_minus_gravity(fuse):
     assert hits > 100
 
 
-def test_fused_contact_rows_are_the_same_bits_at_1_and_2_threads(monkeypatch):
+def test_fused_contact_rows_are_the_same_bits_at_1_and_2_threads(monkeypatch, thread_counts):
     # the parallel build of the fused step: each particle's slots are written by its own chunk, so
     # the rows do not depend on the thread count
-    import numba
-
     from inertia import _jit
     monkeypatch.setattr(_jit, "SERIAL_BELOW", 0)
-    before = numba.get_num_threads()
     digests = []
-    try:
-        for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
-            numba.set_num_threads(threads)
-            x, v = _rain(3000, seed=1)
-            world, ps = _static_world(x, v)
-            h = hashlib.sha256()
-            for _ in range(40):
-                world.step()
-                for arr in _rows(world).values():
-                    h.update(arr.tobytes())
-            assert ps._collision.fused_step == "rk4" and world.rigid.contacts.particle_count > 0
-            digests.append(h.hexdigest())
-    finally:
-        numba.set_num_threads(before)
+    for _ in thread_counts():
+        x, v = _rain(3000, seed=1)
+        world, ps = _static_world(x, v)
+        h = hashlib.sha256()
+        for _ in range(40):
+            world.step()
+            for arr in _rows(world).values():
+                h.update(arr.tobytes())
+        assert ps._collision.fused_step == "rk4" and world.rigid.contacts.particle_count > 0
+        digests.append(h.hexdigest())
     assert len(set(digests)) == 1

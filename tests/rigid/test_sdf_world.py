@@ -125,16 +125,11 @@ def _mixed_scene(parallel):
 GOLDEN_SDF_HASH = "a92f93cfb246eacb4b76176264651de5dcac6dc06356582eb04373c672480438"
 
 
-def test_mixed_shapes_on_baked_fields_are_deterministic_at_1_and_2_threads():
-    import numba
+def test_mixed_shapes_on_baked_fields_are_deterministic_at_1_and_2_threads(thread_counts):
     hashes, counts = [], None
-    for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
-        numba.set_num_threads(threads)
-        try:
-            world = _mixed_scene(parallel=True)
-            world.step(40)
-        finally:
-            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    for _ in thread_counts():
+        world = _mixed_scene(parallel=True)
+        world.step(40)
         hashes.append(hashlib.sha256(world.state.body_q.tobytes() + world.state.body_qd.tobytes()).hexdigest())
     serial = _mixed_scene(parallel=False)
     for _ in range(40):

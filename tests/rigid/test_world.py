@@ -526,16 +526,11 @@ def test_two_bullets_hit_each_other_and_conserve_momentum():
     assert abs(world.state.body_qd[0, 3]) < 1e-6
 
 
-def test_time_of_impact_is_deterministic_at_1_and_2_threads():
-    import numba
+def test_time_of_impact_is_deterministic_at_1_and_2_threads(thread_counts):
     hashes = []
-    for threads in (1, min(2, numba.config.NUMBA_NUM_THREADS)):
-        numba.set_num_threads(threads)
-        try:
-            world = _two_bullets(parallel=True)
-            world.step(6)
-        finally:
-            numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    for _ in thread_counts():
+        world = _two_bullets(parallel=True)
+        world.step(6)
         hashes.append(hashlib.sha256(world.state.body_q.tobytes() + world.state.body_qd.tobytes()).hexdigest())
     serial = _two_bullets(parallel=False)
     serial.step(6)
