@@ -1,6 +1,6 @@
 """Tests for inertia.geometry.mass: closed forms against independent slice integration (scipy quad),
 exact polyhedral integration against the unit cube, Tonon's (2005) published tetrahedron and exact rational
-arithmetic, regular polyhedra, parallel axis, compounds and principal frames."""
+arithmetic, regular polyhedra (Satterly 1958) and Archimedean solids (Perrier 2015), parallel axis, compounds and principal frames."""
 
 import math
 from fractions import Fraction
@@ -215,6 +215,46 @@ def test_regular_polyhedra_closed_forms():
     assert oct_props.mass == pytest.approx(math.sqrt(2) * L ** 3 / 3, rel=1e-13)
     np.testing.assert_allclose(oct_props.inertia, np.eye(3) * oct_props.mass * L * L / 10, rtol=0,
                                atol=1e-12 * oct_props.inertia[0, 0])
+
+
+def _signed_permutations(base, cyclic):
+    """Every sign choice of `base` under its cyclic (or all) coordinate permutations, without repeats."""
+    import itertools
+    perms = ([(0, 1, 2), (1, 2, 0), (2, 0, 1)] if cyclic else list(itertools.permutations(range(3))))
+    out = set()
+    for perm in perms:
+        for signs in itertools.product((1.0, -1.0), repeat=3):
+            out.add(tuple(round(s * base[k], 15) + 0.0 for s, k in zip(signs, perm)))
+    return np.array(sorted(out))
+
+
+PHI = (1 + math.sqrt(5)) / 2
+
+
+@pytest.mark.parametrize("name, points, edge, volume, inertia_over_m_a2", [
+    # Satterly (1958), The Moments of Inertia of Some Polyhedra, Math. Gazette 42: I = c m a^2 about any
+    # centroidal axis, icosahedron c = (3 + sqrt 5) / 20, dodecahedron c = (95 + 39 sqrt 5) / 300;
+    # volumes 5 (3 + sqrt 5) a^3 / 12 and (15 + 7 sqrt 5) a^3 / 4.
+    ("icosahedron", _signed_permutations((0.0, 1.0, PHI), cyclic=True), 2.0,
+     5 * (3 + math.sqrt(5)) / 12 * 8.0, (3 + math.sqrt(5)) / 20),
+    ("dodecahedron", np.vstack([_signed_permutations((1.0, 1.0, 1.0), cyclic=True),
+                                _signed_permutations((0.0, 1 / PHI, PHI), cyclic=True)]), 2 / PHI,
+     (15 + 7 * math.sqrt(5)) / 4 * (2 / PHI) ** 3, (95 + 39 * math.sqrt(5)) / 300),
+    # Perrier (2015), Moments of inertia of Archimedean solids: cuboctahedron c = 7/25 (V = 5 sqrt 2 a^3 / 3),
+    # truncated octahedron c = 19/24 (V = 8 sqrt 2 a^3).
+    ("cuboctahedron", _signed_permutations((1.0, 1.0, 0.0), cyclic=False), math.sqrt(2),
+     5 * math.sqrt(2) / 3 * 2 * math.sqrt(2), 7 / 25),
+    ("truncated octahedron", _signed_permutations((0.0, 1.0, 2.0), cyclic=False), math.sqrt(2),
+     8 * math.sqrt(2) * 2 * math.sqrt(2), 19 / 24),
+])
+def test_platonic_and_archimedean_solids_match_published_values(name, points, edge, volume,
+                                                                 inertia_over_m_a2):
+    # the divergence-theorem integration is exact, so only rounding separates it from the closed forms
+    props = gm.convex_hull_mass_properties(points, 2.5)
+    assert props.mass == pytest.approx(2.5 * volume, rel=1e-12), name
+    np.testing.assert_allclose(props.com, 0.0, atol=1e-12)
+    expected = inertia_over_m_a2 * props.mass * edge ** 2
+    np.testing.assert_allclose(props.inertia, np.eye(3) * expected, rtol=0, atol=1e-11 * expected)
 
 
 def test_polyhedral_integration_is_frame_covariant():
