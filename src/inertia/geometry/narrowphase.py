@@ -48,9 +48,12 @@ time). ``narrow_phase`` runs the four in that order.
 
 Limitations
 - Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`, GJK/EPA
-  in a `GjkScratch` (``inertia.geometry.convex``): one row per run of pairs of banks a world makes once
-  (`NarrowWork`, ``new_narrow_work``), so the closed and general families allocate nothing per pair nor
-  per step (test_narrowphase and tests/rigid/test_step_allocations.py count Numba's NRT allocations).
+  in a `GjkScratch` (``inertia.geometry.convex``), the mesh, heightfield and SDF pairs in a `MeshScratch`
+  (candidate triangles, BVH stack, vertex and sample rows): one row per run of pairs of banks a world
+  makes once (`NarrowWork`, ``new_narrow_work``), so no family allocates per pair nor per step
+  (test_narrowphase, test_sdf_collide and tests/rigid/test_step_allocations*.py count Numba's NRT
+  allocations). The mesh bank's candidate slots are doubled after a step that overflowed them
+  (``fit_narrow_work``; that step's pair used a temporary list), so that growth is amortised.
 - Curved cylinder sides converge in EPA only to its tolerance (~1e-6 m) when a cylinder's side is deep in
   a shape that is not a polytope face (parallel round sides and faces snap the normal exactly).
 - A support feature is flat within ~2 degrees (``FEATURE_SIN``); a cylinder cap is a 12-gon on its rim.

@@ -33,6 +33,9 @@ and is kept when that is within the speculative distance. Points lie midway betw
 (x - r g) and the SDF surface. More than four points are reduced to four (deepest, farthest, largest
 triangle, largest quad: ``narrowphase._reduce_and_emit``, Gregorius 2015). Feature key = sample index,
 so warm starting matches points across steps.
+Scratch: the samples' points, gradients, separations and keys live in the run's row of the narrow
+phase's mesh bank (``narrowphase.MeshScratch``, rows for the scene's largest hull), so a step allocates
+nothing.
 
 References
 - Guendelman, E., Bridson, R. and Fedkiw, R. (2003). Nonconvex rigid bodies with stacking. ACM TOG
