@@ -98,35 +98,27 @@ def test_sphere_above_a_baked_plane_is_speculative_within_the_margin_only():
             assert c.contact_separation[act[0], 0] == pytest.approx(gap, abs=1e-12)
 
 
-def test_sdf_pairs_allocate_nothing_per_pair():
-    """The samples' scratch rows are made once per run of pairs: Numba's NRT allocation counter over one run
-    of 60 pairs equals that over 6."""
-    from numba.core.runtime import _nrt_python, rtsys
+def test_sdf_pairs_allocate_nothing_per_pair(alloc):
+    """The samples' scratch rows are the run's row of the narrow phase's mesh bank (made once per world):
+    Numba's NRT allocation counter, less the wrapping of the arguments, is zero over runs of 6 and 60 pairs
+    (before the bank, each run made four arrays)."""
+    from inertia.geometry.narrowphase import new_narrow_work, scene_mesh_rows
     from inertia.geometry.sdf_collide import _narrow_range_sdf
-    was_on = _nrt_python.memsys_stats_enabled()
-    _nrt_python.memsys_enable_stats()
-    try:
-        counts = {}
-        for npairs in (6, 60):
-            rng = np.random.default_rng(1)
-            b = ModelBuilder()
-            hull = rng.normal(size=(12, 3)) * 0.01
-            for k in range(npairs):
-                # each shape's lowest point 1 mm into the field
-                z = -hull[:, 2].min() - 0.001 if k % 3 == 2 else 0.099
-                body = b.add_body(position=(-2.8 + 5.6 * k / npairs, 0.0, z))
-                [lambda: b.add_box(body, (0.02, 0.02, 0.1)), lambda: b.add_cylinder(body, 0.02, 0.1),
-                 lambda: b.add_convex_hull(body, hull)][k % 3]()
-            model = with_colliders(b.finalize(), [_half_space()])
-            c, (pairs, n, shapes, pose, qd, radius, dt, ca) = _contacts(model, cap=2 * npairs + 8)
-            assert n == npairs and (c.contact_point_count[:n] > 0).all()
-            args = (0, n, pairs, shapes, sdf_arrays(model), pose, qd, radius, dt, ca)
-            _narrow_range_sdf(*args)
-            a0 = rtsys.get_allocation_stats().alloc
-            _narrow_range_sdf(*args)
-            counts[npairs] = rtsys.get_allocation_stats().alloc - a0
-    finally:
-        if not was_on:
-            _nrt_python.memsys_disable_stats()
-    assert counts[6] > 0
-    assert counts[60] == counts[6], counts
+    for npairs in (6, 60):
+        rng = np.random.default_rng(1)
+        b = ModelBuilder()
+        hull = rng.normal(size=(12, 3)) * 0.01
+        for k in range(npairs):
+            # each shape's lowest point 1 mm into the field
+            z = -hull[:, 2].min() - 0.001 if k % 3 == 2 else 0.099
+            body = b.add_body(position=(-2.8 + 5.6 * k / npairs, 0.0, z))
+            [lambda: b.add_box(body, (0.02, 0.02, 0.1)), lambda: b.add_cylinder(body, 0.02, 0.1),
+             lambda: b.add_convex_hull(body, hull)][k % 3]()
+        model = with_colliders(b.finalize(), [_half_space()])
+        c, (pairs, n, shapes, pose, qd, radius, dt, ca) = _contacts(model, cap=2 * npairs + 8)
+        assert n == npairs and (c.contact_point_count[:n] > 0).all()
+        bank = new_narrow_work(False, scene_mesh_rows(model.shape_type, model.shape_vert_count)).mesh
+        args = (0, n, pairs, shapes, sdf_arrays(model), pose, qd, radius, dt, ca, bank, 3)
+        _narrow_range_sdf(*args)
+        assert alloc.kernel_allocations(lambda: _narrow_range_sdf(*args), 60) == {}, npairs
+        assert (c.contact_point_count[:n] > 0).all()

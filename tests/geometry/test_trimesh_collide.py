@@ -302,3 +302,45 @@ def test_sphere_settles_in_a_v_crease_at_the_closed_form_height_without_jitter()
     assert zs[-1, 2] == pytest.approx(r / math.cos(alpha), abs=5e-4)
     assert abs(zs[-1, 0]) < 1e-6
     assert np.ptp(zs[-30:, 2]) < 1e-6
+
+
+# ----------------------------------------------------------------------------- scratch (no allocation)
+def test_candidate_overflow_gives_the_same_manifolds_and_grows_the_bank(alloc):
+    """A box and a sphere on a fine mesh, each over more triangles than a mesh bank of 8 candidate slots
+    holds: the manifolds are bit for bit those of the default bank (256 slots; the overflowing pair used a
+    temporary list), ``fit_narrow_work`` doubles the slots past the largest count met, and the next call
+    allocates nothing in its kernels."""
+    from inertia.dynamics.contacts import Contacts
+    from inertia.geometry.broadphase import shape_world_bounds, sort_and_sweep
+    from inertia.geometry.narrowphase import (narrow_phase, narrow_phase_mesh, new_mesh_bank, new_narrow_work,
+                                              scene_mesh_rows)
+    b = ModelBuilder(default_margin=0.01)
+    v, tris = grid_mesh(np.array([-1.0, -1, 0]), np.array([2.0, 0, 0]), np.array([0, 2.0, 0]), 40, 40)
+    b.add_triangle_mesh(v, tris)
+    b.add_box(b.add_body(position=(-0.5, 0.0, 0.099)), (0.2, 0.15, 0.1))
+    b.add_sphere(b.add_body(position=(0.5, 0.0, 0.199)), 0.2)
+    m = b.finalize()
+    st, ns, shapes = m.state(), m.shape_count, m.shapes()
+    pose, aabb = np.zeros((ns, 7)), np.zeros((ns, 6))
+    shape_world_bounds(shapes, m.body_type, m.body_bound_radius, st.body_q, st.body_qd, 1 / 60, pose, aabb)
+    pairs, keys = np.zeros((8, 2), np.int32), np.zeros(8, np.int64)
+    n = sort_and_sweep(aabb, shapes, m.body_type, st.body_awake, np.zeros(ns, np.int64), keys, pairs)
+    assert n == 2
+    rows = scene_mesh_rows(m.shape_type, m.shape_vert_count)
+    results = []
+    for slots in (256, 8):
+        work = new_narrow_work(False, rows)
+        work = work._replace(mesh=new_mesh_bank(16, rows, slots))
+        c = Contacts(8)
+        work = narrow_phase(pairs, keys, n, shapes, pose, st.body_qd, m.body_bound_radius, 1 / 60, c.arrays(),
+                            work=work)
+        results.append([a[:n].tobytes() for a in (c.contact_point_count, c.contact_normal, c.contact_point,
+                                                   c.contact_separation, c.contact_feature)])
+    assert results[0] == results[1]
+    assert list(c.contact_point_count[:2]) == [4, 1]                 # box face on the floor; one sphere point
+    need = int(work.mesh.need.max())
+    assert work.mesh.cand.shape[1] >= 2 * 8 and need == 0            # grown; the record reset
+    ca = c.arrays()
+    assert alloc.kernel_allocations(lambda: [narrow_phase_mesh(pairs, n, shapes, pose, st.body_qd,
+                                                               m.body_bound_radius, 1 / 60, ca, work.mesh)
+                                             for _ in range(60)], 1) == {}

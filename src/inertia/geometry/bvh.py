@@ -3,7 +3,8 @@
 Build (NumPy, once per mesh): top-down median split of the triangle centroids along the longest axis of
 their bounds, leaves of at most ``LEAF_SIZE`` triangles; the triangles are reordered so every node covers a
 contiguous range (Wald, Boulos and Shirley 2007 describe the top-down build; the median split is the
-simplest of its heuristics). Query (Numba): boxes against the nodes with an explicit stack.
+simplest of its heuristics). Query (Numba): boxes against the nodes with an explicit stack (the
+caller's, ``bvh_query_box_stack``: the narrow phase keeps one per run, so a step allocates none).
 
 Arrays (rows of one mesh; the shape table stores many meshes one after another)
 - ``bounds (N, 6) float64`` m: node AABB (min xyz, max xyz) in the mesh's local frame.
@@ -22,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-__all__ = ["LEAF_SIZE", "STACK_SIZE", "build_bvh", "bvh_query_box"]
+__all__ = ["LEAF_SIZE", "STACK_SIZE", "build_bvh", "bvh_query_box", "bvh_query_box_stack"]
 
 LEAF_SIZE = 4
 STACK_SIZE = 64
@@ -67,8 +68,15 @@ def build_bvh(tri_vertices: np.ndarray):
 def bvh_query_box(bounds, nodes, root, lo, hi, out):
     """Triangles (reordered indices, relative to the mesh) of every leaf whose box overlaps [lo, hi];
     writes up to ``len(out)`` and returns the full count (a caller seeing count > len(out) grows and
-    repeats). ``root`` is the mesh's first node row in ``bounds``/``nodes``."""
-    stack = np.empty(STACK_SIZE, np.int32)
+    repeats). ``root`` is the mesh's first node row in ``bounds``/``nodes``. Makes its stack: inside a
+    step use ``bvh_query_box_stack`` with a stack made once."""
+    return bvh_query_box_stack(bounds, nodes, root, lo, hi, out, np.empty(STACK_SIZE, np.int32))
+
+
+@njit(cache=True)
+def bvh_query_box_stack(bounds, nodes, root, lo, hi, out, stack):
+    """``bvh_query_box`` with the caller's traversal stack ``stack (>= STACK_SIZE,) int32`` (no allocation);
+    ``lo``, ``hi``: three floats each (arrays or tuples)."""
     top = 0
     stack[0] = 0
     top = 1

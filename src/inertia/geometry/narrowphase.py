@@ -48,9 +48,12 @@ time). ``narrow_phase`` runs the four in that order.
 
 Limitations
 - Scratch: clipping, point reduction and the general path's features work in a `NarrowScratch`, GJK/EPA
-  in a `GjkScratch` (``inertia.geometry.convex``): one row per run of pairs of banks a world makes once
-  (`NarrowWork`, ``new_narrow_work``), so the closed and general families allocate nothing per pair nor
-  per step (test_narrowphase and tests/rigid/test_step_allocations.py count Numba's NRT allocations).
+  in a `GjkScratch` (``inertia.geometry.convex``), the mesh, heightfield and SDF pairs in a `MeshScratch`
+  (candidate triangles, BVH stack, vertex and sample rows): one row per run of pairs of banks a world
+  makes once (`NarrowWork`, ``new_narrow_work``), so no family allocates per pair nor per step
+  (test_narrowphase, test_sdf_collide and tests/rigid/test_step_allocations*.py count Numba's NRT
+  allocations). The mesh bank's candidate slots are doubled after a step that overflowed them
+  (``fit_narrow_work``; that step's pair used a temporary list), so that growth is amortised.
 - Curved cylinder sides converge in EPA only to its tolerance (~1e-6 m) when a cylinder's side is deep in
   a shape that is not a polytope face (parallel round sides and faces snap the normal exactly).
 - A support feature is flat within ~2 degrees (``FEATURE_SIN``); a cylinder cap is a 12-gon on its rim.
@@ -66,10 +69,11 @@ from numba import njit, prange
 
 from . import shapes as S
 from . import convex as CV
+from .bvh import STACK_SIZE
 from ._tup import add, cross, dot, madd, norm, normalize, orthonormal_basis, qrot, qrot_inv, scale, sub
 
 __all__ = ["narrow_phase", "narrow_phase_closed", "narrow_phase_general", "narrow_phase_mesh", "scene_families",
-           "match_warm_start", "NarrowWork", "new_narrow_work"]
+           "match_warm_start", "NarrowWork", "new_narrow_work", "fit_narrow_work", "scene_mesh_rows"]
 
 _inl = njit(inline="always")
 
@@ -124,16 +128,84 @@ def scratch_row(bank, i):
                          bank.feat_b[i], bank.side[i], bank.hull_xy[i], bank.hull_idx[i])
 
 
+# Vertex rows of the mesh/SDF bank at least (a box's 8 corners, a cylinder's 16 rim points, the 26 SDF
+# samples of a box or cylinder); a scene's hulls with more vertices get more (``mesh_rows``)
+MESH_ROWS = 32
+# candidate triangles per run at first; the world doubles the bank past the largest count a step met
+MESH_CANDIDATES = 256
+# a concave crease keeps at most this many sphere contacts (``trimesh_collide._sphere_crease``)
+CREASE_MAX = 4
+
+
+class MeshScratch(NamedTuple):
+    """Work arrays of the triangle-mesh, heightfield and SDF narrow phases (``trimesh_collide``,
+    ``sdf_collide``). In a bank (`new_mesh_bank`) every array has a leading axis of length ``runs``, one
+    row per run of pairs; ``mesh_scratch_row`` gives run ``i``'s views. V = ``scene_mesh_rows``,
+    C = candidate capacity (grown by ``fit_narrow_work``)."""
+    cand: np.ndarray        # (C,) int64 candidate triangles of the pair (mesh-local indices)
+    stack: np.ndarray       # (bvh.STACK_SIZE,) int32 BVH traversal stack
+    need: np.ndarray        # (1,) int64 the largest candidate count the run met (0 after a grow)
+    verts: np.ndarray       # (V, 3) m: shape A's vertices in the mesh frame; SDF: sample gradients
+    pts: np.ndarray         # (V, 3) m: candidate contact points (world frame)
+    seps: np.ndarray        # (V,) m: their separations
+    feats: np.ndarray       # (V,) int64: their feature keys
+    crease_sep: np.ndarray  # (CREASE_MAX,) m: a sphere's distinct contacts with a mesh: separation,
+    crease_n: np.ndarray    # (CREASE_MAX, 3) normal (mesh frame),
+    crease_tri: np.ndarray  # (CREASE_MAX,) int64 triangle,
+    crease_foot: np.ndarray  # (CREASE_MAX, 3) m closest point on the triangle,
+    crease_face: np.ndarray  # (CREASE_MAX,) bool whether that point is inside the face
+
+
+def new_mesh_bank(runs: int, rows: int = MESH_ROWS, candidates: int = MESH_CANDIDATES) -> MeshScratch:
+    """``runs`` `MeshScratch` rows of ``rows`` vertex rows and ``candidates`` candidate slots."""
+    r, v, c, m = int(runs), max(int(rows), MESH_ROWS), int(candidates), CREASE_MAX
+    return MeshScratch(np.empty((r, c), np.int64), np.empty((r, STACK_SIZE), np.int32), np.zeros((r, 1), np.int64),
+                       np.empty((r, v, 3)), np.empty((r, v, 3)), np.empty((r, v)), np.empty((r, v), np.int64),
+                       np.empty((r, m)), np.empty((r, m, 3)), np.empty((r, m), np.int64), np.empty((r, m, 3)),
+                       np.empty((r, m), np.bool_))
+
+
+@_inl
+def mesh_scratch_row(bank, i):
+    """Row ``i`` of a `MeshScratch` bank as a `MeshScratch` of views (no allocation)."""
+    return MeshScratch(bank.cand[i], bank.stack[i], bank.need[i], bank.verts[i], bank.pts[i], bank.seps[i],
+                       bank.feats[i], bank.crease_sep[i], bank.crease_n[i], bank.crease_tri[i], bank.crease_foot[i],
+                       bank.crease_face[i])
+
+
+def scene_mesh_rows(shape_type, shape_vert_count) -> int:
+    """Vertex rows a scene's mesh/SDF pairs need: ``MESH_ROWS``, or its largest convex hull's vertex count."""
+    hulls = np.asarray(shape_vert_count)[np.asarray(shape_type) == S.CONVEX_HULL]
+    return max(MESH_ROWS, int(hulls.max(initial=0)))
+
+
 class NarrowWork(NamedTuple):
-    """The narrow phase's scratch banks, one row per run of pairs (``RUNS``): clipping (`NarrowScratch`)
-    and GJK/EPA (`inertia.geometry.convex.GjkScratch`; one row when the scene has no general pairs)."""
+    """The narrow phase's scratch banks, one row per run of pairs (``RUNS``): clipping (`NarrowScratch`),
+    GJK/EPA (`inertia.geometry.convex.GjkScratch`; one row when the scene has no general pairs) and the
+    mesh/SDF pairs' (`MeshScratch`; one row when the scene has none)."""
     scratch: NarrowScratch
     gjk: CV.GjkScratch
+    mesh: MeshScratch
 
 
-def new_narrow_work(general: bool = True) -> NarrowWork:
-    """The banks of `NarrowWork` (~1.2 MB with ``general``: 16 EPA polytopes; ~0.3 MB without)."""
-    return NarrowWork(new_scratch_bank(_RUNS), CV.new_gjk_scratch_bank(_RUNS if general else 1))
+def new_narrow_work(general: bool = True, mesh_rows: int = 0) -> NarrowWork:
+    """The banks of `NarrowWork` (~1.2 MB with ``general``: 16 EPA polytopes; ~0.3 MB without). ``mesh_rows``
+    > 0: a mesh/SDF bank of that many vertex rows per run (``scene_mesh_rows(shape_type, shape_vert_count)`` for a
+    scene with mesh or SDF pairs, ~0.1 MB); 0: a one-row placeholder."""
+    mesh = new_mesh_bank(_RUNS, mesh_rows) if mesh_rows > 0 else new_mesh_bank(1, MESH_ROWS, 1)
+    return NarrowWork(new_scratch_bank(_RUNS), CV.new_gjk_scratch_bank(_RUNS if general else 1), mesh)
+
+
+def fit_narrow_work(work: NarrowWork) -> NarrowWork:
+    """``work``, with its mesh bank's candidate slots doubled past the largest count the last mesh narrow
+    phase met when that overflowed them (that step's pairs used a temporary list: same results); call after
+    ``narrow_phase_mesh``. Amortised: a run of steps grows O(log n) times."""
+    need = int(work.mesh.need.max())
+    if need <= work.mesh.cand.shape[1]:
+        return work
+    m = work.mesh
+    return work._replace(mesh=m._replace(cand=np.empty((m.cand.shape[0], 2 * need), np.int64),
+                                         need=np.zeros_like(m.need)))
 
 
 @_inl
@@ -1063,8 +1135,10 @@ def _narrow_range_general(lo, hi, pairs, shapes, pose, body_qd, body_bound_radiu
 
 
 @njit(cache=True)
-def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
-    """The pairs of ``lo:hi`` with a triangle mesh or heightfield (``geometry/trimesh_collide.py``)."""
+def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, run):
+    """The pairs of ``lo:hi`` with a triangle mesh or heightfield (``geometry/trimesh_collide.py``), in row
+    ``run`` of the mesh bank (a `NarrowWork`'s ``mesh``)."""
+    scr = mesh_scratch_row(bank, run)
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
@@ -1076,7 +1150,7 @@ def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, 
             continue
         spec = _speculative_distance(shape_body[sa], shape_body[sb], shape_margin[sa], shape_margin[sb], body_qd,
                                      body_bound_radius, dt)
-        contact_point_count[i] = _tm.collide_triangles(out, i, ta, sa, sb, shapes, pose, spec)
+        contact_point_count[i] = _tm.collide_triangles(out, i, ta, sa, sb, shapes, pose, spec, scr)
         _tangents(i, contact_normal, contact_tangent)
 
 
@@ -1104,12 +1178,13 @@ def narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca):
-    """The manifolds of the mesh and heightfield pairs, after ``narrow_phase_closed``."""
+def narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, mesh_bank):
+    """The manifolds of the mesh and heightfield pairs, after ``narrow_phase_closed``; run ``ch`` works in
+    row ``ch`` of ``mesh_bank`` (a `NarrowWork`'s ``mesh`` with a row per run; ``fit_narrow_work`` after)."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range_mesh(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, shapes, pose, body_qd,
-                           body_bound_radius, dt, ca)
+                           body_bound_radius, dt, ca, mesh_bank, ch)
 
 
 def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, families=None, sdf=None,
@@ -1118,22 +1193,29 @@ def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, 
     kernel, then the general, mesh and SDF kernels when the scene's shape types can form such pairs
     (``families = (general, mesh, sdf)``, default ``scene_families(shapes.shape_type)``). ``sdf``: the
     baked SDF rows (`inertia.geometry.sdf_collide.SdfArrays`; needed when the scene has SDF pairs).
-    ``work``: a `NarrowWork` kept between calls (``new_narrow_work(general)``); made here when None."""
+    ``work``: a `NarrowWork` kept between calls (``new_narrow_work(general, scene_mesh_rows(...))``, the mesh
+    bank with a row per run when the scene has mesh or SDF pairs); made here when None. Returns the work to
+    keep (``fit_narrow_work``: its candidate slots grown when a mesh pair overflowed them)."""
     general, mesh, with_sdf = scene_families(shapes.shape_type) if families is None else families
     if work is None:
-        work = new_narrow_work(general)
+        work = new_narrow_work(general, scene_mesh_rows(shapes.shape_type, shapes.shape_vert_count)
+                               if mesh or with_sdf else 0)
+    elif (mesh or with_sdf) and work.mesh.cand.shape[0] < _RUNS:
+        raise ValueError(f"work must have a mesh bank of {_RUNS} runs for a scene with mesh or SDF pairs "
+                         "(new_narrow_work(general, mesh_rows=scene_mesh_rows(shape_type, shape_vert_count)))")
     narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch)
     if general:
         narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch,
                              work.gjk)
     if mesh:
-        narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca)
+        narrow_phase_mesh(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.mesh)
     if with_sdf:
         if sdf is None:
             raise ValueError("sdf must be the model's SdfArrays (inertia.geometry.sdf_collide.sdf_arrays(model)) "
                              "when the shapes include SDF rows")
         from .sdf_collide import narrow_phase_sdf
-        narrow_phase_sdf(pairs, npairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca)
+        narrow_phase_sdf(pairs, npairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca, work.mesh)
+    return fit_narrow_work(work)
 
 
 @njit(cache=True)

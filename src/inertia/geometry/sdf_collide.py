@@ -33,6 +33,9 @@ and is kept when that is within the speculative distance. Points lie midway betw
 (x - r g) and the SDF surface. More than four points are reduced to four (deepest, farthest, largest
 triangle, largest quad: ``narrowphase._reduce_and_emit``, Gregorius 2015). Feature key = sample index,
 so warm starting matches points across steps.
+Scratch: the samples' points, gradients, separations and keys live in the run's row of the narrow
+phase's mesh bank (``narrowphase.MeshScratch``, rows for the scene's largest hull), so a step allocates
+nothing.
 
 References
 - Guendelman, E., Bridson, R. and Fedkiw, R. (2003). Nonconvex rigid bodies with stacking. ACM TOG
@@ -67,7 +70,7 @@ from ..collision import distance as _d
 from . import shapes as S
 from ._tup import add, dot, madd, qconj, qmul, qrot, qrot_inv, scale, sub
 from .narrowphase import (FAMILY_SDF, ManifoldOut, _RUNS, _reduce_and_emit, _set_normal, _speculative_distance,
-                          _tangents, pair_family)
+                          _tangents, mesh_scratch_row, pair_family)
 
 __all__ = ["SdfArrays", "sdf_arrays", "sample_count", "sample_point", "collide_sdf", "narrow_phase_sdf",
            "SAMPLES_BOX", "SAMPLES_CYLINDER", "CYLINDER_RIM"]
@@ -194,20 +197,24 @@ def collide_sdf(out, i, ta, sa, sb, shapes, sdf, pose, spec, pts, seps, feats, g
 
 
 @njit(cache=True)
-def _narrow_range_sdf(lo, hi, pairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca):
-    """The (convex, SDF) pairs of ``lo:hi`` (after ``narrow_phase_closed``): manifold, count, tangents."""
+def _narrow_range_sdf(lo, hi, pairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca, bank, run):
+    """The (convex, SDF) pairs of ``lo:hi`` (after ``narrow_phase_closed``): manifold, count, tangents; the
+    samples in row ``run`` of the mesh bank (`narrowphase.MeshScratch`: ``pts``, ``seps``, ``feats``, and
+    ``verts`` for the gradients)."""
     shape_body, shape_type, shape_margin = shapes.shape_body, shapes.shape_type, shapes.shape_margin
     shape_vert_count = shapes.shape_vert_count
-    # scratch rows for the largest sample count of the run (allocated once per run, not per pair)
+    # rows for the largest sample count of the run: the bank's (sized for the scene's hulls), or, for a
+    # bank made for fewer, rows of the run's own
     rows = SAMPLES_CYLINDER
     for i in range(lo, hi):
         sa = pairs[i, 0]
         if pair_family(shape_type[sa], shape_type[pairs[i, 1]]) == FAMILY_SDF:
             rows = max(rows, sample_count(shape_type[sa], shape_vert_count[sa]))
-    pts = np.empty((rows, 3))
-    grads = np.empty((rows, 3))
-    seps = np.empty(rows)
-    feats = np.empty(rows, np.int64)
+    scr = mesh_scratch_row(bank, run)
+    if rows <= scr.pts.shape[0]:
+        pts, grads, seps, feats = scr.pts, scr.verts, scr.seps, scr.feats
+    else:
+        pts, grads, seps, feats = np.empty((rows, 3)), np.empty((rows, 3)), np.empty(rows), np.empty(rows, np.int64)
     out = ManifoldOut(ca.contact_normal, ca.contact_point, ca.contact_separation, ca.contact_feature)
     contact_point_count, contact_normal, contact_tangent = (ca.contact_point_count, ca.contact_normal,
                                                             ca.contact_tangent)
@@ -223,9 +230,11 @@ def _narrow_range_sdf(lo, hi, pairs, shapes, sdf, pose, body_qd, body_bound_radi
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_sdf(pairs, npairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca):
-    """The manifolds of the (convex shape, baked SDF) pairs, after ``narrow_phase_closed``."""
+def narrow_phase_sdf(pairs, npairs, shapes, sdf, pose, body_qd, body_bound_radius, dt, ca, mesh_bank):
+    """The manifolds of the (convex shape, baked SDF) pairs, after ``narrow_phase_closed``; run ``ch`` works
+    in row ``ch`` of ``mesh_bank`` (a `NarrowWork`'s ``mesh`` with a row per run), so a step allocates
+    nothing."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range_sdf(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, shapes, sdf, pose, body_qd,
-                          body_bound_radius, dt, ca)
+                          body_bound_radius, dt, ca, mesh_bank, ch)

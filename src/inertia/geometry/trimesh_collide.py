@@ -35,7 +35,11 @@ Limitations
 - A capsule's segment crossing a ridge between its end spheres gets no middle point.
 - Meshes are one-sided surfaces seen from the side their face normals point to; no internal-edge
   (ghost collision) smoothing, so a box sliding over a tessellated flat floor may catch on seams rarely.
-- One small scratch allocation per mesh pair per step (the candidate list).
+
+Memory: a pair works in its run's row of the narrow phase's mesh bank (``narrowphase.MeshScratch``: the
+candidate list, the BVH stack, A's vertices, the candidate points, the crease contacts), made once per
+world, so a warm step allocates nothing. A pair with more candidate triangles than the bank holds uses a
+temporary list that step (same results) and the world doubles the bank after it (``fit_narrow_work``).
 """
 
 from __future__ import annotations
@@ -47,13 +51,12 @@ from numba import njit
 
 from . import shapes as S
 from ._tup import add, cross, dot, madd, norm, qconj, qmul, qrot, qrot_inv, scale, sub
-from .bvh import build_bvh, bvh_query_box
-from .narrowphase import _reduce_and_emit, _set_normal
+from .bvh import STACK_SIZE, build_bvh, bvh_query_box_stack
+from .narrowphase import CREASE_MAX, MESH_CANDIDATES, _reduce_and_emit, _set_normal
 
 __all__ = ["mesh_soup", "heightfield_vertices", "triangle_local", "triangle_candidates", "collide_triangles",
            "ray_triangles"]
 
-_MAX_CANDIDATES = 256
 CREASE_BAND = 0.05      # of the radius: faces this much farther than the deepest stop steering the normal
 
 
@@ -116,12 +119,13 @@ def triangle_local(shapes, s, k):
 
 
 @njit(cache=True)
-def triangle_candidates(shapes, s, lo, hi, out):
-    """Triangles of mesh/heightfield row ``s`` that may touch the local box [lo, hi]; returns the count
-    (entries past ``len(out)`` are not written: grow and repeat)."""
+def triangle_candidates(shapes, s, lo, hi, out, stack):
+    """Triangles of mesh/heightfield row ``s`` that may touch the local box [lo, hi] (three floats each);
+    returns the count (entries past ``len(out)`` are not written: grow and repeat). ``stack``: a BVH
+    traversal stack (``bvh.STACK_SIZE`` int32)."""
     if shapes.shape_type[s] == S.TRIANGLE_MESH:
-        return bvh_query_box(shapes.geom_bvh_bounds, shapes.geom_bvh_nodes, shapes.shape_bvh_start[s], lo, hi,
-                             out)
+        return bvh_query_box_stack(shapes.geom_bvh_bounds, shapes.geom_bvh_nodes, shapes.shape_bvh_start[s], lo,
+                                   hi, out, stack)
     p = shapes.shape_params[s]
     nx, ny, dx, dy = int(p[0]), int(p[1]), p[2], p[3]
     x0 = -0.5 * (nx - 1) * dx
@@ -149,13 +153,16 @@ def triangle_candidates(shapes, s, lo, hi, out):
 
 
 @njit(cache=True)
-def _gather(shapes, s, lo, hi):
-    out = np.empty(_MAX_CANDIDATES, np.int64)
-    n = triangle_candidates(shapes, s, lo, hi, out)
-    if n > out.shape[0]:
-        out = np.empty(n, np.int64)
-        n = triangle_candidates(shapes, s, lo, hi, out)
-    return out, n
+def _gather(shapes, s, lo, hi, cand, stack, need):
+    """(candidate list, count): the triangles under [lo, hi] in ``cand``; when they overflow it, in a
+    temporary list of the full count (this call only: the count goes to ``need[0]`` and the world grows
+    the bank it keeps, ``narrowphase.fit_narrow_work``)."""
+    n = triangle_candidates(shapes, s, lo, hi, cand, stack)
+    if n > cand.shape[0]:
+        need[0] = max(need[0], n)
+        cand = np.empty(n, np.int64)
+        n = triangle_candidates(shapes, s, lo, hi, cand, stack)
+    return cand, n
 
 
 @njit(cache=True)
@@ -221,15 +228,12 @@ def _sphere_triangles(c, r, shapes, s, cand, n):
     return best_sep, best_n, best_k
 
 
-_CREASE_MAX = 4
-
-
 @njit(cache=True)
 def _sphere_triangle_contacts(c, r, shapes, s, cand, n, spec, out_sep, out_n, out_k, out_q, out_face):
     """Distinct contacts of a sphere with the candidate triangles within ``spec``: one per contact normal
     (Voronoi-region test on triangle features, Ericson 2005, 5.1.5: triangles whose closest points share an
     edge or vertex give the same normal from the centre and count once; only faces of a concave crease give
-    different normals). Keeps the ``_CREASE_MAX`` smallest separations; returns the count."""
+    different normals). Keeps the ``CREASE_MAX`` smallest separations; returns the count."""
     m = 0
     for t in range(n):
         k = cand[t]
@@ -251,7 +255,7 @@ def _sphere_triangle_contacts(c, r, shapes, s, cand, n, spec, out_sep, out_n, ou
             if dot(nrm, (out_n[j, 0], out_n[j, 1], out_n[j, 2])) > 1.0 - 1e-9:
                 dup = j
                 break
-        if dup < 0 and m < _CREASE_MAX:
+        if dup < 0 and m < CREASE_MAX:
             dup = m
             m += 1
             out_sep[dup] = np.inf
@@ -316,26 +320,24 @@ def _vertex_triangles(v, shapes, s, cand, n):
 
 
 @njit(cache=True)
-def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
-    """Manifold ``i`` for convex shape ``sa`` against mesh/heightfield ``sb``; returns the point count."""
+def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec, scr):
+    """Manifold ``i`` for convex shape ``sa`` against mesh/heightfield ``sb``; returns the point count.
+    ``scr``: a `narrowphase.MeshScratch` row (the run's views of the mesh bank)."""
     pb = (pose[sb, 0], pose[sb, 1], pose[sb, 2])
     qb = (pose[sb, 3], pose[sb, 4], pose[sb, 5], pose[sb, 6])
     pa = qrot_inv(qb, (pose[sa, 0] - pb[0], pose[sa, 1] - pb[1], pose[sa, 2] - pb[2]))
     qa = qmul(qconj(qb), (pose[sa, 3], pose[sa, 4], pose[sa, 5], pose[sa, 6]))
     A = shapes.shape_params[sa]
-    lo = np.empty(3)
-    hi = np.empty(3)
     if ta == S.SPHERE or ta == S.CAPSULE:
         r = A[0]
         h = A[1] if ta == S.CAPSULE else 0.0
         e0 = madd(pa, qrot(qa, (0.0, 0.0, 1.0)), -h)
         e1 = madd(pa, qrot(qa, (0.0, 0.0, 1.0)), h)
-        for k in range(3):
-            lo[k] = min(e0[k], e1[k]) - r - spec
-            hi[k] = max(e0[k], e1[k]) + r + spec
-        cand, n = _gather(shapes, sb, lo, hi)
+        lo = (min(e0[0], e1[0]) - r - spec, min(e0[1], e1[1]) - r - spec, min(e0[2], e1[2]) - r - spec)
+        hi = (max(e0[0], e1[0]) + r + spec, max(e0[1], e1[1]) + r + spec, max(e0[2], e1[2]) + r + spec)
+        cand, n = _gather(shapes, sb, lo, hi, scr.cand, scr.stack, scr.need)
         if ta == S.SPHERE:
-            return _sphere_crease(ca, i, e0, r, shapes, sb, cand, n, spec, pb, qb)
+            return _sphere_crease(ca, i, e0, r, shapes, sb, cand, n, spec, pb, qb, scr)
         s0, n0, k0 = _sphere_triangles(e0, r, shapes, sb, cand, n)
         cnt = 0
         s1, n1, k1 = _sphere_triangles(e1, r, shapes, sb, cand, n)
@@ -359,7 +361,12 @@ def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
         nv = shapes.shape_vert_count[sa]
     else:
         return 0
-    local = np.empty((nv, 3))
+    if nv <= scr.verts.shape[0]:
+        local, pts, seps, feats = scr.verts, scr.pts, scr.seps, scr.feats
+    else:                   # a bank made for smaller hulls (a caller's own NarrowWork): this pair's rows
+        local, pts, seps, feats = np.empty((nv, 3)), np.empty((nv, 3)), np.empty(nv), np.empty(nv, np.int64)
+    x0, y0, z0 = np.inf, np.inf, np.inf
+    x1, y1, z1 = -np.inf, -np.inf, -np.inf
     for v in range(nv):
         if ta == S.BOX:
             lv = (A[0] if v & 1 else -A[0], A[1] if v & 2 else -A[1], A[2] if v & 4 else -A[2])
@@ -370,13 +377,10 @@ def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
             lv = _vtx(shapes.geom_vertices, shapes.shape_vert_start[sa] + v)
         w = add(pa, qrot(qa, lv))
         local[v, 0], local[v, 1], local[v, 2] = w
-    for k in range(3):
-        lo[k] = local[:, k].min() - spec
-        hi[k] = local[:, k].max() + spec
-    cand, n = _gather(shapes, sb, lo, hi)
-    pts = np.empty((nv, 3))
-    seps = np.empty(nv)
-    feats = np.empty(nv, np.int64)
+        x0, y0, z0 = min(x0, w[0]), min(y0, w[1]), min(z0, w[2])
+        x1, y1, z1 = max(x1, w[0]), max(y1, w[1]), max(z1, w[2])
+    cand, n = _gather(shapes, sb, (x0 - spec, y0 - spec, z0 - spec), (x1 + spec, y1 + spec, z1 + spec), scr.cand,
+                      scr.stack, scr.need)
     cnt = 0
     deepest = np.inf
     normal = (0.0, 0.0, -1.0)
@@ -400,17 +404,14 @@ def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec):
 
 
 @njit(cache=True)
-def _sphere_crease(ca, i, c, r, shapes, sb, cand, n, spec, pb, qb):
+def _sphere_crease(ca, i, c, r, shapes, sb, cand, n, spec, pb, qb, scr):
     """Sphere manifold against a mesh (mesh frame centre ``c``): one point per distinct contact normal.
     With several (a crease), the manifold normal is the weighted mean m of the normals, weights falling
     linearly from 1 for the deepest to 0 at CREASE_BAND * r above it (continuous, so no flip-flop), and each
     point's separation is measured along m: sep_k / (n_k . m), the gap the sphere closes moving along m
-    before touching face k. In a symmetric crease m is the bisector and the sphere rests on both faces."""
-    seps = np.empty(_CREASE_MAX)
-    nrms = np.empty((_CREASE_MAX, 3))
-    tris = np.empty(_CREASE_MAX, np.int64)
-    foot = np.empty((_CREASE_MAX, 3))
-    face = np.empty(_CREASE_MAX, np.bool_)
+    before touching face k. In a symmetric crease m is the bisector and the sphere rests on both faces.
+    The contacts live in ``scr``'s crease rows (a `narrowphase.MeshScratch` row)."""
+    seps, nrms, tris, foot, face = scr.crease_sep, scr.crease_n, scr.crease_tri, scr.crease_foot, scr.crease_face
     m = _sphere_triangle_contacts(c, r, shapes, sb, cand, n, spec, seps, nrms, tris, foot, face)
     if m == 0:
         return 0
@@ -464,12 +465,11 @@ def ray_triangles(shapes, s, pose, origin, translation):
     qb = (pose[3], pose[4], pose[5], pose[6])
     o = qrot_inv(qb, (origin[0] - pb[0], origin[1] - pb[1], origin[2] - pb[2]))
     d = qrot_inv(qb, (translation[0], translation[1], translation[2]))
-    lo = np.empty(3)
-    hi = np.empty(3)
-    for k in range(3):
-        lo[k] = min(o[k], o[k] + d[k])
-        hi[k] = max(o[k], o[k] + d[k])
-    cand, n = _gather(shapes, s, lo, hi)
+    lo = (min(o[0], o[0] + d[0]), min(o[1], o[1] + d[1]), min(o[2], o[2] + d[2]))
+    hi = (max(o[0], o[0] + d[0]), max(o[1], o[1] + d[1]), max(o[2], o[2] + d[2]))
+    # a query, not a step: its own candidate list and stack
+    cand, n = _gather(shapes, s, lo, hi, np.empty(MESH_CANDIDATES, np.int64), np.empty(STACK_SIZE, np.int32),
+                      np.zeros(1, np.int64))
     best = np.inf
     best_n = (0.0, 0.0, 0.0)
     for t in range(n):

@@ -69,10 +69,10 @@ Memory: every work array of the step is made at build (``_allocate``: shape pose
 sweep's merge-sort scratch, the narrow phase's scratch banks ``NarrowWork``, constraint and colour
 arrays, the finite check's output); the pair buffers and the constraint arrays are replaced by ones of
 twice the needed size when a step's pair or constraint count exceeds them, and the contact buffers
-double likewise (``Contacts.reserve``), so growth is amortised O(log n) over a run. A warm step's
-kernels allocate nothing (tests/rigid/test_step_allocations.py counts Numba's NRT allocations and
-tracemalloc's peak); the mesh, heightfield and SDF narrow phases (``trimesh_collide``, ``sdf_collide``)
-still make small per-pair or per-run arrays.
+double likewise (``Contacts.reserve``), as do the mesh bank's candidate slots (``fit_narrow_work``), so
+growth is amortised O(log n) over a run. A warm step's kernels allocate nothing, the mesh, heightfield
+and SDF narrow phases included (tests/rigid/test_step_allocations.py and
+test_step_allocations_mesh_sdf.py count Numba's NRT allocations and tracemalloc's peak).
 
 Baked signed-distance colliders (``SDF`` rows with a grid, ``inertia.geometry.sdf_collide``) collide with
 the dynamic bodies' convex shapes through surface samples; unbaked ones cannot (a warning at build names
@@ -98,8 +98,9 @@ from ..dynamics.contacts import Contacts
 from ..errors import SimulationDiverged
 from ..geometry import shapes as S
 from ..geometry.broadphase import shape_world_bounds, sort_and_sweep_into
-from ..geometry.narrowphase import (compact_active, match_warm_start, narrow_phase_closed, narrow_phase_general,
-                                    narrow_phase_mesh, new_narrow_work, scene_families)
+from ..geometry.narrowphase import (compact_active, fit_narrow_work, match_warm_start, narrow_phase_closed,
+                                    narrow_phase_general, narrow_phase_mesh, new_narrow_work, scene_families,
+                                    scene_mesh_rows)
 from ..geometry.sdf_collide import narrow_phase_sdf, sdf_arrays
 from ..geometry.toi import time_of_impact_batch
 from ..model import Control, Model, State
@@ -212,7 +213,9 @@ class RigidWorld:
         self._shape_pose = np.zeros((ns, 7))
         self._aabb = np.zeros((ns, 6))
         self._order = np.zeros(ns, np.int64)
-        self._narrow_work = new_narrow_work(self._families[0])   # clipping and GJK/EPA scratch banks
+        # clipping, GJK/EPA and mesh/SDF scratch banks
+        rows = scene_mesh_rows(m.shape_type, m.shape_vert_count) if self._families[1] or self._families[2] else 0
+        self._narrow_work = new_narrow_work(self._families[0], rows)
         self._grow_pairs(max(64, 4 * ns))
         self._body_dp = np.zeros((nb, 3))
         self._body_dtheta = np.zeros((nb, 3))
@@ -329,10 +332,11 @@ class RigidWorld:
                                          self._narrow_work.gjk)
         if self._families[1]:
             self._k.narrow_phase_mesh(self._pairs, npairs, self._shapes, self._shape_pose, st.body_qd,
-                                      m.body_bound_radius, dt, ca)
+                                      m.body_bound_radius, dt, ca, self._narrow_work.mesh)
+            self._narrow_work = fit_narrow_work(self._narrow_work)   # candidate slots doubled past an overflow
         if self._families[2]:
             self._k.narrow_phase_sdf(self._pairs, npairs, self._shapes, self._sdf, self._shape_pose, st.body_qd,
-                                     m.body_bound_radius, dt, ca)
+                                     m.body_bound_radius, dt, ca, self._narrow_work.mesh)
         c.count = npairs
         c.active_count = compact_active(ca, npairs)
         if self.rolling_resistance > 0.0:
