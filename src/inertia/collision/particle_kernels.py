@@ -940,7 +940,8 @@ def step_and_collide(x, v, radius, inv_mass, active, gravity, force, damping, rk
     with the dimension, the method and the rows constant: the compiler vectorises it (AVX2: four
     particles per instruction; at 1M particles on one thread the fused semi-implicit step took
     about 0.4x, rk4 about 0.45x the time of the scalar loop, same bits). A short pass turns the
-    flags into the chunk's near particles from the chunk's first slot, ended by -1.
+    flags into the chunk's near particles from the chunk's first slot, ended by -1
+    (``_list_near``: it looks at blocks of flags, and slot by slot only in a block with a flag).
     A second loop over that short list integrates them again (the same arithmetic: the same
     bits) and runs the same ``_collide_near`` as ``collide_particles``, so the results are the
     same bits as the integrator's fused kernel followed by ``collide_particles``. The far path
