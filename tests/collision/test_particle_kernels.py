@@ -166,3 +166,56 @@ def test_fused_step_same_bits_through_the_vectorised_and_the_general_first_loop(
             assert x1.tobytes() == x2.tobytes() and v1.tobytes() == v2.tobytes(), (dim, rk4)
             assert (k1 == k2).all()
             assert not np.array_equal(x1[~np.isnan(x1)], ps.x[~np.isnan(ps.x)])  # the step moved them
+
+
+def test_near_list_from_blocks_of_flags_is_the_flag_by_flag_list():
+    # ``_list_near`` passes over all-zero blocks of NEAR_BLOCK flags; the list must be what the
+    # flag-by-flag compaction gives: the flagged indices in order from slot lo, then -1 if shorter.
+    # Sparse and dense flags, a flag at each end of a block, chunks that end inside a block.
+    rng = np.random.default_rng(11)
+    b = pk.NEAR_BLOCK
+    for lo, hi, density in ((0, 1024, 0.007), (1024, 2048, 0.5), (0, 1000, 0.02), (3, 40, 1.0), (5, 5 + b, 0.0),
+                            (0, 7, 0.3)):
+        flags = (rng.random(hi + 8) < density).astype(np.int64)
+        if hi - lo > 2 * b:
+            flags[lo + b - 1] = flags[lo + b] = 1  # the last slot of a block and the first of the next
+        near = flags.copy()
+        end = pk._list_near(near, lo, hi)
+        expect = lo + np.flatnonzero(flags[lo:hi])
+        assert end == lo + len(expect)
+        assert (near[lo:end] == expect).all()
+        if end < hi:
+            assert near[end] == -1
+        assert (near[:lo] == flags[:lo]).all() and (near[hi:] == flags[hi:]).all()  # nothing else written
+
+
+def test_near_pass_helpers_do_not_count_references():
+    # the per-particle helpers of the response are compiled without Numba's reference counting
+    # (``_unrefcounted``): with it, each call made atomic increments and decrements on every array
+    # argument, 30 % of the near pass's time (see the decorator's comment)
+    import re
+
+    from numba import njit
+
+    from inertia.collision import distance as _d
+
+    helpers = (pk._collide_near, pk._full_path, pk._resting_collider, pk._eval, pk._surface_velocity,
+               pk._body_velocity, pk._clear_of_planes_and_spheres)
+    assert all(fn.targetoptions.get("_nrt") is False for fn in helpers)
+    # and the effect: ``_resting_collider`` compiled afresh (the kernels' copies come from the cache,
+    # without IR) with the same options holds no NRT_incref / NRT_decref in its own code, and
+    # compiled with Numba's defaults it does (else this check could not fail)
+    ps = ia.ParticleSystem(np.zeros((1, 3)), radius=0.0)
+    ps.add_collider(C.Plane(point=(0, 0, 0), normal=(0, 0, 1)))
+    d = ps._collision
+    opts = {k: v for k, v in pk._resting_collider.targetoptions.items() if k not in ("cache", "nopython")}
+    for options in (opts, {}):
+        fresh = njit(**options)(pk._resting_collider.py_func)
+        k = fresh(0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, d.cint, d.cf, d.ci, d.pose1, d.pose0, d.pose1, d.ref,
+                  1.0, 1e-6, 1e-6, -1, -1, np.zeros((1, 3)), np.zeros((1, 3)), _d.kinds_token(pk.LIGHT_KINDS), None)
+        assert k == 0  # on the plane, at rest
+        ir = fresh.inspect_llvm(fresh.signatures[0])
+        own = r'[^\n@]*@"?_ZN7inertia9collision16particle_kernels\d+_resting_collider'  # not the wrapper
+        bodies = [m.split("\n}\n")[0] for m in re.split(r"^define ", ir, flags=re.M) if re.match(own, m)]
+        counted = sum(b.count("@NRT_incref") + b.count("@NRT_decref") for b in bodies)
+        assert bodies and (counted == 0) == (options is opts), (options, counted)
