@@ -47,6 +47,8 @@ begin_step (before the integrator)
               in a World that wants Contacts rows (``coupling`` set) the kernel's near loop also
               credits each particle's change over the pass to its contact slot of a table row
               (``pass_record``), as ``coupling.after_collisions`` does after the separate pass
+              and the coupling lists the kernel's near particles that took a slot or rest on a
+              table row (``ParticleBodyCoupling.note_near``): the rows the world fills
 integrator
     non-fused steps: the force filter ``RestingContactFilter`` runs in every force evaluation:
     for resting particles it cancels the applied force into the surface and applies Coulomb

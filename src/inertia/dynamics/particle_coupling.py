@@ -23,6 +23,11 @@ impulses on a body's rows sum to minus what the body received (the same numbers,
 In a world whose bodies are all static the particle groups take the fused integrator step, whose near
 loop writes the same slots itself (``particle_kernels.step_and_collide``, attribution by the shared
 ``particle_kernels.pass_row``): the rows are those of the separate pass, bit for bit.
+The coupling lists the particles that took a slot or rest on a table row (`TouchedParticles`:
+after a fused step from its near particles only, after a separate pass from every particle), and the
+world clears the slots and fills the rows of those alone (in particle order: the same rows as a scan
+of every particle), so with the fused step a world step's rows cost what its contacts cost; a world
+with sensor rows still tests every particle against them.
 
 Impulses are summed per body in particle order, group order and substep order (serial, fixed order:
 deterministic at any thread count), then applied once per world step by `apply_body_impulses`:
