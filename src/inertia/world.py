@@ -500,6 +500,7 @@ class World:
                 rows = PackedRows(data.cint, data.cf, data.ci, data.pose1, data.ref, coupling.entry_body,
                                   coupling.entry_shape)
                 rest_k = data.rest_k
+                order = coupling.row_order(sensors.shape.size > 0)   # the particles that can have rows
             else:
                 if sensors.shape.size == 0:
                     continue
@@ -511,12 +512,13 @@ class World:
                                                  np.zeros((1, 12)), np.zeros((1, 3)), np.full(1, -1, np.int64),
                                                  np.full(1, -1, np.int64)))
                 slots, rest_k, rows = self._no_slots
+                order = (rows.entry_shape, -1)                        # every particle (sensor rows)
             start = c.particle_start + c.particle_count
             args = (system.x, system.radius, system.active, rest_k, slots, rows, self.model.shape_body,
                     sensors, gi)
-            n_rows = fill_particle_contacts(*args, c.particle_arrays(), start, False)
+            n_rows = fill_particle_contacts(*args, c.particle_arrays(), start, False, *order)
             c.reserve(start + n_rows)
-            fill_particle_contacts(*args, c.particle_arrays(), start, True)
+            fill_particle_contacts(*args, c.particle_arrays(), start, True, *order)
             c.particle_count += n_rows
 
     def contact_events(self, *, touch_slop: float = 0.0) -> dict:

@@ -21,14 +21,14 @@ ROW_FIELDS = ("contact_shape", "contact_body", "contact_particle", "contact_poin
               "contact_total_normal_impulse", "contact_tangent_impulse", "contact_is_sensor")
 
 
-def _static_world(x, v, *, integrator="rk4", restitution=0.5, friction=0.2, fuse=True, mass=0.002):
+def _static_world(x, v, *, integrator="rk4", restitution=0.5, friction=0.2, fuse=True, mass=0.002, substeps=1):
     """A ground plane (table row 0, body -1) and a static box (row 1) under gravity, particles of
     radius 1 cm. ``fuse=False`` forces the separate collision pass."""
     b = ModelBuilder(gravity=(0.0, 0.0, -G))
     b.add_plane(restitution=restitution, friction=friction)
     wall = b.add_body(body_type="static", position=(0.3, 0.0, 0.15))
     b.add_box(wall, (0.1, 0.3, 0.15), restitution=0.6, friction=0.3)
-    world = World(dt=1 / 240, model=b.finalize())
+    world = World(dt=1 / 240, substeps=substeps, model=b.finalize())
     ps = ia.ParticleSystem(np.asarray(x, float), np.asarray(v, float), masses=mass, radius=0.01)
     ps.add_force(ia.forces.Gravity((0.0, 0.0, -G)))
     world.add("p", ps, integrator=integrator)
@@ -155,3 +155,53 @@ def test_fused_contact_rows_are_the_same_bits_at_1_and_2_threads(monkeypatch, th
         assert ps._collision.fused_step == "rk4" and world.rigid.contacts.particle_count > 0
         digests.append(h.hexdigest())
     assert len(set(digests)) == 1
+
+
+def _listed(ps):
+    t = ps._collision.coupling.touched
+    return t.index[:t.state[0]]
+
+
+@pytest.mark.parametrize("fuse, substeps", [(True, 1), (True, 2), (False, 2)])
+def test_rows_are_cleared_and_filled_for_the_particles_in_contact_only(fuse, substeps):
+    # the world clears the contact slots and fills the Contacts rows of the particles its coupling
+    # listed (TouchedParticles), not of every particle: 4000 particles 50 m up, far from every
+    # shape, added to the rain change no row and list nothing, so the clear and the fill do the
+    # same work with and without them. Every particle that can have a row (a slot taken, or
+    # resting on a table row: the rows the full scan would write) is listed, and the rows come
+    # out in particle order also when a second substep lists lower indices (sorted before the fill)
+    x, v = _rain(200, seed=5)
+    far = np.column_stack([np.linspace(-1.0, 1.0, 4000), np.zeros(4000), np.full(4000, 50.0)])
+    small, ps_small = _static_world(x, v, fuse=fuse, substeps=substeps)
+    big, ps_big = _static_world(np.vstack([x, far]), np.vstack([v, np.zeros_like(far)]), fuse=fuse,
+                                substeps=substeps)
+    coupling = ps_big._collision.coupling
+    unsorted = []
+    row_order = coupling.row_order
+
+    def spy(every):     # was the list out of order before the fill sorted it?
+        unsorted.append(int(coupling.touched.state[1] == 0))
+        return row_order(every)
+
+    coupling.row_order = spy
+    listed_max = 0
+    for _ in range(90):
+        small.step()
+        big.step()
+        a, b = _rows(small), _rows(big)
+        for name in ROW_FIELDS:
+            assert np.array_equal(a[name], b[name]), name
+        assert np.all(np.diff(b["contact_particle"][:, 1]) >= 0)          # particle order
+        c = coupling
+        rest_k = ps_big._collision.rest_k
+        can_have_rows = (c.slot_entry[:, 0] >= 0) | ((rest_k >= 0) & (c.entry_shape[np.maximum(rest_k, 0)] >= 0))
+        assert set(_listed(ps_big).tolist()) == set(np.flatnonzero(can_have_rows).tolist())
+        assert np.array_equal(_listed(ps_big), _listed(ps_small))       # none of the far particles
+        listed_max = max(listed_max, _listed(ps_big).size)
+    assert (ps_big._collision.fused_step is not None) == fuse
+    assert listed_max >= 25 and big.rigid.contacts.particle_count > 0
+    assert (sum(unsorted) > 0) == (substeps > 1)        # the sort was needed with two substeps
+    # the next step's clear empties every slot (no particle outside the list held one)
+    coupling.clear_slots()
+    assert (coupling.slot_entry == -1).all() and (coupling.slot_impulse == 0.0).all()
+    assert not coupling.touched.listed.any() and coupling.touched.state[0] == 0

@@ -1502,8 +1502,9 @@ def kernels_for(kinds, moving: bool = True) -> ParticleKernels:
     are compiled for ``LIGHT_KINDS`` when every kind is in it and for ``ALL_KINDS`` otherwise;
     the signed distances and times of impact of the kinds left out are not compiled (a scene of
     planes compiles about 60 % of the code of one with every shape, and the first frame of the
-    fountain comes 35 % sooner), and both give the same bits. Bundles are cached (cheap to call
-    every step).
+    fountain comes 35 % sooner), and both give the same bits. Bundles are cached; the lookup
+    from a ``cint`` table reads every row's kind (a list of K ints), so a stepping caller keeps
+    the bundle until its table changes (``ParticleCollisionData.kernels``, set by ``_pack``).
     """
     if hasattr(kinds, "ndim") and kinds.ndim == 2:
         moving = bool((kinds[:, 1] & 1).any())

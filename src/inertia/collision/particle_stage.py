@@ -47,6 +47,8 @@ begin_step (before the integrator)
               in a World that wants Contacts rows (``coupling`` set) the kernel's near loop also
               credits each particle's change over the pass to its contact slot of a table row
               (``pass_record``), as ``coupling.after_collisions`` does after the separate pass
+              and the coupling lists the kernel's near particles that took a slot or rest on a
+              table row (``ParticleBodyCoupling.note_near``): the rows the world fills
 integrator
     non-fused steps: the force filter ``RestingContactFilter`` runs in every force evaluation:
     for resting particles it cancels the applied force into the surface and applies Coulomb
@@ -260,6 +262,9 @@ class ParticleCollisionData:
             self.coupling.entry_shape = self.entry_shapes()
         self.any_moving = any(c.moving for c in self.colliders)
         self.any_kernel = any(c.kind != _d.CALLABLE for c in self.colliders)
+        # the kernels compiled for these collider kinds: looked up once per change of the table,
+        # not per call (the lookup reads every row's kind)
+        self.kernels = pk.kernels_for(self.cint)
 
     def can_fuse(self) -> bool:
         """True when the collision pass can run inside the integrator's fused kernel: only
@@ -279,13 +284,15 @@ class ParticleCollisionData:
         self.fused_armed = False
         tic = time.perf_counter()
         rec, record = self.pass_record()
-        self.fused_result = pk.kernels_for(self.cint).step_and_collide(
+        self.fused_result = self.kernels.step_and_collide(
             system.x, system.v, system.radius, system.inv_mass, system.active, g, force, damping, rk4,
             self.cint, self.cnear, self.cmat, self.cf, self.ci, self.far_planes, self.far_balls, self.pose1,
             self.ref, self.rest_k,
             self.rest_n, self.rest_u, self.load, self.static_ok, self.near_list, self.chunk_counts, rec, record,
             dt, self.distance_tolerance,
             self.rest_speed, self.mode == "a_priori", self.max_substeps, self.max_iterations)
+        if record and self.coupling is not None:  # the particles that may have rows: the near ones only
+            self.coupling.note_near(self.near_list, pk.STEP_CHUNK, self.rest_k)
         self.profile["collide"] += time.perf_counter() - tic
 
     def pass_record(self):
@@ -476,7 +483,7 @@ class RestingContactFilter:
             return
         if d.coupling is not None:
             d.coupling.before_filter(f)
-        pk.kernels_for(d.cint).resting_filter(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
+        d.kernels.resting_filter(v, f, self.system.inv_mass, d.rest_k, d.rest_n, d.rest_u, d.cmat, d.rest_speed, d.load,
                d.static_ok)
         if d.coupling is not None:
             d.coupling.after_filter(x, f, d)
@@ -512,7 +519,7 @@ class ParticleCollisionStage:
             d.fused_armed = False
             # the step's start: already written by the previous end_step unless someone changed it
             if d._saved_revision != system.state_revision:
-                pk.kernels_for(d.cint).copy_into(system.state, d.state0)
+                d.kernels.copy_into(system.state, d.state0)
             np.copyto(d.active0, system.active)
         d.update_poses(t, dt)
         toc = time.perf_counter()
@@ -521,7 +528,7 @@ class ParticleCollisionStage:
             self._push_out_start(system)
         # resting contacts at the start of the step (reuse end_step's when still valid)
         if d.any_kernel and (d.any_moving or (d._valid_revision != system.state_revision and not d._restored)):
-            d.resting_count = pk.kernels_for(d.cint).classify_contacts(
+            d.resting_count = d.kernels.classify_contacts(
                 system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                 d.pose0, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt,
                 d.distance_tolerance, d.rest_speed)
@@ -546,7 +553,7 @@ class ParticleCollisionStage:
         save_next = not d.self_collisions and not d.callables
         if d.any_kernel or d.self_collisions:
             classify = not d.self_collisions
-            changed, resting, finite = pk.kernels_for(d.cint).collide_particles(
+            changed, resting, finite = d.kernels.collide_particles(
                 x, v, d.x0, d.v0, system.radius, system.inv_mass, system.active, d.active0, d.cint,
                 d.cnear, d.cmat, d.cf, d.ci, d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, d.load,
                 d.static_ok, d.dv_step, dt, d.distance_tolerance, d.rest_speed, d.mode == "a_priori",
@@ -599,7 +606,7 @@ class ParticleCollisionStage:
         if not system.active.any():  # nothing to push out (e.g. an emitter's empty pool): no kernel
             return
         inside = np.zeros(d.cint.shape[0], np.int64)
-        moved = pk.kernels_for(d.cint).push_out(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
+        moved = d.kernels.push_out(system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci,
                        d.pose0, d.ref, d.distance_tolerance, inside)
         if moved:
             names = ", ".join(f"{type(c).__name__} #{i}: {int(inside[i])}"
@@ -629,7 +636,7 @@ class ParticleCollisionStage:
         nbuckets = int(np.prod(d.grid_dims)) if dense else d.table_size
         d.grid_mode = "dense" if dense else "hash"
         grid = (inv_cell, d.box_lo, d.grid_dims, dense, mask)
-        kernels = pk.kernels_for(d.cint)
+        kernels = d.kernels
         kernels.bin_particles(x, radius, system.active, *grid, d.cell_key, d.bucket)
         ns = int(bp.counting_sort(d.bucket, nbuckets, d.bucket_start, d.order))
         # sorted space: the particles in cell order (see broadphase)
@@ -677,7 +684,7 @@ class ParticleCollisionStage:
         # resting contacts for the next step, after the pair solver moved the particles
         d = self.data
         if d.any_kernel:
-            d.resting_count = pk.kernels_for(d.cint).classify_contacts(
+            d.resting_count = d.kernels.classify_contacts(
                 system.x, system.v, system.radius, system.inv_mass, system.active, d.cint, d.cf, d.ci, d.pose1,
                 d.pose0, d.pose1, d.ref, d.rest_k, d.rest_n, d.rest_u, dt, d.distance_tolerance, d.rest_speed)
 

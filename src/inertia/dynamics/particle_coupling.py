@@ -23,6 +23,11 @@ impulses on a body's rows sum to minus what the body received (the same numbers,
 In a world whose bodies are all static the particle groups take the fused integrator step, whose near
 loop writes the same slots itself (``particle_kernels.step_and_collide``, attribution by the shared
 ``particle_kernels.pass_row``): the rows are those of the separate pass, bit for bit.
+The coupling lists the particles that took a slot or rest on a table row (`TouchedParticles`:
+after a fused step from its near particles only, after a separate pass from every particle), and the
+world clears the slots and fills the rows of those alone (in particle order: the same rows as a scan
+of every particle), so with the fused step a world step's rows cost what its contacts cost; a world
+with sensor rows still tests every particle against them.
 
 Impulses are summed per body in particle order, group order and substep order (serial, fixed order:
 deterministic at any thread count), then applied once per world step by `apply_body_impulses`:
@@ -61,7 +66,8 @@ from ..geometry import shapes as S
 from ..math import world_inertia_inv_into
 
 __all__ = ["apply_body_impulses", "ParticleBodyCoupling", "gather_pass_impulses", "gather_resting_impulses",
-           "PassParticles", "PackedRows", "BodyImpulses", "ContactSlots", "SLOTS", "fill_particle_contacts"]
+           "PassParticles", "PackedRows", "BodyImpulses", "ContactSlots", "SLOTS", "fill_particle_contacts",
+           "TouchedParticles", "note_touched", "clear_touched", "sort_touched"]
 
 
 @njit(cache=True)
@@ -167,6 +173,96 @@ SLOTS = 2
 
 
 _slot_add = _pk.slot_add  # one home: the fused step (``step_and_collide``) writes the same slots
+
+
+class TouchedParticles(NamedTuple):
+    """Kernel bundle: the particles that may have rows in the world step's Contacts buffer (a contact
+    slot taken, or resting on a table row at the end of a substep), so that clearing the slots and
+    filling the rows cost what the contacts cost, not what the group costs. Each particle is listed
+    once per world step (``listed``); the list is in particle order unless a later substep listed a
+    lower index (``state[1]`` 0: ``sort_touched`` puts it back in order before the fill)."""
+    index: np.ndarray      # (N,) int64, the listed particles in index[:state[0]]
+    listed: np.ndarray     # (N,) bool, True for a listed particle
+    state: np.ndarray      # (2,) int64: [count, 1 when index[:count] is ascending]
+
+
+@njit(cache=True, inline="always")
+def _note(i, entry, rest_k, entry_shape, T):
+    if T.listed[i]:
+        return
+    k = rest_k[i]
+    if entry[i, 0] < 0 and (k < 0 or entry_shape[k] < 0):
+        return
+    c = T.state[0]
+    if c > 0 and T.index[c - 1] > i:
+        T.state[1] = 0
+    T.index[c] = i
+    T.listed[i] = True
+    T.state[0] = c + 1
+
+
+@njit(cache=True)
+def note_touched(near, chunk, entry, rest_k, entry_shape, T):
+    """List (`TouchedParticles` T) the particles of a substep that hold a contact slot (``entry``
+    (N, SLOTS)) or rest on a table row (``rest_k``, ``entry_shape``). ``near``: the candidates,
+    in chunks of ``chunk`` slots, each chunk's list from its first slot and ended by -1 when
+    shorter (the fused step's ``near_list``: only those particles were collided); chunk <= 0:
+    every particle is a candidate (after the separate pass). Serial, in particle order."""
+    n = rest_k.shape[0]
+    if chunk <= 0:
+        for i in range(n):
+            _note(i, entry, rest_k, entry_shape, T)
+        return
+    for lo in range(0, n, chunk):
+        for q in range(lo, min(lo + chunk, n)):
+            i = near[q]
+            if i < 0:
+                break
+            _note(i, entry, rest_k, entry_shape, T)
+
+
+@njit(cache=True)
+def clear_touched(entry, impulse, T):
+    """Empty the contact slots of the listed particles and the list (the start of a world step):
+    every particle with a slot taken is listed, so all slots are empty afterwards."""
+    for t in range(T.state[0]):
+        i = T.index[t]
+        for s in range(entry.shape[1]):
+            entry[i, s] = -1
+            impulse[i, s, 0] = 0.0
+            impulse[i, s, 1] = 0.0
+            impulse[i, s, 2] = 0.0
+        T.listed[i] = False
+    T.state[0] = 0
+    T.state[1] = 1
+
+
+@njit(cache=True)
+def sort_touched(T):
+    """Put the listed particles in ascending order, in place (heapsort: no allocation)."""
+    if T.state[1] != 0:
+        return
+    a, m = T.index, T.state[0]
+    for start in range(m // 2 - 1, -1, -1):
+        _sift(a, start, m)
+    for end in range(m - 1, 0, -1):
+        a[0], a[end] = a[end], a[0]
+        _sift(a, 0, end)
+    T.state[1] = 1
+
+
+@njit(cache=True)
+def _sift(a, root, end):
+    while True:
+        child = 2 * root + 1
+        if child >= end:
+            return
+        if child + 1 < end and a[child + 1] > a[child]:
+            child += 1
+        if a[root] >= a[child]:
+            return
+        a[root], a[child] = a[child], a[root]
+        root = child
 
 
 class BodyImpulses(NamedTuple):
@@ -300,6 +396,7 @@ class ParticleBodyCoupling:
                             else np.asarray(entry_shape, np.int64))
         self.slot_entry = np.full((n, SLOTS), -1, np.int64)
         self.slot_impulse = np.zeros((n, SLOTS, 3))
+        self.touched = TouchedParticles(np.zeros(n, np.int64), np.zeros(n, bool), np.array([0, 1], np.int64))
         self.body_q = body_q
         self.linear, self.angular = linear, angular
         self.tol = tol
@@ -320,9 +417,22 @@ class ParticleBodyCoupling:
         self.v_pre[:] = system.v
 
     def clear_slots(self):
-        """Forget the rows touched (the world calls it at the start of each world step)."""
-        self.slot_entry.fill(-1)
-        self.slot_impulse.fill(0.0)
+        """Forget the rows touched (the world calls it at the start of each world step): the slots of
+        the listed particles only (`TouchedParticles`), so the cost is that of the last step's contacts."""
+        clear_touched(self.slot_entry, self.slot_impulse, self.touched)
+
+    def note_near(self, near_list, chunk, rest_k):
+        """After a fused step (``particle_kernels.step_and_collide``): list its near particles
+        (``near_list``, chunks of ``chunk``) that took a slot or rest on a table row."""
+        note_touched(near_list, chunk, self.slot_entry, rest_k, self.entry_shape, self.touched)
+
+    def row_order(self, every):
+        """(order, m) for `fill_particle_contacts`: the listed particles in ascending order, or
+        (..., -1) for every particle when ``every`` (sensor rows: any particle may overlap one)."""
+        if every:
+            return self.touched.index, -1
+        sort_touched(self.touched)
+        return self.touched.index, int(self.touched.state[0])
 
     def after_collisions(self, system, data, h):
         out = BodyImpulses(self.body_q, self.linear, self.angular)
@@ -336,6 +446,8 @@ class ParticleBodyCoupling:
         rows = PackedRows(data.cint, data.cf, data.ci, data.pose1, data.ref, self.entry_body, self.entry_shape)
         self.counts["pass"] += gather_pass_impulses(particles, rows, out, slots,
                                                     max(self.tol, data.distance_tolerance))
+        # the separate pass may have collided any particle: every one is a candidate
+        note_touched(self.touched.index, 0, self.slot_entry, data.rest_k, self.entry_shape, self.touched)
 
 
 class SensorRows(NamedTuple):
@@ -411,17 +523,20 @@ def _write_row(ca, r, shape, body, g, i, x, y, z, radius, d, nx, ny, nz, jx, jy,
 
 
 @njit(cache=True)
-def fill_particle_contacts(x, radius, active, rest_k, slots, R, shape_body, Q, group, ca, start, write):
+def fill_particle_contacts(x, radius, active, rest_k, slots, R, shape_body, Q, group, ca, start, write, order, m):
     """The particle rows of one group (see ``inertia.dynamics.contacts``): per particle in order, its
     contact slots (`ContactSlots`: rows touched in the step, with their impulses), then the table row
     it rests on at the end of the step if no slot holds it (zero impulse), then the sensor rows
     (`SensorRows` Q) it overlaps (distance minus radius <= 0). R: `PackedRows` at the end of the step.
     Rows go to ``ca`` (`ContactArrays` plus ``contact_particle``) from ``start`` on when ``write``;
-    returns the number of rows either way (count with write=False, reserve, then write)."""
+    returns the number of rows either way (count with write=False, reserve, then write). The
+    particles visited: order[:m] (ascending, every particle that can have a row: the coupling's
+    `TouchedParticles`, ``ParticleBodyCoupling.row_order``), or all of them when m < 0."""
     entry, impulse = slots.entry, slots.impulse
     cint, cf, ci, pose, ref, entry_shape = R.cint, R.cf, R.ci, R.pose, R.ref, R.entry_shape
     r = start
-    for i in range(x.shape[0]):
+    for t in range(x.shape[0] if m < 0 else m):
+        i = t if m < 0 else order[t]
         if not active[i]:
             continue
         px, py, pz = x[i, 0], x[i, 1], x[i, 2]
