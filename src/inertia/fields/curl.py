@@ -167,10 +167,12 @@ class CurlNoise(Field):
         self._perm, self._offsets = lattice_tables(self.params.seed, 1, self.params.octaves)
         self._grads = component_gradients(self.params.seed, self.components, self.lattice_dim)
         self._table = np.ascontiguousarray(self._grads.transpose(1, 0, 2))
-        # 3-D Perlin reads the same gradients packed per corner (``gradient_codes``); None
-        # (simplex, 2-D) keeps the Perlin block walk out of the compiled kernel, and the reverse.
-        self._codes = (gradient_codes(self._table, self._perm)
-                       if self.dim == 3 and self.params.kind == "perlin" else None)
+        # 3-D reads the same gradients packed per corner (``gradient_codes``), as the codes of
+        # its kind; the other kind's None (and both in 2-D) keeps that kind's block walk out of
+        # the compiled kernel.
+        codes = gradient_codes(self._table, self._perm) if self.dim == 3 else None
+        perlin = self.params.kind == "perlin"
+        self._codes = (None if perlin else codes, codes if perlin else None)
         self._scale = self.params.scale(self.lattice_dim)
         # Calibrate: scale the unit-amplitude potential so that the RMS speed is `speed`.
         unit_rms = self._unit_rms_speed()
@@ -207,7 +209,7 @@ class CurlNoise(Field):
         p = self.params
         # The serial build: a scene with a few tracers then never compiles the parallel one.
         self._kernel.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
-                            self._codes,
+                            *self._codes,
                             *_no_boundaries(D), np.zeros(D), out,
                             0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                             p.time_frequency, self._scale, 1.0)
@@ -220,7 +222,7 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, self._codes,
+        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, *self._codes,
                      *bnd,
                      self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
