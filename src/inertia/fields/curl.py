@@ -421,6 +421,15 @@ class _Boundaries:
             hessian[:] = 0.0
         # Normals (and 3-D Hessians) of the collider walls, at their rows only.
         for w, k, n_k, c in queries:
+            flat = D != 3 or how[k] == "plane"
+            if n_k is not None and (flat or how[k] == "sphere"):
+                # The query's normals and, for a sphere, the closed form, compiled, row by row:
+                # no index arrays, nothing allocated.
+                K.collider_wall_normals(wall_of_row, point_of_row, w, n_k, normal)
+                if not flat:
+                    K.sphere_hessian(points, wall_of_row, point_of_row, w, normal,
+                                     _reference_point(c, t, D), hessian, h)
+                continue
             rows = np.flatnonzero(wall_of_row == w)
             if rows.size == 0:
                 continue
@@ -428,12 +437,11 @@ class _Boundaries:
             nk = (np.asarray(c.normal(np.ascontiguousarray(points[idx]), t), dtype=np.float64)
                   if n_k is None else np.ascontiguousarray(n_k[idx]))
             normal[rows] = nk
-            if D != 3 or how[k] == "plane":
+            if flat:
                 continue
             if how[k] == "sphere":
-                H = np.empty((idx.shape[0], D, D))
-                K.sphere_hessian(points, idx, nk, _reference_point(c, t, D), H, h)
-                hessian[rows] = H
+                K.sphere_hessian(points, wall_of_row, point_of_row, w, normal,
+                                 _reference_point(c, t, D), hessian, h)
                 continue
             pts = np.ascontiguousarray(points[idx])
             if how[k] == "hessian":

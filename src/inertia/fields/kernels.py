@@ -1658,20 +1658,36 @@ def wall_rows(points, wall_plane, wall_collider, plane_point, plane_normal, quer
 
 
 @njit(cache=True, fastmath=_FAST)
-def sphere_hessian(points, rows, normal, center, out, small):
-    """grad n of a sphere's signed distance at points[rows]: (I - n n^T) / |x - c| (the
-    curvature of the sphere through x about c), zero within `small` of the centre."""
+def collider_wall_normals(wall_of_row, point_of_row, w, point_normal, normal):
+    """The rows of collider wall w take the normals its query gave at their points:
+    normal[r] = point_normal[point_of_row[r]] (one pass, no index arrays)."""
+    D = normal.shape[1]
+    for r in range(wall_of_row.shape[0]):
+        if wall_of_row[r] == w:
+            i = point_of_row[r]
+            for a in range(D):
+                normal[r, a] = point_normal[i, a]
+
+
+@njit(cache=True, fastmath=_FAST)
+def sphere_hessian(points, wall_of_row, point_of_row, w, normal, center, hessian, small):
+    """grad n of a sphere's signed distance on the rows of wall w (normals filled):
+    hessian[r] = (I - n n^T) / |x - c| at x = points[point_of_row[r]] (the curvature of the
+    sphere through x about c), zero within `small` of the centre."""
     D = points.shape[1]
-    for i in range(rows.shape[0]):
+    for r in range(wall_of_row.shape[0]):
+        if wall_of_row[r] != w:
+            continue
+        i = point_of_row[r]
         r2 = 0.0
         for a in range(D):
-            d = points[rows[i], a] - center[a]
+            d = points[i, a] - center[a]
             r2 += d * d
-        r = math.sqrt(r2)
-        inv = 1.0 / r if r > small else 0.0
+        dist = math.sqrt(r2)
+        inv = 1.0 / dist if dist > small else 0.0
         for a in range(D):
             for b in range(D):
-                out[i, a, b] = ((1.0 if a == b else 0.0) - normal[i, a] * normal[i, b]) * inv
+                hessian[r, a, b] = ((1.0 if a == b else 0.0) - normal[r, a] * normal[r, b]) * inv
 
 
 # ---------------------------------------------------------------------------------------------
