@@ -11,13 +11,14 @@ The three 3-D potentials sample the same lattice points (one seeded offset per o
 three gradient tables (``noise.component_gradients``: zero mean, exactly zero covariance
 between tables), so each octave's lattice walk (cell, corner hashes and weights) serves all
 three and a corner costs three dot products. Both kinds walk the lattice for a block of 128
-points at a time, corner by corner without branches (``kernels.potential3_block``); Perlin
-reads each corner's three gradients as one packed code (``noise.gradient_codes``), so its
-corner loop has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against
-inertia before the batched walk (commit 13a834f), median of two interleaved rounds on a
-shared 2-core machine (load average 4.5-8.6): simplex 2.5-3.2 times faster, Perlin 2.3-3.9
-times (steady or time-varying, free, sphere or container; ``benchmarks/bench_curl_noise.py
---compare-with``, CPU time; with less load the simplex walk measured 3.1-4.1 times). Each
+points at a time (``kernels.potential3_block``): a loop of arithmetic only (cells, offsets,
+ranks or fades), a loop over the hash chains, then corner by corner a loop without branches
+that reads each corner's three gradients as one packed code (``noise.gradient_codes``), so it
+has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against inertia before
+the batched walk (commit 13a834f), median of two interleaved rounds on a shared 2-core machine
+(load average 4.5-6.1): simplex 4.6-5.6 times faster, Perlin 3.1-3.9 times (steady or
+time-varying, free, sphere or container; the least, 3.1, for steady Perlin without
+boundaries; ``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each
 potential is still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
