@@ -15,10 +15,10 @@ points at a time (``kernels.potential3_block``): a loop of arithmetic only (cell
 ranks or fades), a loop over the hash chains, then corner by corner a loop without branches
 that reads each corner's three gradients as one packed code (``noise.gradient_codes``), so it
 has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against inertia before
-the batched walk (commit 13a834f), medians of two interleaved rounds, two runs on a shared
-2-core machine (load average 3.3-6.1): simplex 4.5-5.7 times faster, Perlin 2.5-3.9 times
-(steady or time-varying, free, sphere or container; Perlin without boundaries 2.5-3.4, with
-a container 3.4-3.8; ``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each
+the batched walk (commit 13a834f), medians of two interleaved rounds, three runs on a shared
+2-core machine (load average 1.1-6.1): simplex 4.4-5.7 times faster, Perlin 2.5-3.9 times
+(steady or time-varying, free, sphere or container; at the least load, 1.1-1.8, simplex
+4.4-5.3 and Perlin 2.9-3.1; ``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each
 potential is still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
