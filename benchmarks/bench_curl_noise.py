@@ -277,7 +277,7 @@ def threshold():
     empty = _no_boundaries(3)
 
     def call(kernel, pts, out):
-        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, field._codes, *empty,
+        kernel(pts, field._offsets, field._perm, field._grads[0], field._table, *field._codes, *empty,
                field.mean_velocity, out, 0.25, p.kind_code, p.frequency, p.lacunarity, p.gain,
                p.octaves, p.time_frequency, field._scale, field.boundary_width)
 
@@ -307,12 +307,12 @@ def profile(M, repeat):
     B = K._BLOCK
 
     @njit
-    def potential_only(points, t, offsets, perm, table, codes, frequency, lacunarity, gain,
-                       octaves, time_frequency, scale, work, ints):
+    def potential_only(points, t, offsets, perm, table, simplex_codes, perlin_codes, frequency,
+                       lacunarity, gain, octaves, time_frequency, scale, work, ints):
         for s0 in range(0, points.shape[0], B):
             K.potential3_block(points, s0, min(B, points.shape[0] - s0), t, offsets, perm, table,
-                               codes, frequency, lacunarity, gain, octaves, time_frequency, scale,
-                               work, ints)
+                               simplex_codes, perlin_codes, frequency, lacunarity, gain, octaves,
+                               time_frequency, scale, work, ints)
 
     @njit
     def passes_only(M, octaves, timed, work, hashes):
@@ -338,14 +338,14 @@ def profile(M, repeat):
         ball = ia.fields.CurlNoise(dim=3, seed=1, kind="perlin", frequency=2.0, octaves=3,
                                    time_frequency=tf, boundaries=[sphere])
         p = free.params
-        work = rng.uniform(0.0, 1.0, 21 * B)
+        work = rng.uniform(0.0, 1.0, 25 * B)
         ints = np.zeros(16 * B, np.int64)
-        hashes = free._codes[rng.integers(0, 512, 16 * B)].copy()
+        hashes = free._codes[1][rng.integers(0, 512, 16 * B)].copy()
         t_free = best_of(lambda f=free: f.sample(pts, 0.25, out), repeat, clock)
         t_ball = best_of(lambda f=ball: f.sample(pts, 0.25, out), repeat, clock)
         t_prep = best_of(lambda f=ball: f.boundaries.prepare(pts, 0.25), repeat, clock)
         t_pot = best_of(lambda: potential_only(
-            pts, 0.25, free._offsets[0], free._perm, free._table, free._codes, p.frequency,
+            pts, 0.25, free._offsets[0], free._perm, free._table, *free._codes, p.frequency,
             p.lacunarity, p.gain, p.octaves, p.time_frequency, free._scale, work, ints),
             repeat, clock)
         t_pass = best_of(lambda: passes_only(M, p.octaves, tf != 0.0, work, hashes), repeat, clock)

@@ -213,7 +213,7 @@ def test_component_gradient_tables_are_balanced_and_uncorrelated(D):
 
 @pytest.mark.parametrize("D", [3, 4])
 def test_gradient_codes_decode_to_the_tables(D):
-    # 3-D Perlin curl-noise reads its gradients as 2-bit codes (kernels.perlin_block):
+    # 3-D curl-noise (simplex and Perlin) reads its gradients as 2-bit codes (kernels.*_block):
     # entry (c, k) of the corner reached through perm[x] is u * (((codes[x] >> (8 c + 2 k)) & 3) - 1),
     # u the tables' one nonzero magnitude (1/sqrt(D - 1)). Decoding every code must give back
     # table[perm[x]] exactly, and entries the table lacks (k = 3 in 3-D) must decode to 0.

@@ -11,13 +11,14 @@ The three 3-D potentials sample the same lattice points (one seeded offset per o
 three gradient tables (``noise.component_gradients``: zero mean, exactly zero covariance
 between tables), so each octave's lattice walk (cell, corner hashes and weights) serves all
 three and a corner costs three dot products. Both kinds walk the lattice for a block of 128
-points at a time, corner by corner without branches (``kernels.potential3_block``); Perlin
-reads each corner's three gradients as one packed code (``noise.gradient_codes``), so its
-corner loop has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against
-inertia before the batched walk (commit 13a834f), median of two interleaved rounds on a
-shared 2-core machine (load average 4.5-8.6): simplex 2.5-3.2 times faster, Perlin 2.3-3.9
-times (steady or time-varying, free, sphere or container; ``benchmarks/bench_curl_noise.py
---compare-with``, CPU time; with less load the simplex walk measured 3.1-4.1 times). Each
+points at a time (``kernels.potential3_block``): a loop of arithmetic only (cells, offsets,
+ranks or fades), a loop over the hash chains, then corner by corner a loop without branches
+that reads each corner's three gradients as one packed code (``noise.gradient_codes``), so it
+has no gather and vectorises. At 10^6 points, 3 octaves, one thread, against inertia before
+the batched walk (commit 13a834f), medians of two interleaved rounds, three runs on a shared
+2-core machine (load average 1.1-6.1): simplex 4.4-5.7 times faster, Perlin 2.5-3.9 times
+(steady or time-varying, free, sphere or container; at the least load, 1.1-1.8, simplex
+4.4-5.3 and Perlin 2.9-3.1; ``benchmarks/bench_curl_noise.py --compare-with``, CPU time). Each
 potential is still a gradient noise with the range and statistics of ``noise.py``.
 
 Boundaries (any collider of ``inertia.colliders``, static or kinematic). Each point sees the
@@ -167,10 +168,12 @@ class CurlNoise(Field):
         self._perm, self._offsets = lattice_tables(self.params.seed, 1, self.params.octaves)
         self._grads = component_gradients(self.params.seed, self.components, self.lattice_dim)
         self._table = np.ascontiguousarray(self._grads.transpose(1, 0, 2))
-        # 3-D Perlin reads the same gradients packed per corner (``gradient_codes``); None
-        # (simplex, 2-D) keeps the Perlin block walk out of the compiled kernel, and the reverse.
-        self._codes = (gradient_codes(self._table, self._perm)
-                       if self.dim == 3 and self.params.kind == "perlin" else None)
+        # 3-D reads the same gradients packed per corner (``gradient_codes``), as the codes of
+        # its kind; the other kind's None (and both in 2-D) keeps that kind's block walk out of
+        # the compiled kernel.
+        codes = gradient_codes(self._table, self._perm) if self.dim == 3 else None
+        perlin = self.params.kind == "perlin"
+        self._codes = (None if perlin else codes, codes if perlin else None)
         self._scale = self.params.scale(self.lattice_dim)
         # Calibrate: scale the unit-amplitude potential so that the RMS speed is `speed`.
         unit_rms = self._unit_rms_speed()
@@ -207,7 +210,7 @@ class CurlNoise(Field):
         p = self.params
         # The serial build: a scene with a few tracers then never compiles the parallel one.
         self._kernel.serial(pts, self._offsets, self._perm, self._grads[0], self._table,
-                            self._codes,
+                            *self._codes,
                             *_no_boundaries(D), np.zeros(D), out,
                             0.0, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
                             p.time_frequency, self._scale, 1.0)
@@ -220,7 +223,7 @@ class CurlNoise(Field):
         t = float(t)
         bnd = self.boundaries.prepare(points, t) if self.boundaries.colliders else self._none
         p = self.params
-        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, self._codes,
+        self._kernel(points, self._offsets, self._perm, self._grads[0], self._table, *self._codes,
                      *bnd,
                      self.mean_velocity, out,
                      t, p.kind_code, p.frequency, p.lacunarity, p.gain, p.octaves,
@@ -419,6 +422,15 @@ class _Boundaries:
             hessian[:] = 0.0
         # Normals (and 3-D Hessians) of the collider walls, at their rows only.
         for w, k, n_k, c in queries:
+            flat = D != 3 or how[k] == "plane"
+            if n_k is not None and (flat or how[k] == "sphere"):
+                # The query's normals and, for a sphere, the closed form, compiled, row by row:
+                # no index arrays, nothing allocated.
+                K.collider_wall_normals(wall_of_row, point_of_row, w, n_k, normal)
+                if not flat:
+                    K.sphere_hessian(points, wall_of_row, point_of_row, w, normal,
+                                     _reference_point(c, t, D), hessian, h)
+                continue
             rows = np.flatnonzero(wall_of_row == w)
             if rows.size == 0:
                 continue
@@ -426,12 +438,11 @@ class _Boundaries:
             nk = (np.asarray(c.normal(np.ascontiguousarray(points[idx]), t), dtype=np.float64)
                   if n_k is None else np.ascontiguousarray(n_k[idx]))
             normal[rows] = nk
-            if D != 3 or how[k] == "plane":
+            if flat:
                 continue
             if how[k] == "sphere":
-                H = np.empty((idx.shape[0], D, D))
-                K.sphere_hessian(points, idx, nk, _reference_point(c, t, D), H, h)
-                hessian[rows] = H
+                K.sphere_hessian(points, wall_of_row, point_of_row, w, normal,
+                                 _reference_point(c, t, D), hessian, h)
                 continue
             pts = np.ascontiguousarray(points[idx])
             if how[k] == "hessian":

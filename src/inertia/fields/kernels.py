@@ -697,164 +697,166 @@ def fractal_noise(points, offsets, perm, grads, value_out, grad_out, hess_out,
 # with n_c in lattice units (af = a f: the chain rule of x -> f x + s); the time axis'
 # derivative is never needed. Per corner with weight W(x) and offset d:
 #   n_c += W (g_c . d),   dn_c/dx_b += dW/dx_b (g_c . d) + W g_cb.
-# Both kinds work on structures of arrays: a first loop over the block finds each point's cell
-# and its ranks (simplex) or fractions, fades, fade derivatives and corner codes (Perlin) into
-# scratch rows; then, corner by corner, a second loop over the block adds that corner's terms.
-# The per-corner loops have no branch (a simplex corner outside its kernel radius gets weight
-# max(q, 0)^4 = 0), so they pipeline and vectorise across points. Simplex reads the gradients
-# from `table` (1.5-1.7 times faster than one point at a time); Perlin decodes them from a
-# 2-bit-per-entry code per corner (`perlin_block`), which leaves its corner loop without
-# gathers, so it vectorises (a Perlin sweep that gathered the table measured slower than one
-# point at a time).
+# Both kinds work on structures of arrays, in three loops over the block: the first, arithmetic
+# only, finds each point's cell (floored, as floats) and its offset and ranks (simplex) or
+# fractions, fades and fade derivatives (Perlin) into scratch rows; the second walks the hash
+# chain of every corner (the only table reads) and keeps the corner's gradient code
+# (``noise.gradient_codes``: the three gradients, 2 bits an entry); then, corner by corner, the
+# third adds that corner's terms, decoding the gradients in registers. The per-corner loops
+# have no branch and no gather (a simplex corner outside its kernel radius gets weight
+# max(q, 0)^4 = 0), so they vectorise across points. (Simplex gathering its gradients from
+# `table` in the corner loop measured 1.2-1.6 times slower, a Perlin sweep that gathered them
+# slower than one point at a time.)
 # ---------------------------------------------------------------------------------------------
 
 # Points per structure-of-arrays block: the scratch rows stay in the L1 cache.
 _BLOCK = 128
 
 
-@njit(cache=True, fastmath=_FAST, inline="never")
-def simplex3_block(points, s0, n, f, o0, o1, o2, perm, table, a, af, acc, fs, js):
-    """One octave of three 3-D simplex noises at points s0 .. s0 + n - 1 (see above)."""
-    G3 = 1.0 / 6.0
-    for e in range(n):
-        x = points[s0 + e, 0] * f + o0
-        y = points[s0 + e, 1] * f + o1
-        z = points[s0 + e, 2] * f + o2
-        s = (x + y + z) * (1.0 / 3.0)
-        fi = math.floor(x + s)
-        fj = math.floor(y + s)
-        fk = math.floor(z + s)
-        t = (fi + fj + fk) * G3
-        x0 = x - (fi - t)
-        y0 = y - (fj - t)
-        z0 = z - (fk - t)
-        fs[0, e] = x0
-        fs[1, e] = y0
-        fs[2, e] = z0
-        js[0, e] = np.int64(fi) & 255
-        js[1, e] = np.int64(fj) & 255
-        js[2, e] = np.int64(fk) & 255
-        # Rank of each axis' offset: the corner c steps along the axes of rank < c.
-        js[3, e] = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0)
-        js[4, e] = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0)
-        js[5, e] = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0)
-    for c in range(4):
+@njit(cache=True, fastmath=_FAST, inline="always")
+def _simplex_pass(work, codes, n, a, af, timed):
+    """The D + 1 corners of each point's simplex (D = 3, or 4 when `timed`), added to the
+    accumulators work[9 * _BLOCK:]; see `simplex_block`.
+
+    Rows of `work`: 0-3 the offset x0 from the cell origin (unskewed; row 3 the time axis),
+    4-7 each axis' rank (0 = largest offset; as floats). Corner c steps by one along the axes
+    of rank < c: its offset is d = x0 - o + c G (o = 1 there, else 0) and its weight
+    q^4, q = max(r^2 - |d|^2, 0) (a corner outside the kernel radius weighs 0, so the loop
+    has no branch). Row c of `codes` holds the corner's gradient code (`gradient_codes`),
+    decoded in registers: no gather, and the loop over the block vectorises.
+    """
+    B = _BLOCK
+    if timed:
+        G = 0.1381966011250105  # (5 - sqrt(5)) / 20
+    else:
+        G = 1.0 / 6.0
+    for c in range(5 if timed else 4):
+        cf = float(c)
+        r = c * B
         for e in range(n):
-            oi = 1 if js[3, e] < c else 0
-            oj = 1 if js[4, e] < c else 0
-            ok = 1 if js[5, e] < c else 0
-            dx = fs[0, e] - oi + c * G3
-            dy = fs[1, e] - oj + c * G3
-            dz = fs[2, e] - ok + c * G3
-            q = max(_SIMPLEX_R2 - dx * dx - dy * dy - dz * dz, 0.0)
-            h = perm[js[0, e] + oi + perm[js[1, e] + oj + perm[js[2, e] + ok]]]
+            dx = work[e] - (1.0 if work[4 * B + e] < cf else 0.0) + cf * G
+            dy = work[B + e] - (1.0 if work[5 * B + e] < cf else 0.0) + cf * G
+            dz = work[2 * B + e] - (1.0 if work[6 * B + e] < cf else 0.0) + cf * G
+            q = _SIMPLEX_R2 - dx * dx - dy * dy - dz * dz
+            if timed:
+                dw = work[3 * B + e] - (1.0 if work[7 * B + e] < cf else 0.0) + cf * G
+                q -= dw * dw
+            q = max(q, 0.0)
+            h = codes[r + e]
+            g00 = float(h & 3) - 1.0
+            g01 = float((h >> 2) & 3) - 1.0
+            g02 = float((h >> 4) & 3) - 1.0
+            g10 = float((h >> 8) & 3) - 1.0
+            g11 = float((h >> 10) & 3) - 1.0
+            g12 = float((h >> 12) & 3) - 1.0
+            g20 = float((h >> 16) & 3) - 1.0
+            g21 = float((h >> 18) & 3) - 1.0
+            g22 = float((h >> 20) & 3) - 1.0
+            u0 = g00 * dx + g01 * dy + g02 * dz
+            u1 = g10 * dx + g11 * dy + g12 * dz
+            u2 = g20 * dx + g21 * dy + g22 * dz
+            if timed:
+                u0 += (float((h >> 6) & 3) - 1.0) * dw
+                u1 += (float((h >> 14) & 3) - 1.0) * dw
+                u2 += (float((h >> 22) & 3) - 1.0) * dw
             q2 = q * q
             W = a * q2 * q2
             Wf = af * q2 * q2
             s8 = -8.0 * af * q2 * q  # d(af q^4)/dx_b = s8 d_b
-            g00 = table[h, 0, 0]
-            g01 = table[h, 0, 1]
-            g02 = table[h, 0, 2]
-            g10 = table[h, 1, 0]
-            g11 = table[h, 1, 1]
-            g12 = table[h, 1, 2]
-            g20 = table[h, 2, 0]
-            g21 = table[h, 2, 1]
-            g22 = table[h, 2, 2]
-            u0 = g00 * dx + g01 * dy + g02 * dz
-            u1 = g10 * dx + g11 * dy + g12 * dz
-            u2 = g20 * dx + g21 * dy + g22 * dz
             wx = s8 * dx
             wy = s8 * dy
             wz = s8 * dz
-            acc[0, e] += W * u0
-            acc[1, e] += W * u1
-            acc[2, e] += W * u2
-            acc[3, e] += wx * u0 + Wf * g00
-            acc[4, e] += wy * u0 + Wf * g01
-            acc[5, e] += wz * u0 + Wf * g02
-            acc[6, e] += wx * u1 + Wf * g10
-            acc[7, e] += wy * u1 + Wf * g11
-            acc[8, e] += wz * u1 + Wf * g12
-            acc[9, e] += wx * u2 + Wf * g20
-            acc[10, e] += wy * u2 + Wf * g21
-            acc[11, e] += wz * u2 + Wf * g22
+            work[9 * B + e] += W * u0
+            work[10 * B + e] += W * u1
+            work[11 * B + e] += W * u2
+            work[12 * B + e] += wx * u0 + Wf * g00
+            work[13 * B + e] += wy * u0 + Wf * g01
+            work[14 * B + e] += wz * u0 + Wf * g02
+            work[15 * B + e] += wx * u1 + Wf * g10
+            work[16 * B + e] += wy * u1 + Wf * g11
+            work[17 * B + e] += wz * u1 + Wf * g12
+            work[18 * B + e] += wx * u2 + Wf * g20
+            work[19 * B + e] += wy * u2 + Wf * g21
+            work[20 * B + e] += wz * u2 + Wf * g22
 
 
-@njit(cache=True, fastmath=_FAST, inline="never")
-def simplex4_block(points, s0, n, f, o0, o1, o2, w, perm, table, a, af, acc, fs, js):
-    """One octave of three 4-D simplex noises at points s0 .. s0 + n - 1 and lattice time w."""
-    F4 = 0.30901699437494745  # (sqrt(5) - 1) / 4
-    G4 = 0.1381966011250105  # (5 - sqrt(5)) / 20
+@njit(cache=True, fastmath=_FAST, inline="always")
+def _simplex_walk(points, s0, n, f, o0, o1, o2, w, perm, codes, a, af, work, hashes, timed):
+    """The body of `simplex_block`, `timed` a compile-time constant (no branch in its loops)."""
+    B = _BLOCK
     for e in range(n):
         x = points[s0 + e, 0] * f + o0
         y = points[s0 + e, 1] * f + o1
         z = points[s0 + e, 2] * f + o2
-        s = (x + y + z + w) * F4
-        fi = math.floor(x + s)
-        fj = math.floor(y + s)
-        fk = math.floor(z + s)
-        fl = math.floor(w + s)
-        t = (fi + fj + fk + fl) * G4
+        if timed:
+            # Skew (F4 = (sqrt(5) - 1) / 4) and unskew (G4 = (5 - sqrt(5)) / 20).
+            s = (x + y + z + w) * 0.30901699437494745
+            fl = np.floor(w + s)
+        else:
+            s = (x + y + z) * (1.0 / 3.0)
+            fl = 0.0
+        fi = np.floor(x + s)
+        fj = np.floor(y + s)
+        fk = np.floor(z + s)
+        if timed:
+            t = (fi + fj + fk + fl) * 0.1381966011250105
+        else:
+            t = (fi + fj + fk) * (1.0 / 6.0)
         x0 = x - (fi - t)
         y0 = y - (fj - t)
         z0 = z - (fk - t)
-        w0 = w - (fl - t)
-        fs[0, e] = x0
-        fs[1, e] = y0
-        fs[2, e] = z0
-        fs[3, e] = w0
-        js[0, e] = np.int64(fi) & 255
-        js[1, e] = np.int64(fj) & 255
-        js[2, e] = np.int64(fk) & 255
-        js[3, e] = np.int64(fl) & 255
-        js[4, e] = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0) + (1 if w0 > x0 else 0)
-        js[5, e] = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0) + (1 if w0 > y0 else 0)
-        js[6, e] = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0) + (1 if w0 > z0 else 0)
-        js[7, e] = (1 if x0 >= w0 else 0) + (1 if y0 >= w0 else 0) + (1 if z0 >= w0 else 0)
-    for c in range(5):
-        for e in range(n):
-            oi = 1 if js[4, e] < c else 0
-            oj = 1 if js[5, e] < c else 0
-            ok = 1 if js[6, e] < c else 0
-            ol = 1 if js[7, e] < c else 0
-            dx = fs[0, e] - oi + c * G4
-            dy = fs[1, e] - oj + c * G4
-            dz = fs[2, e] - ok + c * G4
-            dw = fs[3, e] - ol + c * G4
-            q = max(_SIMPLEX_R2 - dx * dx - dy * dy - dz * dz - dw * dw, 0.0)
-            h = perm[js[0, e] + oi + perm[js[1, e] + oj + perm[js[2, e] + ok + perm[js[3, e] + ol]]]]
-            q2 = q * q
-            W = a * q2 * q2
-            Wf = af * q2 * q2
-            s8 = -8.0 * af * q2 * q
-            g00 = table[h, 0, 0]
-            g01 = table[h, 0, 1]
-            g02 = table[h, 0, 2]
-            g10 = table[h, 1, 0]
-            g11 = table[h, 1, 1]
-            g12 = table[h, 1, 2]
-            g20 = table[h, 2, 0]
-            g21 = table[h, 2, 1]
-            g22 = table[h, 2, 2]
-            u0 = g00 * dx + g01 * dy + g02 * dz + table[h, 0, 3] * dw
-            u1 = g10 * dx + g11 * dy + g12 * dz + table[h, 1, 3] * dw
-            u2 = g20 * dx + g21 * dy + g22 * dz + table[h, 2, 3] * dw
-            wx = s8 * dx
-            wy = s8 * dy
-            wz = s8 * dz
-            acc[0, e] += W * u0
-            acc[1, e] += W * u1
-            acc[2, e] += W * u2
-            acc[3, e] += wx * u0 + Wf * g00
-            acc[4, e] += wy * u0 + Wf * g01
-            acc[5, e] += wz * u0 + Wf * g02
-            acc[6, e] += wx * u1 + Wf * g10
-            acc[7, e] += wy * u1 + Wf * g11
-            acc[8, e] += wz * u1 + Wf * g12
-            acc[9, e] += wx * u2 + Wf * g20
-            acc[10, e] += wy * u2 + Wf * g21
-            acc[11, e] += wz * u2 + Wf * g22
+        w0 = w - (fl - t) if timed else -1.0  # -1: the time axis never ranks first in 3-D
+        work[e] = x0
+        work[B + e] = y0
+        work[2 * B + e] = z0
+        work[3 * B + e] = w0
+        # Rank of each axis' offset (0 = largest; ties to the lower axis).
+        rx = (1 if y0 > x0 else 0) + (1 if z0 > x0 else 0) + (1 if w0 > x0 else 0)
+        ry = (1 if x0 >= y0 else 0) + (1 if z0 > y0 else 0) + (1 if w0 > y0 else 0)
+        rz = (1 if x0 >= z0 else 0) + (1 if y0 >= z0 else 0) + (1 if w0 > z0 else 0)
+        rw = (1 if x0 >= w0 else 0) + (1 if y0 >= w0 else 0) + (1 if z0 >= w0 else 0)
+        work[4 * B + e] = rx
+        work[5 * B + e] = ry
+        work[6 * B + e] = rz
+        work[7 * B + e] = rw
+        work[21 * B + e] = fi
+        work[22 * B + e] = fj
+        work[23 * B + e] = fk
+        work[24 * B + e] = fl
+    # The hash chains (table reads: scalar). Corner codes, row c: corner c steps along the
+    # axes of rank < c.
+    for e in range(n):
+        i = np.int64(work[21 * B + e]) & 255
+        j = np.int64(work[22 * B + e]) & 255
+        k = np.int64(work[23 * B + e]) & 255
+        l = np.int64(work[24 * B + e]) & 255
+        for c in range(5 if timed else 4):
+            cf = float(c)
+            oi = 1 if work[4 * B + e] < cf else 0
+            oj = 1 if work[5 * B + e] < cf else 0
+            ok = 1 if work[6 * B + e] < cf else 0
+            hw = perm[l + (1 if work[7 * B + e] < cf else 0)] if timed else 0
+            hashes[c * B + e] = codes[i + oi + perm[j + oj + perm[k + ok + hw]]]
+    _simplex_pass(work, hashes, n, a, af, timed)
+
+
+@njit(cache=True, fastmath=_FAST, inline="never")
+def simplex_block(points, s0, n, f, o0, o1, o2, w, timed, perm, codes, a, af, work, hashes):
+    """One octave of three simplex noises at points s0 .. s0 + n - 1 (3-D, or 4-D at lattice
+    time w when `timed`), added to the accumulators of `work` (see `potential3_block`).
+
+    A first loop (arithmetic only) skews each point onto the hypercubic lattice, finds its cell
+    (rows 21-24 of `work`), its offset x0 from the cell origin (rows 0-3) and the ranks of x0's
+    coordinates (rows 4-7; ties to the lower axis: `simplex_point`'s order); a second, scalar
+    loop walks the hash chain perm[i + perm[j + perm[k + perm[l]]]] of each of the D + 1
+    corners and keeps the corner's gradient code (`codes`, as in `perlin_block`) in `hashes`;
+    then `_simplex_pass` adds the corners.
+    """
+    # `timed` a constant in each call: the loops over the block then have no branch.
+    if timed:
+        _simplex_walk(points, s0, n, f, o0, o1, o2, w, perm, codes, a, af, work, hashes, True)
+    else:
+        _simplex_walk(points, s0, n, f, o0, o1, o2, w, perm, codes, a, af, work, hashes, False)
 
 
 @njit(cache=True, fastmath=_FAST, inline="always")
@@ -929,31 +931,34 @@ def perlin_block(points, s0, n, f, o0, o1, o2, w, timed, perm, codes, a, af, wor
 
     `codes` (512,) int64 is the gradient code of the corner reached through each entry of the
     permutation: codes[x] = code[perm[x]], with bits 8 c + 2 k .. + 1 holding
-    table[h, c, k] / unit + 1 (`gradient_codes`). A first, scalar loop finds each point's cell,
-    its fractions u, fades s and fade derivatives s' (rows 0-8 of `work`) and walks the hash
-    chain perm[i + perm[j + perm[k + perm[l]]]] once per corner (its inner lookups shared:
-    14 reads for 8 corners), keeping the corner codes in `hashes`; the time axis' cell, fade
+    table[h, c, k] / unit + 1 (`gradient_codes`). A first loop (arithmetic only) finds each
+    point's cell (rows 21-23 of `work`), its fractions u, fades s and fade derivatives s' (rows
+    0-8); a second, scalar loop walks the hash chain perm[i + perm[j + perm[k + perm[l]]]] once
+    per corner (its inner lookups shared: 14 reads for 8 corners), keeping the corner codes in
+    `hashes`; the time axis' cell, fade
     and first lookups are the same for every point and computed once. Then `_perlin_pass`
     adds the corners, one lattice slice at a time (one in 3-D; two in 4-D, weighted by the
     time fade 1 - s_w and s_w), each a branch-free loop over the block.
     """
     B = _BLOCK
-    fw = math.floor(w)
+    fw = np.floor(w)
     l = np.int64(fw) & 255
     uw = w - fw
     sw = uw * uw * uw * (uw * (uw * 6.0 - 15.0) + 10.0)
     hw0 = perm[l] if timed else 0
     hw1 = perm[l + 1] if timed else 0
+    # Cells (floored, as floats: rows 21-23), fractions, fades: arithmetic only, so this
+    # loop vectorises.
     for e in range(n):
         x = points[s0 + e, 0] * f + o0
         y = points[s0 + e, 1] * f + o1
         z = points[s0 + e, 2] * f + o2
-        fx = math.floor(x)
-        fy = math.floor(y)
-        fz = math.floor(z)
-        i = np.int64(fx) & 255
-        j = np.int64(fy) & 255
-        k = np.int64(fz) & 255
+        fx = np.floor(x)
+        fy = np.floor(y)
+        fz = np.floor(z)
+        work[21 * B + e] = fx
+        work[22 * B + e] = fy
+        work[23 * B + e] = fz
         ux = x - fx
         uy = y - fy
         uz = z - fz
@@ -967,7 +972,11 @@ def perlin_block(points, s0, n, f, o0, o1, o2, w, timed, perm, codes, a, af, wor
         work[6 * B + e] = 30.0 * ux * ux * (ux - 1.0) * (ux - 1.0)
         work[7 * B + e] = 30.0 * uy * uy * (uy - 1.0) * (uy - 1.0)
         work[8 * B + e] = 30.0 * uz * uz * (uz - 1.0) * (uz - 1.0)
-        # Corner codes, rows 8 bw + 4 bz + 2 by + bx.
+    # The hash chains (table reads: scalar). Corner codes, rows 8 bw + 4 bz + 2 by + bx.
+    for e in range(n):
+        i = np.int64(work[21 * B + e]) & 255
+        j = np.int64(work[22 * B + e]) & 255
+        k = np.int64(work[23 * B + e]) & 255
         for bw in range(2 if timed else 1):
             hw = hw1 if bw else hw0
             hz0 = perm[k + hw]
@@ -994,53 +1003,48 @@ def perlin_block(points, s0, n, f, o0, o1, o2, w, timed, perm, codes, a, af, wor
 
 
 @njit(cache=True, fastmath=_FAST)
-def potential3_block(points, s0, n, t, offsets, perm, table, codes, frequency, lacunarity, gain,
-                     octaves, time_frequency, scale, work, ints):
+def potential3_block(points, s0, n, t, offsets, perm, table, simplex_codes, perlin_codes,
+                     frequency, lacunarity, gain, octaves, time_frequency, scale, work, ints):
     """Fractal vector potential psi and its Jacobian at the 3-D points s0 .. s0 + n - 1 and
-    time t, into rows 9-20 of the flat scratch work (21 _BLOCK,): row 9 + c = psi_c,
-    row 12 + 3 c + b = d psi_c / d x_b (rows 0-8 are scratch; ints (16 _BLOCK,) int64 too).
+    time t, into rows 9-20 of the flat scratch work (25 _BLOCK,): row 9 + c = psi_c,
+    row 12 + 3 c + b = d psi_c / d x_b (rows 0-8 and 21-24 are scratch; ints (16 _BLOCK,) int64 too).
 
         psi_c = scale * sum_o gain^o n_c(f_o p + s_o, f_o tf t + s_o,t),  f_o = frequency lacunarity^o
 
     offsets is (octaves, 4): one lattice offset per octave, shared by the components. Every
     octave's lattice walk serves all three components (the ``*_block`` kernels above).
-    codes None: simplex noise (gradients from `table`); else improved Perlin noise, which reads
-    the gradients from `codes` (`perlin_block`) scaled by `unit`, the magnitude of the table's
-    nonzero entries (1/sqrt 2 in 3-D, 1/sqrt 3 in 4-D: ``noise.py``).
+    One of simplex_codes / perlin_codes is the table's gradient codes (``noise.gradient_codes``,
+    which the ``*_block`` kernels decode, scaled by `unit`, the magnitude of the table's nonzero
+    entries), the other None: simplex noise, or improved Perlin noise.
     """
     B = _BLOCK
     timed = time_frequency != 0.0
     for r in range(9 * B, 21 * B):
         work[r] = 0.0
-    acc = work[9 * B:].reshape((12, B))
+    # The gradients are +-unit or 0 (1/sqrt 2 in 3-D, 1/sqrt 3 in 4-D: ``noise.py``); the codes
+    # hold them in units of `unit`.
+    unit = 0.0
+    for h in range(table.shape[0]):
+        for c in range(table.shape[1]):
+            for b in range(table.shape[2]):
+                unit = max(unit, abs(table[h, c, b]))
     f = frequency
     ft = time_frequency
     a = scale
-    # `codes is None` is decided when Numba compiles: a scene compiles one kind's path only.
-    if codes is None:
-        fs = work[:9 * B].reshape((9, B))
-        js = ints[:8 * B].reshape((8, B))
+    # Numba drops a branch on `x is not None` when x is None: a scene compiles one kind's walk.
+    if simplex_codes is not None:
         for o in range(octaves):
             w = t * ft + offsets[o, 3]
-            if timed:
-                simplex4_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w,
-                               perm, table, a, a * f, acc, fs, js)
-            else:
-                simplex3_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2],
-                               perm, table, a, a * f, acc, fs, js)
+            simplex_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w, timed,
+                          perm, simplex_codes, a * unit, a * f * unit, work, ints)
             f *= lacunarity
             ft *= lacunarity
             a *= gain
-    else:
-        unit = 0.0
-        for h in range(table.shape[0]):
-            for c in range(table.shape[1]):
-                for b in range(table.shape[2]):
-                    unit = max(unit, abs(table[h, c, b]))
+    if perlin_codes is not None:
         for o in range(octaves):
             w = t * ft + offsets[o, 3]
             perlin_block(points, s0, n, f, offsets[o, 0], offsets[o, 1], offsets[o, 2], w, timed,
-                         perm, codes, a * unit, a * f * unit, work, ints)
+                         perm, perlin_codes, a * unit, a * f * unit, work, ints)
             f *= lacunarity
             ft *= lacunarity
             a *= gain
@@ -1092,7 +1096,7 @@ def _wall_product(ramp_value, ramp_slope, bnd_normal, bnd_collider, base, m, ski
 
 
 @njit(cache=True, fastmath=_FAST)
-def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
+def curl_noise3_range(start, stop, points, offsets, perm, grads, table, simplex_codes, perlin_codes,
                      slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                      rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                      out,
@@ -1105,10 +1109,10 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
     per octave):
       2-D: scalar psi, the noise with gradients `grads` (256, 2);   v = (dpsi/dy, -dpsi/dx)
       3-D: psi = (psi0, psi1, psi2), three noises on the same lattice points with the gradient
-           tables table[:, c] (256, 3, D) (Perlin: also as codes (512,) int64 of
-           ``noise.gradient_codes``; codes is None for simplex and in 2-D, so that a scene
-           compiles only its own kind's lattice walk), one lattice walk per octave
-           (`potential3_block`);
+           tables table[:, c] (256, 3, D), read as codes (512,) int64 of
+           ``noise.gradient_codes``: simplex_codes for simplex, perlin_codes for Perlin, the
+           other None (both None in 2-D), so that a scene compiles only its own kind's
+           lattice walk; one lattice walk per octave (`potential3_block`);
            v = curl psi
     Boundaries: point i has bnd_count[i] walls within `boundary_width` = d0, at rows
     slot[i] .. slot[i] + bnd_count[i] - 1 of the bnd_* arrays (slot[i] = -1: none). Wall k has
@@ -1149,13 +1153,13 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
     ramp_value = np.empty(most)
     ramp_slope = np.empty(most)
     # 3-D: the potential and its Jacobian a block of points at a time (`potential3_block`).
-    work = np.empty(21 * _BLOCK)
+    work = np.empty(25 * _BLOCK)
     ints = np.empty(16 * _BLOCK, np.int64)
-    acc = work[9 * _BLOCK:].reshape((12, _BLOCK))
+    acc = work[9 * _BLOCK:21 * _BLOCK].reshape((12, _BLOCK))
     for s0 in range(start, stop, _BLOCK):
         n_block = min(_BLOCK, stop - s0)
-        potential3_block(points, s0, n_block, t, shared, perm, table, codes, frequency,
-                         lacunarity, gain, octaves, time_frequency, scale, work, ints)
+        potential3_block(points, s0, n_block, t, shared, perm, table, simplex_codes, perlin_codes,
+                         frequency, lacunarity, gain, octaves, time_frequency, scale, work, ints)
         for e in range(n_block):
             i = s0 + e
             p = points[i]
@@ -1273,7 +1277,7 @@ def curl_noise3_range(start, stop, points, offsets, perm, grads, table, codes,
 
 
 @njit(cache=True, fastmath=_FAST)
-def curl_noise2_range(start, stop, points, offsets, perm, grads, table, codes,
+def curl_noise2_range(start, stop, points, offsets, perm, grads, table, simplex_codes, perlin_codes,
                      slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                      rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                      out,
@@ -1352,7 +1356,7 @@ def curl_noise2_range(start, stop, points, offsets, perm, grads, table, codes,
 
 
 @parallel_kernel(serial_below=SERIAL_BELOW)
-def curl_noise3(points, offsets, perm, grads, table, codes,
+def curl_noise3(points, offsets, perm, grads, table, simplex_codes, perlin_codes,
                 slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                 rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                 out,
@@ -1363,14 +1367,15 @@ def curl_noise3(points, offsets, perm, grads, table, codes,
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
         curl_noise3_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
-                          table, codes, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
-                          bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2,
+                          table, simplex_codes, perlin_codes, slot, bnd_count, bnd_distance,
+                          bnd_normal, bnd_hessian, bnd_collider, rigid_velocity, rigid_spin,
+                          rigid_center, rigid_radius2,
                           mean_velocity, out, t, kind, frequency, lacunarity, gain, octaves,
                           time_frequency, scale, boundary_width)
 
 
 @parallel_kernel(serial_below=SERIAL_BELOW)
-def curl_noise2(points, offsets, perm, grads, table, codes,
+def curl_noise2(points, offsets, perm, grads, table, simplex_codes, perlin_codes,
                 slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian, bnd_collider,
                 rigid_velocity, rigid_spin, rigid_center, rigid_radius2, mean_velocity,
                 out,
@@ -1381,8 +1386,9 @@ def curl_noise2(points, offsets, perm, grads, table, codes,
     nchunks = (M + _CHUNK - 1) // _CHUNK
     for ch in prange(nchunks):
         curl_noise2_range(ch * _CHUNK, min(M, (ch + 1) * _CHUNK), points, offsets, perm, grads,
-                          table, codes, slot, bnd_count, bnd_distance, bnd_normal, bnd_hessian,
-                          bnd_collider, rigid_velocity, rigid_spin, rigid_center, rigid_radius2,
+                          table, simplex_codes, perlin_codes, slot, bnd_count, bnd_distance,
+                          bnd_normal, bnd_hessian, bnd_collider, rigid_velocity, rigid_spin,
+                          rigid_center, rigid_radius2,
                           mean_velocity, out, t, kind, frequency, lacunarity, gain, octaves,
                           time_frequency, scale, boundary_width)
 
@@ -1652,20 +1658,36 @@ def wall_rows(points, wall_plane, wall_collider, plane_point, plane_normal, quer
 
 
 @njit(cache=True, fastmath=_FAST)
-def sphere_hessian(points, rows, normal, center, out, small):
-    """grad n of a sphere's signed distance at points[rows]: (I - n n^T) / |x - c| (the
-    curvature of the sphere through x about c), zero within `small` of the centre."""
+def collider_wall_normals(wall_of_row, point_of_row, w, point_normal, normal):
+    """The rows of collider wall w take the normals its query gave at their points:
+    normal[r] = point_normal[point_of_row[r]] (one pass, no index arrays)."""
+    D = normal.shape[1]
+    for r in range(wall_of_row.shape[0]):
+        if wall_of_row[r] == w:
+            i = point_of_row[r]
+            for a in range(D):
+                normal[r, a] = point_normal[i, a]
+
+
+@njit(cache=True, fastmath=_FAST)
+def sphere_hessian(points, wall_of_row, point_of_row, w, normal, center, hessian, small):
+    """grad n of a sphere's signed distance on the rows of wall w (normals filled):
+    hessian[r] = (I - n n^T) / |x - c| at x = points[point_of_row[r]] (the curvature of the
+    sphere through x about c), zero within `small` of the centre."""
     D = points.shape[1]
-    for i in range(rows.shape[0]):
+    for r in range(wall_of_row.shape[0]):
+        if wall_of_row[r] != w:
+            continue
+        i = point_of_row[r]
         r2 = 0.0
         for a in range(D):
-            d = points[rows[i], a] - center[a]
+            d = points[i, a] - center[a]
             r2 += d * d
-        r = math.sqrt(r2)
-        inv = 1.0 / r if r > small else 0.0
+        dist = math.sqrt(r2)
+        inv = 1.0 / dist if dist > small else 0.0
         for a in range(D):
             for b in range(D):
-                out[i, a, b] = ((1.0 if a == b else 0.0) - normal[i, a] * normal[i, b]) * inv
+                hessian[r, a, b] = ((1.0 if a == b else 0.0) - normal[r, a] * normal[r, b]) * inv
 
 
 # ---------------------------------------------------------------------------------------------

@@ -175,8 +175,9 @@ def gradient_codes(table: np.ndarray, perm: np.ndarray) -> np.ndarray:
     the permutation: (512,) int64, codes[x] = code[perm[x]] with bits 8 c + 2 k .. 8 c + 2 k + 1
     of code[h] holding table[h, c, k] / u + 1 (0, 1 or 2).
 
-    3-D Perlin curl-noise reads these instead of the tables (``kernels.perlin_block``):
-    decoded in registers they need no gather, so the corner loop vectorises.
+    3-D curl-noise, both kinds, reads these instead of the tables (``kernels.simplex_block``,
+    ``kernels.perlin_block``): decoded in registers they need no gather, so the corner loop
+    vectorises.
     """
     table = np.asarray(table, dtype=np.float64)
     if table.ndim != 3 or table.shape[0] != 256 or table.shape[1] > 3 or table.shape[2] > 4:
