@@ -714,6 +714,45 @@ _BLOCK = 128
 
 
 @njit(cache=True, fastmath=_FAST, inline="always")
+def _add_corner(work, e, h, dx, dy, dz, dw, timed, W, Wf, px, py, pz):
+    """One lattice corner's share of point e's three potentials and their gradients, for both
+    kinds' corner passes: the corner's packed gradient code h (``noise.gradient_codes``: entry
+    (c, k) = ((h >> (8 c + 2 k)) & 3) - 1, the time axis k = 3 read only when `timed`) gives
+    u_c = g_c . (dx, dy, dz[, dw]); the value rows gain W u_c and gradient row (c, b) gains
+    p_b u_c + Wf g_cb, where (px, py, pz) is the derivative of the corner's weight Wf.
+    Decoded in registers, so the caller's loop over the block has no gather."""
+    B = _BLOCK
+    g00 = float(h & 3) - 1.0
+    g01 = float((h >> 2) & 3) - 1.0
+    g02 = float((h >> 4) & 3) - 1.0
+    g10 = float((h >> 8) & 3) - 1.0
+    g11 = float((h >> 10) & 3) - 1.0
+    g12 = float((h >> 12) & 3) - 1.0
+    g20 = float((h >> 16) & 3) - 1.0
+    g21 = float((h >> 18) & 3) - 1.0
+    g22 = float((h >> 20) & 3) - 1.0
+    u0 = g00 * dx + g01 * dy + g02 * dz
+    u1 = g10 * dx + g11 * dy + g12 * dz
+    u2 = g20 * dx + g21 * dy + g22 * dz
+    if timed:
+        u0 += (float((h >> 6) & 3) - 1.0) * dw
+        u1 += (float((h >> 14) & 3) - 1.0) * dw
+        u2 += (float((h >> 22) & 3) - 1.0) * dw
+    work[9 * B + e] += W * u0
+    work[10 * B + e] += W * u1
+    work[11 * B + e] += W * u2
+    work[12 * B + e] += px * u0 + Wf * g00
+    work[13 * B + e] += py * u0 + Wf * g01
+    work[14 * B + e] += pz * u0 + Wf * g02
+    work[15 * B + e] += px * u1 + Wf * g10
+    work[16 * B + e] += py * u1 + Wf * g11
+    work[17 * B + e] += pz * u1 + Wf * g12
+    work[18 * B + e] += px * u2 + Wf * g20
+    work[19 * B + e] += py * u2 + Wf * g21
+    work[20 * B + e] += pz * u2 + Wf * g22
+
+
+@njit(cache=True, fastmath=_FAST, inline="always")
 def _simplex_pass(work, codes, n, a, af, timed):
     """The D + 1 corners of each point's simplex (D = 3, or 4 when `timed`), added to the
     accumulators work[9 * _BLOCK:]; see `simplex_block`.
@@ -738,46 +777,15 @@ def _simplex_pass(work, codes, n, a, af, timed):
             dy = work[B + e] - (1.0 if work[5 * B + e] < cf else 0.0) + cf * G
             dz = work[2 * B + e] - (1.0 if work[6 * B + e] < cf else 0.0) + cf * G
             q = _SIMPLEX_R2 - dx * dx - dy * dy - dz * dz
+            dw = 0.0
             if timed:
                 dw = work[3 * B + e] - (1.0 if work[7 * B + e] < cf else 0.0) + cf * G
                 q -= dw * dw
             q = max(q, 0.0)
-            h = codes[r + e]
-            g00 = float(h & 3) - 1.0
-            g01 = float((h >> 2) & 3) - 1.0
-            g02 = float((h >> 4) & 3) - 1.0
-            g10 = float((h >> 8) & 3) - 1.0
-            g11 = float((h >> 10) & 3) - 1.0
-            g12 = float((h >> 12) & 3) - 1.0
-            g20 = float((h >> 16) & 3) - 1.0
-            g21 = float((h >> 18) & 3) - 1.0
-            g22 = float((h >> 20) & 3) - 1.0
-            u0 = g00 * dx + g01 * dy + g02 * dz
-            u1 = g10 * dx + g11 * dy + g12 * dz
-            u2 = g20 * dx + g21 * dy + g22 * dz
-            if timed:
-                u0 += (float((h >> 6) & 3) - 1.0) * dw
-                u1 += (float((h >> 14) & 3) - 1.0) * dw
-                u2 += (float((h >> 22) & 3) - 1.0) * dw
             q2 = q * q
-            W = a * q2 * q2
-            Wf = af * q2 * q2
             s8 = -8.0 * af * q2 * q  # d(af q^4)/dx_b = s8 d_b
-            wx = s8 * dx
-            wy = s8 * dy
-            wz = s8 * dz
-            work[9 * B + e] += W * u0
-            work[10 * B + e] += W * u1
-            work[11 * B + e] += W * u2
-            work[12 * B + e] += wx * u0 + Wf * g00
-            work[13 * B + e] += wy * u0 + Wf * g01
-            work[14 * B + e] += wz * u0 + Wf * g02
-            work[15 * B + e] += wx * u1 + Wf * g10
-            work[16 * B + e] += wy * u1 + Wf * g11
-            work[17 * B + e] += wz * u1 + Wf * g12
-            work[18 * B + e] += wx * u2 + Wf * g20
-            work[19 * B + e] += wy * u2 + Wf * g21
-            work[20 * B + e] += wz * u2 + Wf * g22
+            _add_corner(work, e, codes[r + e], dx, dy, dz, dw, timed, a * q2 * q2, af * q2 * q2,
+                        s8 * dx, s8 * dy, s8 * dz)
 
 
 @njit(cache=True, fastmath=_FAST, inline="always")
@@ -886,42 +894,11 @@ def _perlin_pass(work, codes, row, n, a, af, dw, timed):
             wx = 1.0 - bx + qx * work[3 * B + e]
             wy = 1.0 - by + qy * work[4 * B + e]
             wz = 1.0 - bz + qz * work[5 * B + e]
-            h = codes[r + e]
-            g00 = float(h & 3) - 1.0
-            g01 = float((h >> 2) & 3) - 1.0
-            g02 = float((h >> 4) & 3) - 1.0
-            g10 = float((h >> 8) & 3) - 1.0
-            g11 = float((h >> 10) & 3) - 1.0
-            g12 = float((h >> 12) & 3) - 1.0
-            g20 = float((h >> 16) & 3) - 1.0
-            g21 = float((h >> 18) & 3) - 1.0
-            g22 = float((h >> 20) & 3) - 1.0
-            u0 = g00 * dx + g01 * dy + g02 * dz
-            u1 = g10 * dx + g11 * dy + g12 * dz
-            u2 = g20 * dx + g21 * dy + g22 * dz
-            if timed:
-                u0 += (float((h >> 6) & 3) - 1.0) * dw
-                u1 += (float((h >> 14) & 3) - 1.0) * dw
-                u2 += (float((h >> 22) & 3) - 1.0) * dw
             wyz = wy * wz
             W = wx * wyz
-            Wa = a * W
-            Wf = af * W
-            px = af * qx * work[6 * B + e] * wyz
-            py = af * qy * work[7 * B + e] * wx * wz
-            pz = af * qz * work[8 * B + e] * wx * wy
-            work[9 * B + e] += Wa * u0
-            work[10 * B + e] += Wa * u1
-            work[11 * B + e] += Wa * u2
-            work[12 * B + e] += px * u0 + Wf * g00
-            work[13 * B + e] += py * u0 + Wf * g01
-            work[14 * B + e] += pz * u0 + Wf * g02
-            work[15 * B + e] += px * u1 + Wf * g10
-            work[16 * B + e] += py * u1 + Wf * g11
-            work[17 * B + e] += pz * u1 + Wf * g12
-            work[18 * B + e] += px * u2 + Wf * g20
-            work[19 * B + e] += py * u2 + Wf * g21
-            work[20 * B + e] += pz * u2 + Wf * g22
+            _add_corner(work, e, codes[r + e], dx, dy, dz, dw, timed, a * W, af * W,
+                        af * qx * work[6 * B + e] * wyz, af * qy * work[7 * B + e] * wx * wz,
+                        af * qz * work[8 * B + e] * wx * wy)
 
 
 @njit(cache=True, fastmath=_FAST, inline="never")
