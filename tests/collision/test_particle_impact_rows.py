@@ -53,6 +53,17 @@ def _rows(world):
     return {name: getattr(c, name)[r].copy() for name in ROW_FIELDS}
 
 
+def _step_both_with_equal_rows(first, second):
+    """Step two worlds once; their particle Contacts rows must be equal, field by field, bit for bit.
+    Returns both rows."""
+    first.step()
+    second.step()
+    a, b = _rows(first), _rows(second)
+    for name in ROW_FIELDS:
+        assert np.array_equal(a[name], b[name]), name
+    return a, b
+
+
 def _row_impulses(rows):
     """(R, 3) impulse each row's shape gave its particle, rebuilt from the normal and tangent parts."""
     return (rows["contact_normal_impulse"][:, 0, None] * rows["contact_normal"]
@@ -73,11 +84,7 @@ def test_fused_and_separate_paths_give_the_same_contact_rows_step_by_step(integr
     impacts = resting = 0
     shapes = set()
     for _ in range(90):
-        fused.step()
-        separate.step()
-        a, b = _rows(fused), _rows(separate)
-        for name in ROW_FIELDS:
-            assert np.array_equal(a[name], b[name]), name
+        a, b = _step_both_with_equal_rows(fused, separate)
         jn = a["contact_total_normal_impulse"][:, 0]
         impacts += int((jn > 3.0 * weight_step).sum())
         resting += int((np.abs(jn - weight_step) <= 1e-9 * weight_step).sum())
@@ -186,11 +193,7 @@ def test_rows_are_cleared_and_filled_for_the_particles_in_contact_only(fuse, sub
     coupling.row_order = spy
     listed_max = 0
     for _ in range(90):
-        small.step()
-        big.step()
-        a, b = _rows(small), _rows(big)
-        for name in ROW_FIELDS:
-            assert np.array_equal(a[name], b[name]), name
+        a, b = _step_both_with_equal_rows(small, big)
         assert np.all(np.diff(b["contact_particle"][:, 1]) >= 0)          # particle order
         c = coupling
         rest_k = ps_big._collision.rest_k
