@@ -19,7 +19,10 @@ The liquid is carried by particles; the grid only solves for pressure. One step
    >= 0.01; faces between liquid cells couple with their open fraction A_f / h^2 and the
    divergence uses A_f u + (1 - A_f) u_solid (`build_face_weights`, `liquid_divergence`).
    Multigrid-preconditioned CG (McAdams, Sifakis and Teran 2010) to a relative residual
-   ``tolerance`` (`liquid_pressure`; ``pressure_solver="jacobi"`` for comparison), with the
+   ``tolerance`` (`liquid_pressure`; ``pressure_solver="jacobi"`` for comparison), warm-started
+   from the last step's pressure rescaled to this dt (restarted from zero, the solve made the
+   same residual error every step and the particles summed it: still water drifted to 4e-8 m/s
+   in 4 s; warm-started it stays below 1e-9 m/s), with the
    dynamic bodies' velocities as unknowns of the same solve (Batty et al. 2007): their pressure
    impulses go through `inertia.dynamics.particle_coupling.apply_body_impulses`. Domain sides
    are walls (closed faces); closed faces take the solid's velocity.
@@ -751,6 +754,7 @@ class LiquidFluid:
         self.step_index = 0
         self.last_pressure_iterations = 0
         self.last_residual = 0.0
+        self._dt_prev = 0.0     # the last step's dt (project: warm start of the pressure solve)
         # obstacles and rigid bodies (bind_rigid)
         from .obstacles import PlaneSlice
         self.obstacles = list(obstacles)
@@ -983,7 +987,14 @@ class LiquidFluid:
         self._pressure.set_operator(self.liquid, self._cell_solid, self._weights, h, self.dim,
                                     surface)
         liquid_divergence(self.vel, self._frac, self._solid, self.liquid, h, self.dim, self._rhs)
-        it, res = self._pressure.solve(self._rhs, self.pressure_phi, self._body_coupling())
+        # warm start from the last step's pressure (phi = p dt / rho, rescaled to this dt): the
+        # solve then only works on what changed, so its residual error is not made anew (and
+        # accumulated by the particles) every step; a liquid at rest stays at rest
+        warm = self._dt_prev > 0.0
+        if warm:
+            np.multiply(self.pressure_phi, dt / self._dt_prev, out=self.pressure_phi)
+        it, res = self._pressure.solve(self._rhs, self.pressure_phi, self._body_coupling(), warm)
+        self._dt_prev = dt
         self.last_pressure_iterations, self.last_residual = it, res
         np.multiply(self.pressure_phi, self.density / dt, out=self.pressure)
         subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi,
@@ -1299,7 +1310,8 @@ class LiquidFluid:
 
     def save_state(self):
         st = {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
-              "time": np.array(self.time), "step_index": np.array(self.step_index)}
+              "time": np.array(self.time), "step_index": np.array(self.step_index),
+              "pressure_phi": self.pressure_phi.copy(), "dt_prev": np.array(self._dt_prev)}
         return st
 
     def restore_state(self, state):
@@ -1308,6 +1320,9 @@ class LiquidFluid:
         self.c = np.ascontiguousarray(state["c"], dtype=np.float64).copy()
         self.time = float(state["time"])
         self.step_index = int(state["step_index"])
+        # the pressure the next solve starts from (states saved without it: a cold start)
+        self.pressure_phi[...] = state.get("pressure_phi", 0.0)
+        self._dt_prev = float(state.get("dt_prev", 0.0))
         if self._moving:
             self._update_solids(self.time)
 

@@ -320,21 +320,33 @@ class LiquidPressure:
             jacobi_precondition(r, self.mg.levels[0].diag, z)
         self.mg._remove_mean(z)
 
-    def solve(self, b, phi, coupling=None):
-        """Solve (L [+ body term]) phi = b from phi = 0 (b: zero outside the liquid; modified when
-        the system is singular). Returns (iterations, relative residual)."""
+    def solve(self, b, phi, coupling=None, warm=False):
+        """Solve (L [+ body term]) phi = b (b: zero outside the liquid; modified when the system is
+        singular) from phi = 0, or with ``warm=True`` from the phi passed in (masked to the liquid
+        cells). Returns (iterations, relative residual ||b - L phi|| / ||b||)."""
         mg = self.mg
         dot = mg._dot
         mg._remove_mean(b)
-        phi[...] = 0.0
+        r, z, p, q = mg.r, mg.z, mg.p, mg.q
+        if warm:
+            mask_to_liquid(phi, self.types[0])
+            mg._remove_mean(phi)
+        else:
+            phi[...] = 0.0
         bnorm = math.sqrt(dot(b, b))
         if bnorm == 0.0:
+            phi[...] = 0.0
             self.last_iterations, self.last_residual = 0, 0.0
             return 0, 0.0
-        r, z, p, q = mg.r, mg.z, mg.p, mg.q
         rf, zf, pf, qf, phif = (a.reshape(-1) for a in (r, z, p, q, phi))
-        r[...] = b
         tol = self.tolerance * bnorm
+        if warm:
+            # r = b - A phi0: the solve only works on what changed since phi0
+            self._apply(phi, q, coupling)
+            np.subtract(b, q, out=r)
+            mask_to_liquid(r, self.types[0])
+        else:
+            r[...] = b
         self._precondition(r, z)
         p[...] = z
         rz = dot(r, z)
