@@ -52,9 +52,9 @@ def test_liquid_at_rest_on_a_lattice_stays_at_rest_for_four_seconds(method):
     # Still water 0.25 m deep (8 cells of h = 1/32 m, 2 x 2 particles per cell on the lattice) in
     # 60 Hz frames: the exact solution is u = 0 with hydrostatic pressure. The pressure solve stops
     # at a relative residual of 1e-8, i.e. a velocity error near 1e-8 g dt per step; restarted from
-    # zero every step it made the same error every step and the particles summed it (measured
-    # up to 4.3e-8 m/s APIC, 1.3e-8 FLIP within 4 s). Warm-started from the last pressure it only solves
-    # for the change: measured 7e-10 (APIC) and 5e-10 m/s (FLIP) after 4 s. Bound 1e-9 m/s.
+    # zero every step it made the same error every step and the particles summed it (measured up
+    # to 4.3e-8 m/s APIC, 1.3e-8 FLIP within 4 s). Warm-started from the last pressure it only
+    # solves for the change: measured 7e-10 (APIC) and 5e-10 m/s (FLIP). Bound 1e-9 m/s.
     f = LiquidFluid((32, 16), 1 / 32, method=method)
     f.add_block((0, 0), (1.0, 0.25))
     vmax = 0.0
