@@ -111,6 +111,7 @@ from .obstacles import low_cell
 METHODS = ("apic", "flip", "pic")
 WALLS = ("slip", "no-slip")
 SIDES = ("x-", "x+", "y-", "y+", "z-", "z+")
+OVERFULL = 3    # reseeding removes the particles of a cell beyond OVERFULL x particles_per_cell
 
 
 def parse_walls(walls, dim):
@@ -593,6 +594,212 @@ def advect_particles(x, vel, origin, h, dim, dt, lo, hi):
             x[p, 2] = min(max(x[p, 2] + dt * vz, lo[2]), hi[2])
 
 
+# ----------------------------------------------------------------------------- volume
+@njit(cache=True, inline="always")
+def _fold(i, n, lo_closed, hi_closed):
+    """Cell index i of an axis with n cells: itself inside, the cell next to a closed side for the
+    ghost cell beyond it (the mirror image), -1 beyond an open side."""
+    if i < 0:
+        return 0 if lo_closed else -1
+    if i >= n:
+        return n - 1 if hi_closed else -1
+    return i
+
+
+@njit(cache=True)
+def particle_density(x, origin, h, dim, closed, density):
+    """Particles per cell measured with the tent weights at the cell centres (serial scatter:
+    deterministic): a lattice of spacing h/2 reads 2^dim in every cell. Along an axis with a
+    closed side (closed[a, side]) the weight a particle gives the ghost cell beyond it goes to its
+    mirror, the cell next to the side (the particle's reflection), so cells along walls read the
+    same as inside."""
+    nx, ny, nz = density.shape
+    density[...] = 0.0
+    inv_h = 1.0 / h
+    for p in range(x.shape[0]):
+        X = (x[p, 0] - origin[0]) * inv_h - 0.5
+        Y = (x[p, 1] - origin[1]) * inv_h - 0.5
+        i0 = int(math.floor(X))
+        j0 = int(math.floor(Y))
+        fx = X - i0
+        fy = Y - j0
+        k0 = 0
+        fz = 0.0
+        if dim == 3:
+            Z = (x[p, 2] - origin[2]) * inv_h - 0.5
+            k0 = int(math.floor(Z))
+            fz = Z - k0
+        for dk in range(2 if dim == 3 else 1):
+            k = 0
+            wz = 1.0
+            if dim == 3:
+                k = _fold(k0 + dk, nz, closed[2, 0], closed[2, 1])
+                wz = fz if dk else 1.0 - fz
+            if k < 0:
+                continue
+            for dj in range(2):
+                j = _fold(j0 + dj, ny, closed[1, 0], closed[1, 1])
+                if j < 0:
+                    continue
+                wy = (fy if dj else 1.0 - fy) * wz
+                for di in range(2):
+                    i = _fold(i0 + di, nx, closed[0, 0], closed[0, 1])
+                    if i < 0:
+                        continue
+                    density[i, j, k] += (fx if di else 1.0 - fx) * wy
+
+
+@njit(cache=True)
+def density_excess(density, liquid, cell_solid, periodic, dim, rest, strength, rhs):
+    """rhs = strength (density / rest - 1), the relative volume each liquid cell should give
+    back (negative: take in): in every liquid cell holding more than `rest`, and in the liquid
+    cells with no air neighbour also where it holds less (a cell at the free surface is only
+    partly full, so it never draws particles in). 0 elsewhere. Returns the largest |rhs| /
+    strength."""
+    nx, ny, nz = density.shape
+    worst = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                rhs[i, j, k] = 0.0
+                if not liquid[i, j, k]:
+                    continue
+                e = density[i, j, k] / rest - 1.0
+                if e < 0.0 and not _enclosed(liquid, cell_solid, i, j, k, dim, 1, periodic):
+                    continue
+                rhs[i, j, k] = strength * e
+                worst = max(worst, abs(e))
+    return worst
+
+
+@njit(cache=True)
+def count_particles(x, origin, h, dim, count, sub):
+    """Particles per cell (the cell holding each) into count, and in sub the bit mask of the
+    cell's 2^dim sub-cells (h/2 boxes) that hold one."""
+    nx, ny, nz = count.shape
+    count[...] = 0
+    sub[...] = 0
+    inv_h = 1.0 / h
+    for p in range(x.shape[0]):
+        X = (x[p, 0] - origin[0]) * inv_h
+        Y = (x[p, 1] - origin[1]) * inv_h
+        Z = (x[p, 2] - origin[2]) * inv_h if dim == 3 else 0.5
+        i = min(max(int(math.floor(X)), 0), nx - 1)
+        j = min(max(int(math.floor(Y)), 0), ny - 1)
+        k = min(max(int(math.floor(Z)), 0), nz - 1)
+        count[i, j, k] += 1
+        bx = 1 if X - i >= 0.5 else 0
+        by = 1 if Y - j >= 0.5 else 0
+        bz = 1 if (dim == 3 and Z - k >= 0.5) else 0
+        sub[i, j, k] |= 1 << (bx + 2 * by + 4 * bz)
+
+
+@njit(cache=True)
+def _enclosed(count, cell_solid, i, j, k, dim, least, periodic):
+    """Whether every face neighbour of cell (i, j, k) holds at least `least` particles or is a
+    solid or a closed domain side (the cell lies inside the liquid, not at its surface)."""
+    nx, ny, nz = count.shape
+    for a in range(dim):
+        n = nx if a == 0 else (ny if a == 1 else nz)
+        for sd in range(2):
+            ii, jj, kk = i, j, k
+            c = (i if a == 0 else (j if a == 1 else k)) + 2 * sd - 1
+            if c < 0 or c >= n:
+                if not periodic[a]:
+                    continue   # a closed side (`reseed_plan` skips the cells on open sides)
+                c %= n
+            if a == 0:
+                ii = c
+            elif a == 1:
+                jj = c
+            else:
+                kk = c
+            if cell_solid[ii, jj, kk]:
+                continue
+            if count[ii, jj, kk] < least:
+                return False
+    return True
+
+
+@njit(cache=True)
+def reseed_plan(count, sub, density, cell_solid, dim, per_cell, periodic, open_cells, add):
+    """Particles to add per cell: a hole inside the liquid, an empty cell reading less than half
+    the rest density (tent weights, `particle_density`) whose neighbours all read at least 3/4 of
+    it (or are solids or closed sides), gets a particle at the centre of each of its h/2
+    sub-cells. Cells on open sides (open_cells) are left alone. Returns (particles to add, particles to remove: those beyond OVERFULL per_cell in a
+    cell)."""
+    nx, ny, nz = count.shape
+    n_add = 0
+    n_remove = 0
+    limit = OVERFULL * per_cell
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                add[i, j, k] = 0
+                c = count[i, j, k]
+                if c > limit:
+                    n_remove += c - limit
+                    continue
+                if c > 0 or density[i, j, k] >= 0.5 * per_cell or cell_solid[i, j, k] \
+                        or open_cells[i, j, k]:
+                    continue
+                if not _enclosed(density, cell_solid, i, j, k, dim, 0.75 * per_cell, periodic):
+                    continue
+                m = 0
+                for b in range(1 << dim):
+                    if not (sub[i, j, k] >> b) & 1 and c + m < per_cell:
+                        m += 1
+                add[i, j, k] = m
+                n_add += m
+    return n_add, n_remove
+
+
+@njit(cache=True)
+def seed_positions(add, sub, origin, h, dim, out):
+    """The new particles' positions (cells in order, empty sub-cells in bit order, each at its
+    sub-cell's centre: the h/2 lattice of `add_block`) into out (rows from 0; z = 0 in 2-D)."""
+    nx, ny, nz = add.shape
+    n = 0
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                m = add[i, j, k]
+                if m == 0:
+                    continue
+                for b in range(1 << dim):
+                    if m == 0:
+                        break
+                    if (sub[i, j, k] >> b) & 1:
+                        continue
+                    out[n, 0] = origin[0] + (i + 0.25 + 0.5 * (b & 1)) * h
+                    out[n, 1] = origin[1] + (j + 0.25 + 0.5 * ((b >> 1) & 1)) * h
+                    out[n, 2] = origin[2] + (k + 0.25 + 0.5 * ((b >> 2) & 1)) * h if dim == 3 else 0.0
+                    n += 1
+                    m -= 1
+    return n
+
+
+@njit(cache=True)
+def mark_overfull(x, origin, h, dim, limit, seen, keep):
+    """keep[p] = False for the particles of a cell beyond the first `limit` of it (in index order);
+    seen: (cells) int scratch. Returns the number kept."""
+    nx, ny, nz = seen.shape
+    seen[...] = 0
+    inv_h = 1.0 / h
+    kept = 0
+    for p in range(x.shape[0]):
+        i = min(max(int(math.floor((x[p, 0] - origin[0]) * inv_h)), 0), nx - 1)
+        j = min(max(int(math.floor((x[p, 1] - origin[1]) * inv_h)), 0), ny - 1)
+        k = 0
+        if dim == 3:
+            k = min(max(int(math.floor((x[p, 2] - origin[2]) * inv_h)), 0), nz - 1)
+        seen[i, j, k] += 1
+        keep[p] = seen[i, j, k] <= limit
+        if keep[p]:
+            kept += 1
+    return kept
+
+
 # ----------------------------------------------------------------------------- the liquid
 class LiquidFluid:
     """A particle liquid (PIC/FLIP/APIC) on a MAC grid in a closed box (see the module docstring).
@@ -636,7 +843,7 @@ class LiquidFluid:
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
                  max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0,
                  pressure_solver="mgpcg", parallel=None, viscosity=0.0, walls="slip",
-                 obstacle_slip=False):
+                 obstacle_slip=False, volume_correction=1.0, reseed=False):
         try:
             shp = tuple(int(s) for s in shape)
         except TypeError:
@@ -741,6 +948,31 @@ class LiquidFluid:
         self.v = np.zeros((0, 3))
         self.c = np.zeros((0, 3, 3))
         self.particles_per_cell = 4 if dim == 2 else 8
+        # volume (volume stage): the share of a cell's excess particle density given back per
+        # step, reseeding of holes and over-full cells
+        vc = volume_correction
+        if isinstance(vc, (bool, np.bool_)) or not isinstance(vc, (int, float, np.integer, np.floating)) \
+                or not 0.0 <= float(vc) <= 1.0:
+            raise ValueError(f"volume_correction must be a number in [0, 1] (0: off); got {vc!r}")
+        self.volume_correction = float(vc)
+        if not isinstance(reseed, (bool, np.bool_)):
+            raise ValueError(f"reseed must be True or False; got {reseed!r}")
+        self.reseed = bool(reseed)
+        self.particle_density = np.zeros(cs)   # particles per cell, tent weights (volume stage)
+        self._volume_rhs = np.zeros(cs)        # relative volume excess per cell (volume stage)
+        self._volume_phi = np.zeros(cs)        # its potential, m^2 (volume stage)
+        self._disp = tuple(np.zeros(s) for s in fs)            # displacement -grad q, m
+        self._disp_valid = tuple(np.zeros(s, dtype=np.bool_) for s in fs)
+        self._zero_faces = tuple(np.zeros(s) for s in fs)
+        self._closed = np.ones((3, 2), dtype=np.bool_)         # domain sides that are walls
+        self._periodic = np.zeros(3, dtype=np.bool_)
+        self._open_cells = np.zeros(cs, dtype=np.bool_)        # cells on an open side
+        self._count = np.zeros(cs, dtype=np.int64)
+        self._sub = np.zeros(cs, dtype=np.int64)
+        self._add = np.zeros(cs, dtype=np.int64)
+        self.last_volume_excess = 0.0     # largest relative density excess of the last step
+        self.particles_seeded = 0         # particles added by reseeding, in total
+        self.particles_removed = 0        # particles removed from over-full cells, in total
         # level-set radius: puts phi = 0 halfway between the top liquid cell centre and the
         # first air cell centre for a lattice of spacing h/2 (2 per cell per axis): their
         # nearest particles lie sqrt(dim) h / 4 and sqrt(dim + 8) h / 4 away
@@ -996,6 +1228,7 @@ class LiquidFluid:
         it, res = self._pressure.solve(self._rhs, self.pressure_phi, self._body_coupling(), warm)
         self._dt_prev = dt
         self.last_pressure_iterations, self.last_residual = it, res
+        correct = self.volume_correction > 0.0 and self._volume_displacement()
         np.multiply(self.pressure_phi, self.density / dt, out=self.pressure)
         subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi,
                                    self._weights, self._frac, self._solid, h, self.dim,
@@ -1026,7 +1259,11 @@ class LiquidFluid:
         grid_to_particles(self.x, self.v, self.c, self.vel, self.vel_old, self.origin, h,
                           self.dim, m, self.flip_ratio)
         advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._lo, self._hi)
+        if correct:
+            advect_particles(self.x, self._disp, self.origin, h, self.dim, 1.0, self._lo, self._hi)
         self._push_particles_out(self.time + dt)
+        if self.reseed:
+            self._reseed()
         if not _all_finite(self.v):
             bad = np.flatnonzero(~np.all(np.isfinite(self.v), axis=1))[:10]
             raise SimulationDiverged(
@@ -1036,6 +1273,67 @@ class LiquidFluid:
                 step=self.step_index, time=self.time, indices=bad)
         self.time += dt
         self.step_index += 1
+
+    def _volume_displacement(self):
+        """Volume stage (Kugelstadt, Longva, Thuerey and Bender 2019, the position-based density
+        projection on the grid): the particle density per cell rho (tent weights, mirrored at
+        walls) against the lattice's rest value rho_0 = particles_per_cell. With s = beta
+        max(rho / rho_0 - 1, 0) the relative volume each over-full cell gives back (beta =
+        ``volume_correction``), solve -Lap q = s with the step's pressure operator (p = 0 at the
+        free surface, closed walls and solids) and move the particles by d = -grad q, so div d =
+        s: the particles spread without any change of their velocity. Returns whether d != 0."""
+        h = self.cell_size
+        particle_density(self.x, self.origin, h, self.dim, self._closed, self.particle_density)
+        worst = density_excess(self.particle_density, self.liquid, self._cell_solid, self._periodic,
+                               self.dim, float(self.particles_per_cell), self.volume_correction,
+                               self._volume_rhs)
+        self.last_volume_excess = worst
+        if worst <= 0.0:
+            return False
+        self._pressure.solve(self._volume_rhs, self._volume_phi, None)
+        for a in range(self.dim):
+            self._disp[a][...] = 0.0
+        subtract_pressure_gradient(self._disp, self._volume_phi, self.liquid, self.phi,
+                                   self._weights, self._frac, self._zero_faces, h, self.dim,
+                                   self._disp_valid)
+        extrapolate(self._disp, self._disp_valid, self._valid2, self.dim,
+                    self.extrapolation_layers)
+        return True
+
+    def _reseed(self):
+        """Reseeding: a hole inside the liquid (a cell holding fewer than half its particles, its
+        neighbours at least that) gets one particle at the centre of each empty h/2 sub-cell until
+        it holds particles_per_cell, with the grid's velocity (APIC: and its gradient); a cell
+        holding more than twice particles_per_cell loses its particles beyond that (the last in
+        index order). Serial kernels: deterministic. Allocates only when it adds or removes."""
+        h = self.cell_size
+        count_particles(self.x, self.origin, h, self.dim, self._count, self._sub)
+        particle_density(self.x, self.origin, h, self.dim, self._closed, self.particle_density)
+        ppc = self.particles_per_cell
+        n_add, n_remove = reseed_plan(self._count, self._sub, self.particle_density,
+                                      self._cell_solid, self.dim, ppc, self._periodic,
+                                      self._open_cells, self._add)
+        if n_add == 0 and n_remove == 0:
+            return
+        if n_remove:
+            keep = np.empty(self.x.shape[0], dtype=np.bool_)
+            mark_overfull(self.x, self.origin, h, self.dim, OVERFULL * ppc, self._count, keep)
+            self.x = np.ascontiguousarray(self.x[keep])
+            self.v = np.ascontiguousarray(self.v[keep])
+            self.c = np.ascontiguousarray(self.c[keep])
+            self.particles_removed += int(n_remove)
+        if n_add:
+            xn = np.zeros((n_add, 3))
+            seed_positions(self._add, self._sub, self.origin, h, self.dim, xn)
+            vn = np.zeros((n_add, 3))
+            cn = np.zeros((n_add, 3, 3))
+            m = 0 if self.method == "apic" else 2    # (FLIP: new particles take the grid's velocity)
+            grid_to_particles(xn, vn, cn, self.vel, self.vel_old, self.origin, h, self.dim, m,
+                              self.flip_ratio)
+            self.x = np.ascontiguousarray(np.concatenate([self.x, xn]))
+            self.v = np.ascontiguousarray(np.concatenate([self.v, vn]))
+            self.c = np.ascontiguousarray(np.concatenate([self.c, cn]))
+            self.particles_seeded += int(n_add)
 
     def _diffuse(self, dt):
         """Viscosity stage: backward Euler (I - nu dt Lap) u = u per component on the faces next to
