@@ -37,7 +37,10 @@ def test_held_box_feels_rho_g_submerged_cut_cell_volume(bottom_cells):
     body = b.add_body(position=(0.5, y_b + hy, 0.0), body_type="kinematic")
     b.add_box(body, half_extents=(hx, hy, hz))
     rigid = _rigid(b)
-    f = LiquidFluid((n, n), h, depth=2 * hz, density=RHO)
+    # volume stage off: the particles the box pushes out (0.05 h at y_b = 12.8 h) read 1.6 % over
+    # the rest density, and spreading them moves the liquid by ~1e-5 h (force 6.5e-5 off); this
+    # test pins the pressure discretisation alone
+    f = LiquidFluid((n, n), h, depth=2 * hz, density=RHO, volume_correction=0.0)
     f.add_block((0, 0), (1.0, 0.5))
     f.bind_rigid(rigid)
     for _ in range(5):
@@ -238,7 +241,7 @@ def test_held_box_in_3d_liquid_feels_rho_g_v():
     he = np.array([2 * h, 2 * h, 1.5 * h])
     b.add_box(body, half_extents=he)
     rigid = _rigid(b)
-    f = LiquidFluid((n, n, n), h, density=RHO)
+    f = LiquidFluid((n, n, n), h, density=RHO, volume_correction=0.0)   # (as in the 2-D test)
     f.add_block((0, 0, 0), (1.0, 1.0, 0.75))
     f.bind_rigid(rigid)
     for _ in range(3):

@@ -25,7 +25,15 @@ The liquid is carried by particles; the grid only solves for pressure. One step
    in 4 s; warm-started it stays below 1e-9 m/s), with the
    dynamic bodies' velocities as unknowns of the same solve (Batty et al. 2007): their pressure
    impulses go through `inertia.dynamics.particle_coupling.apply_body_impulses`. Domain sides
-   are walls (closed faces); closed faces take the solid's velocity.
+   are walls or inflows (closed faces, which take the solid's or the inflow's normal velocity)
+   or outflows (open: p = 0 in the ghost cell beyond, weight A_f).
+4a. ``volume``    (volume_correction > 0, Kugelstadt, Longva, Thuerey and Bender 2019 on the grid)
+   the particles per cell rho from the tent weights at the cell centres (mirrored at walls), s =
+   beta (rho / rho_0 - 1) with rho_0 = particles_per_cell, kept where positive and, inside the
+   liquid (`_inner_cell`), also where negative; -Lap q = s with the same operator (q = 0 at
+   the free surface) and the displacement d = -grad q (extrapolated like the velocity), which
+   the particles follow after their advection: div d = s spreads over-full cells. Velocities
+   are not changed. Skipped when no cell deviates.
 4b. ``viscosity`` (viscosity > 0) backward Euler (I - nu dt Lap) u = u per component on the faces
    next to liquid, CG (`viscosity.py`, shared with `GridFluid`): zero viscous stress across the
    free surface (separate-component form of the traction-free condition, Batty and Bridson 2008
@@ -39,9 +47,15 @@ The liquid is carried by particles; the grid only solves for pressure. One step
 6. ``g2p``        grid -> particles: PIC v_p = I(u); FLIP v_p += I(u - u_old); blend
    v = (1 - flip_ratio) PIC + flip_ratio FLIP; APIC v_p = I(u) and C_p = sum_i grad(w_ip) u_i
    (Jiang et al. 2015, multilinear weights).
-7. ``advect``     particles move by RK2 (midpoint) in the grid velocity, clamped inside the
-   domain ``margin`` from the walls, then pushed out of solids along the solid's normal to
-   0.1 h, losing their velocity into the solid (relative to its surface velocity).
+7. ``advect``     particles move by RK2 (midpoint) in the grid velocity (and then in d), clamped
+   inside the domain ``margin`` from closed sides; particles beyond an open side are removed
+   (``drain``), inflow sides emit rows of particles (``emit``: a row on the h/2 lattice each time
+   the liquid has entered h/2, at the inflow velocity); then particles are pushed out of solids
+   along the solid's normal to 0.1 h, losing their velocity into the solid (relative to its
+   surface velocity).
+8. ``reseed``     (reseed=True) an empty cell inside the liquid (it reads under rho_0 / 2, its
+   neighbours 3/4 rho_0 or more) gets one particle per h/2 sub-cell at the grid velocity; a cell
+   holding more than 3 particles_per_cell loses the rest (serial: deterministic).
 
 ``advance(frame_dt)`` takes CFL substeps dt = cfl h / max|v_p| (capped by ``max_dt``).
 
@@ -64,11 +78,21 @@ References
   liquids", SCA 2008 (the traction-free surface; used in its separate-component simplification).
 - A. McAdams, E. Sifakis and J. Teran, "A parallel multigrid Poisson solver for fluids
   simulation on large grids", SCA 2010 (MGPCG).
+- T. Kugelstadt, A. Longva, N. Thuerey and J. Bender, "Implicit density projection for volume
+  conserving liquids", IEEE TVCG 27, 2019 (the volume stage: a position correction from a
+  Poisson solve on the density deviation).
 
 Limitations
 -----------
-- Closed box with slip or no-slip walls (no inflow or outflow); constant density, no surface
-  tension.
+- Domain sides: slip or no-slip walls, inflow (a whole side at one velocity) and outflow; no
+  periodic sides. Constant density, no surface tension.
+- Volume stage: the density is read with the tent weights, so a cell next to a solid or at the
+  free surface reads less than it holds and only gives volume back; bodies do not feel the
+  correction (it moves particles only). Reseeding adds a cell of volume per hole it fills (off
+  by default). A step allocates when particles are emitted, drained, reseeded or removed.
+- Still water on the particle lattice stays at rest to 1e-9 m/s over 4 s (60 Hz steps); a
+  grid-scale surface mode seeded by the solver's residual grows slowly beyond that (measured
+  2.6e-9 m/s after 10 s at h = 1/32).
 - Viscosity: applied after the pressure solve, so the velocity handed to the particles is not
   exactly divergence-free (the next step's projection removes the rest; first order in dt).
   The free surface is traction-free only in the separate-component sense (rotating or coiling
@@ -90,7 +114,8 @@ Limitations
   in a body's impact step, tests/fluids/grid/test_liquid_coupling.py).
 - The level set is a union of particle spheres (radius ``surface_radius``): the surface is as
   bumpy as the particles; fine for rendering through marching cubes, first-order in h.
-- Particles that the flow leaves in thin sheets can drift apart; there is no reseeding.
+- Particles that the flow leaves in thin sheets can drift apart; reseeding fills only holes
+  enclosed by liquid, not sheets.
 """
 
 from __future__ import annotations
@@ -105,6 +130,7 @@ from ..._validate import as_vector, positive_scalar
 from ...errors import SimulationDiverged
 from . import kernels as K
 from . import viscosity as V
+from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
 from .liquid_pressure import BodyCoupling, LiquidPressure, set_body_face_velocities
 from .obstacles import low_cell
 
@@ -297,23 +323,30 @@ def wet_solid_cells(liquid, phi, cell_solid, frac, dim, h, scratch):
 
 
 @njit(cache=True)
-def add_gravity_and_walls(vel, liquid, g, dt, dim):
-    """u += g dt on faces next to a liquid cell; wall faces (domain sides) get zero normal
-    velocity."""
+def add_gravity_and_walls(vel, liquid, g, dt, dim, closed, side_vel):
+    """u += g dt on faces next to a liquid cell; faces on a closed domain side (closed[a, side]:
+    a wall or an inflow) get the side's normal velocity side_vel[a, side] (0 on walls); faces on
+    an open side count as interior faces of their one cell."""
     nx, ny, nz = liquid.shape
     for a in range(dim):
         va = vel[a]
         sx, sy, sz = va.shape
+        n = nx if a == 0 else (ny if a == 1 else nz)
         for i in range(sx):
             for j in range(sy):
                 for k in range(sz):
-                    wall = (a == 0 and (i == 0 or i == nx)) or (a == 1 and (j == 0 or j == ny)) \
-                        or (a == 2 and (k == 0 or k == nz))
-                    if wall:
-                        va[i, j, k] = 0.0
+                    c = i if a == 0 else (j if a == 1 else k)
+                    side = 0 if c == 0 else (1 if c == n else -1)
+                    if side >= 0 and closed[a, side]:
+                        va[i, j, k] = side_vel[a, side]
                         continue
                     i1, j1, k1 = low_cell(a, i, j, k)
-                    if liquid[i, j, k] or liquid[i1, j1, k1]:
+                    wet = False
+                    if side != 1 and liquid[i, j, k]:
+                        wet = True
+                    if side != 0 and liquid[i1, j1, k1]:
+                        wet = True
+                    if wet:
                         va[i, j, k] += g[a] * dt
 
 
@@ -321,8 +354,9 @@ def add_gravity_and_walls(vel, liquid, g, dt, dim):
 def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
     """Pressure weights of the faces (Batty, Bertails and Bridson 2007 with the ghost-fluid free
     surface): A_f between two liquid cells; A_f / theta between a liquid cell and an air cell,
-    theta = phi_liquid / (phi_liquid - phi_air) >= 0.01 (Gibou et al. 2002); 0 on every other face
-    (walls, closed solid faces, air-air, and a liquid cell next to an empty cell whose centre lies
+    theta = phi_liquid / (phi_liquid - phi_air) >= 0.01 (Gibou et al. 2002); A_f on an open domain
+    side (outflow: p = 0 in the ghost cell beyond it; closed sides have A_f = 0); 0 on every other
+    face (closed solid faces, air-air, and a liquid cell next to an empty cell whose centre lies
     inside a solid: no flux through the solid, so no Dirichlet condition there). Returns whether
     any liquid-air face exists (else the system is a pure Neumann problem)."""
     nx, ny, nz = liquid.shape
@@ -340,8 +374,17 @@ def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
                     if A <= 0.0:
                         continue
                     i0, j0, k0 = low_cell(a, i, j, k)
-                    if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
-                        continue  # a domain side (closed walls have A = 0 anyway)
+                    if i0 < 0 or j0 < 0 or k0 < 0:
+                        # an open low side (closed walls have A = 0): p = 0 in the ghost cell
+                        if liquid[i, j, k]:
+                            wa[i, j, k] = A
+                            surface = True
+                        continue
+                    if i >= nx or j >= ny or k >= nz:
+                        if liquid[i0, j0, k0]:
+                            wa[i, j, k] = A
+                            surface = True
+                        continue
                     lo = liquid[i0, j0, k0]
                     hi = liquid[i, j, k]
                     if lo and hi:
@@ -412,7 +455,18 @@ def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim
                         ok[i, j, k] = True
                         continue
                     i0, j0, k0 = low_cell(a, i, j, k)
-                    if i0 < 0 or j0 < 0 or k0 < 0 or i >= nx or j >= ny or k >= nz:
+                    if i0 < 0 or j0 < 0 or k0 < 0:
+                        # an open low side: p = 0 in the ghost cell
+                        if liquid[i, j, k]:
+                            ok[i, j, k] = True
+                            if wa[i, j, k] != 0.0:
+                                va[i, j, k] -= p[i, j, k] * inv_h
+                        continue
+                    if i >= nx or j >= ny or k >= nz:
+                        if liquid[i0, j0, k0]:
+                            ok[i, j, k] = True
+                            if wa[i, j, k] != 0.0:
+                                va[i, j, k] += p[i0, j0, k0] * inv_h
                         continue
                     lo = liquid[i0, j0, k0]
                     hi = liquid[i, j, k]
@@ -650,12 +704,42 @@ def particle_density(x, origin, h, dim, closed, density):
 
 
 @njit(cache=True)
-def density_excess(density, liquid, cell_solid, periodic, dim, rest, strength, rhs):
+def _inner_cell(liquid, cell_solid, frac, closed, i, j, k, dim, periodic):
+    """Whether a liquid cell lies inside the liquid: each face neighbour is a liquid cell across
+    a fully open face (no cut solid) or a closed domain side (where `particle_density` mirrors
+    the particles). There the tent-weighted density reads the rest density exactly on the
+    lattice, so a lower reading means particles are missing."""
+    nx, ny, nz = liquid.shape
+    for a in range(dim):
+        n = nx if a == 0 else (ny if a == 1 else nz)
+        fa = frac[a]
+        c0 = i if a == 0 else (j if a == 1 else k)
+        for sd in range(2):
+            c = c0 + 2 * sd - 1
+            if c < 0 or c >= n:
+                if periodic[a]:
+                    c %= n
+                elif closed[a, sd]:
+                    continue
+                else:
+                    return False
+            if fa[i + (a == 0) * sd, j + (a == 1) * sd, k + (a == 2) * sd] < 1.0:
+                return False
+            ii = c if a == 0 else i
+            jj = c if a == 1 else j
+            kk = c if a == 2 else k
+            if cell_solid[ii, jj, kk] or not liquid[ii, jj, kk]:
+                return False
+    return True
+
+
+@njit(cache=True)
+def density_excess(density, liquid, cell_solid, frac, closed, periodic, dim, rest, strength, rhs):
     """rhs = strength (density / rest - 1), the relative volume each liquid cell should give
-    back (negative: take in): in every liquid cell holding more than `rest`, and in the liquid
-    cells with no air neighbour also where it holds less (a cell at the free surface is only
-    partly full, so it never draws particles in). 0 elsewhere. Returns the largest |rhs| /
-    strength."""
+    back (negative: take in): in every liquid cell holding more than `rest`, and in the inner
+    cells (`_inner_cell`) also where it holds less (a cell at the free surface or next to a solid
+    reads less than it holds, so it never draws particles in). 0 elsewhere. Returns the largest
+    |rhs| / strength."""
     nx, ny, nz = density.shape
     worst = 0.0
     for i in range(nx):
@@ -665,7 +749,8 @@ def density_excess(density, liquid, cell_solid, periodic, dim, rest, strength, r
                 if not liquid[i, j, k]:
                     continue
                 e = density[i, j, k] / rest - 1.0
-                if e < 0.0 and not _enclosed(liquid, cell_solid, i, j, k, dim, 1, periodic):
+                if e < 0.0 and not _inner_cell(liquid, cell_solid, frac, closed, i, j, k, dim,
+                                               periodic):
                     continue
                 rhs[i, j, k] = strength * e
                 worst = max(worst, abs(e))
@@ -800,9 +885,59 @@ def mark_overfull(x, origin, h, dim, limit, seen, keep):
     return kept
 
 
+# ----------------------------------------------------------------------------- open sides
+@njit(cache=True)
+def inflow_row(axis, side, dist, origin, h, n, dim, cell_solid, out):
+    """One row of particles parallel to a domain side (axis, side 0 low / 1 high) at distance
+    `dist` inside it, on the h/2 lattice of `add_block` along the side (2 per cell per axis),
+    leaving out points in cells whose centre lies in a solid. Writes the rows from 0 of out
+    (when given enough rows) and returns the count."""
+    t1 = 1 if axis == 0 else 0
+    t2 = 2 if axis != 2 else 1
+    n1 = 2 * n[t1]
+    n2 = 2 * n[t2] if dim == 3 else 1
+    plane = origin[axis] + (dist if side == 0 else n[axis] * h - dist)
+    ca = min(max(int(math.floor((plane - origin[axis]) / h)), 0), n[axis] - 1)
+    m = 0
+    for a1 in range(n1):
+        for a2 in range(n2):
+            c1 = a1 // 2
+            c2 = a2 // 2 if dim == 3 else 0
+            ii = ca if axis == 0 else c1
+            jj = ca if axis == 1 else (c1 if t1 == 1 else c2)
+            kk = ca if axis == 2 else (c2 if dim == 3 else 0)
+            if cell_solid[ii, jj, kk]:
+                continue
+            if m < out.shape[0]:
+                out[m, axis] = plane
+                out[m, t1] = origin[t1] + (a1 + 0.5) * 0.5 * h
+                if dim == 3:
+                    out[m, t2] = origin[t2] + (a2 + 0.5) * 0.5 * h
+                else:
+                    out[m, 2] = 0.0
+            m += 1
+    return m
+
+
+@njit(cache=True)
+def mark_outside(x, lo, hi, keep):
+    """keep[p] = whether particle p lies inside [lo, hi] on every axis; returns the number kept."""
+    kept = 0
+    for p in range(x.shape[0]):
+        inside = True
+        for c in range(3):
+            if x[p, c] < lo[c] or x[p, c] > hi[c]:
+                inside = False
+        keep[p] = inside
+        if inside:
+            kept += 1
+    return kept
+
+
 # ----------------------------------------------------------------------------- the liquid
 class LiquidFluid:
-    """A particle liquid (PIC/FLIP/APIC) on a MAC grid in a closed box (see the module docstring).
+    """A particle liquid (PIC/FLIP/APIC) on a MAC grid in a box with walls, inflow and outflow
+    sides (see the module docstring).
 
     World protocol: ``advance_before_rigid = True`` (the world advances it before its rigid stage,
     so the liquid's impulses reach the bodies' velocities before their positions are integrated).
@@ -835,6 +970,15 @@ class LiquidFluid:
         "slip" / "no-slip" (only matters with viscosity > 0).
     obstacle_slip : False (default: no-slip), True, or one bool per obstacle; rigid shape rows
         take `bind_rigid(rigid, slip=)` (default no-slip). Only matters with viscosity > 0.
+    volume_correction : beta in [0, 1], the share of each cell's density deviation given back
+        per step by the volume stage (default 1; 0.5-1 keeps a collapsing column within 2 % of
+        its density; 0 turns it off).
+    reseed : fill holes inside the liquid and trim over-full cells (default False).
+    boundaries : dict side ("x-", ..., "z+") -> `Wall` (may move along itself), `Inflow`
+        (velocity into the domain; the side emits particles), `Outflow` (open, p = 0; particles
+        leaving are removed) or their names ("slip", "no-slip", "outflow"), as `GridFluid`'s
+        `boundaries` (`boundaries.parse_boundaries`); sides not named follow ``walls``. No
+        `Periodic`.
     """
 
     advance_before_rigid = True
@@ -843,7 +987,7 @@ class LiquidFluid:
                  flip_ratio=0.95, density=1000.0, tolerance=1e-8, max_iterations=2000, cfl=1.0,
                  max_dt=1 / 60, extrapolation_layers=4, obstacles=(), depth=1.0,
                  pressure_solver="mgpcg", parallel=None, viscosity=0.0, walls="slip",
-                 obstacle_slip=False, volume_correction=1.0, reseed=False):
+                 obstacle_slip=False, volume_correction=1.0, reseed=False, boundaries=None):
         try:
             shp = tuple(int(s) for s in shape)
         except TypeError:
@@ -907,17 +1051,27 @@ class LiquidFluid:
         # distance, surface velocity and index at the face nodes (obstacles stage), CG scratch
         self.viscosity = positive_scalar(viscosity, "viscosity", allow_zero=True)
         self._wall_no_slip = parse_walls(walls, dim)
+        # domain sides (`boundaries`): closed (wall, inflow) or open (outflow), the velocity each
+        # closed side imposes (rows 2 axis + side), the cells along an inflow side
+        self.sides = self._parse_sides(boundaries)
+        ghost_value = np.zeros((3, 3, 2))
         ghost_kind = np.zeros((3, 3, 2), dtype=np.int64)
         for c in range(3):
             for ax in range(3):
                 for sd in range(2):
-                    if ax != c and self._wall_no_slip[ax, sd]:
+                    if ax == c:
+                        continue
+                    b = self.sides[2 * ax + sd]
+                    if isinstance(b, Outflow):
+                        ghost_kind[c, ax, sd] = K.NEUMANN
+                    elif isinstance(b, Inflow) or self._wall_no_slip[ax, sd]:
                         ghost_kind[c, ax, sd] = K.DIRICHLET
+                        ghost_value[c, ax, sd] = self._side_vel[2 * ax + sd, c]
         frame = self.origin.copy()
         if dim == 2:
             frame[2] = -0.5 * h   # faces at z = 0 (the torque arms of the viscous impulses)
         self._ctx = K.GridContext(self.n.copy(), h, frame, dim, np.zeros(3, dtype=np.bool_),
-                                  ghost_kind, np.zeros((3, 3, 2)))
+                                  ghost_kind, ghost_value)
         par = (int(np.prod(self.n)) >= K.PARALLEL_CELLS) if parallel is None else bool(parallel)
         self._kv = K.KernelSet(V, par)
         self._kk = K.KernelSet(K, par)
@@ -964,9 +1118,25 @@ class LiquidFluid:
         self._disp = tuple(np.zeros(s) for s in fs)            # displacement -grad q, m
         self._disp_valid = tuple(np.zeros(s, dtype=np.bool_) for s in fs)
         self._zero_faces = tuple(np.zeros(s) for s in fs)
-        self._closed = np.ones((3, 2), dtype=np.bool_)         # domain sides that are walls
         self._periodic = np.zeros(3, dtype=np.bool_)
-        self._open_cells = np.zeros(cs, dtype=np.bool_)        # cells on an open side
+        self._open_cells = np.zeros(cs, dtype=np.bool_)        # cells along an open or inflow side
+        self._inflow_side = np.full(cs, -1, dtype=np.int64)    # 2 axis + side of an inflow layer
+        for a in range(dim):
+            for sd in range(2):
+                idx = [slice(None)] * 3
+                idx[a] = slice(0, 1) if sd == 0 else slice(-1, None)
+                if not self._closed[a, sd] or isinstance(self.sides[2 * a + sd], Inflow):
+                    self._open_cells[tuple(idx)] = True
+                if isinstance(self.sides[2 * a + sd], Inflow):
+                    self._inflow_side[tuple(idx)] = 2 * a + sd
+        self._any_inflow = bool(np.any(self._inflow_side >= 0))
+        self._any_open = bool(not np.all(self._closed[:dim]))
+        # per side: how deep the liquid has entered since the last row (the first row lies
+        # h/4 inside the side, as add_block's first particles)
+        self._inflow_travel = np.full(6, 0.75 * h)
+        self.particles_emitted = 0        # particles the inflow sides added, in total
+        self.particles_drained = 0        # particles that left through open sides, in total
+        self._keep = np.empty(0, dtype=np.bool_)
         self._count = np.zeros(cs, dtype=np.int64)
         self._sub = np.zeros(cs, dtype=np.int64)
         self._add = np.zeros(cs, dtype=np.int64)
@@ -982,6 +1152,19 @@ class LiquidFluid:
         margin = 1e-3 * h
         self._lo = lo + margin
         self._hi = hi - margin
+        # the domain: particles beyond an open side are drained; advection clamps only at closed
+        # sides (an open side lets them two cells past it)
+        self._box_lo = lo.copy()
+        self._box_hi = hi.copy()
+        self._box_lo[dim:] = -np.inf
+        self._box_hi[dim:] = np.inf
+        self._adv_lo = self._lo.copy()
+        self._adv_hi = self._hi.copy()
+        for a in range(dim):
+            if not self._closed[a, 0]:
+                self._adv_lo[a] = lo[a] - 2 * h
+            if not self._closed[a, 1]:
+                self._adv_hi[a] = hi[a] + 2 * h
         self.time = 0.0
         self.step_index = 0
         self.last_pressure_iterations = 0
@@ -1108,7 +1291,7 @@ class LiquidFluid:
     def _update_solids(self, t, check_domain=False):
         """Obstacles stage: open fractions, solid velocities and closed (body) faces from the
         obstacles at time t (`obstacles.CutCells`, the cut cells GridFluid uses; nothing
-        allocated); the domain sides are closed slip walls; cells whose centre lies inside a
+        allocated); walls and inflows close their domain side; cells whose centre lies inside a
         solid."""
         dim = self.dim
         obst = self._all_obstacles()
@@ -1134,14 +1317,14 @@ class LiquidFluid:
             self._cell_solid[...] = False
         if dim == 2:
             self._frac[2][...] = 0.0
-        for a in range(dim):   # closed slip walls on every side
-            idx = [slice(None)] * 3
-            idx[a] = 0
-            self._frac[a][tuple(idx)] = 0.0
-            self._solid[a][tuple(idx)] = 0.0
-            idx[a] = -1
-            self._frac[a][tuple(idx)] = 0.0
-            self._solid[a][tuple(idx)] = 0.0
+        for a in range(dim):   # walls and inflows close their side (at the inflow's velocity)
+            for sd in range(2):
+                if not self._closed[a, sd]:
+                    continue
+                idx = [slice(None)] * 3
+                idx[a] = 0 if sd == 0 else -1
+                self._frac[a][tuple(idx)] = 0.0
+                self._solid[a][tuple(idx)] = self._side_normal[a, sd]
 
     def _viscous_nodes(self, obst, faces, t):
         """Every face node's nearest obstacle (computed by the obstacles stage, ``nodes=True``):
@@ -1191,7 +1374,7 @@ class LiquidFluid:
                 continue
             o.query_into(near[:m], t, dist[:m], nrm[:m], vs[:m])
             push_out_of_solids(self.x, self.v, dist[:m], nrm[:m], vs[:m], idx[:m], d, clearance)
-        _clamp_rows(self.x, self._lo, self._hi)
+        _clamp_rows(self.x, self._adv_lo, self._adv_hi)
 
     # ------------------------------------------------------------------------ stepping
     def step(self, dt):
@@ -1213,7 +1396,8 @@ class LiquidFluid:
         if m == 1:
             for a in range(self.dim):
                 np.copyto(self.vel_old[a], self.vel[a])
-        add_gravity_and_walls(self.vel, self.liquid, self.gravity, dt, self.dim)
+        add_gravity_and_walls(self.vel, self.liquid, self.gravity, dt, self.dim, self._closed,
+                              self._side_normal)
         surface = build_face_weights(self.liquid, self.phi, self._frac, self._cell_solid,
                                      self.dim, self._weights)
         self._pressure.set_operator(self.liquid, self._cell_solid, self._weights, h, self.dim,
@@ -1258,9 +1442,15 @@ class LiquidFluid:
         extrapolate(self.vel, self._valid, self._valid2, self.dim, self.extrapolation_layers)
         grid_to_particles(self.x, self.v, self.c, self.vel, self.vel_old, self.origin, h,
                           self.dim, m, self.flip_ratio)
-        advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._lo, self._hi)
+        advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._adv_lo,
+                         self._adv_hi)
         if correct:
-            advect_particles(self.x, self._disp, self.origin, h, self.dim, 1.0, self._lo, self._hi)
+            advect_particles(self.x, self._disp, self.origin, h, self.dim, 1.0, self._adv_lo,
+                             self._adv_hi)
+        if self._any_open:
+            self._drain()
+        if self._any_inflow:
+            self._emit(dt)
         self._push_particles_out(self.time + dt)
         if self.reseed:
             self._reseed()
@@ -1274,6 +1464,93 @@ class LiquidFluid:
         self.time += dt
         self.step_index += 1
 
+    def _parse_sides(self, boundaries):
+        """The six domain sides from ``boundaries`` (`boundaries.parse_boundaries`, GridFluid's
+        description; sides not named are the ``walls`` setting): sets the closed flags, the
+        closed sides' velocities and returns the side objects."""
+        dim = self.dim
+        names = SIDES[:2 * dim]
+        if boundaries is None:
+            boundaries = {}
+        if isinstance(boundaries, dict):
+            merged = {sd: Wall(slip=not self._wall_no_slip[i // 2, i % 2])
+                      for i, sd in enumerate(names)}
+            merged.update(boundaries)
+            boundaries = merged
+        sides = parse_boundaries(boundaries, dim)
+        self._closed = np.ones((3, 2), dtype=np.bool_)
+        self._side_vel = np.zeros((6, 3))
+        self._side_normal = np.zeros((3, 2))
+        for i, b in enumerate(sides[:2 * dim]):
+            a, sd = i // 2, i % 2
+            if isinstance(b, Periodic):
+                raise ValueError(f"boundaries[{names[i]!r}]: LiquidFluid has no periodic sides; "
+                                 f"use Wall, Inflow or Outflow")
+            if isinstance(b, Outflow):
+                self._closed[a, sd] = False
+                continue
+            v = side_velocity(b, dim)
+            if isinstance(b, Wall):
+                if v[a] != 0.0:
+                    raise ValueError(f"boundaries[{names[i]!r}]: a liquid's wall moves only along "
+                                     f"itself; got velocity {b.velocity!r}")
+                self._wall_no_slip[a, sd] = not b.slip
+            else:
+                inward = v[a] if sd == 0 else -v[a]
+                if inward <= 0.0:
+                    raise ValueError(f"boundaries[{names[i]!r}]: an Inflow's velocity must point "
+                                     f"into the domain; got {b.velocity!r}")
+            self._side_vel[i] = v
+            self._side_normal[a, sd] = v[a]
+        return sides
+
+    def _emit(self, dt):
+        """Inflow stage (after advection): each inflow side emits rows of particles on the h/2
+        lattice of `add_block`, a row each time the liquid has entered h/2 deep (the side's
+        inward speed x dt summed in `_inflow_travel`), placed as far in as the row has moved
+        since, at the side's velocity: the particles enter at the lattice's density and the face
+        velocity's rate."""
+        h = self.cell_size
+        rows = []
+        for i in range(2 * self.dim):
+            a, sd = i // 2, i % 2
+            if not isinstance(self.sides[i], Inflow):
+                continue
+            speed = abs(self._side_normal[a, sd])
+            self._inflow_travel[i] += speed * dt
+            while self._inflow_travel[i] >= 0.5 * h:
+                self._inflow_travel[i] -= 0.5 * h
+                d = self._inflow_travel[i]
+                n = inflow_row(a, sd, d, self.origin, h, self.n, self.dim, self._cell_solid,
+                               np.zeros((0, 3)))
+                xn = np.zeros((n, 3))
+                inflow_row(a, sd, d, self.origin, h, self.n, self.dim, self._cell_solid, xn)
+                vn = np.zeros((n, 3))
+                vn[:] = self._side_vel[i]
+                rows.append((xn, vn))
+        if not rows:
+            return
+        xn = np.concatenate([r[0] for r in rows])
+        vn = np.concatenate([r[1] for r in rows])
+        n = xn.shape[0]
+        self.x = np.ascontiguousarray(np.concatenate([self.x, xn]))
+        self.v = np.ascontiguousarray(np.concatenate([self.v, vn]))
+        self.c = np.ascontiguousarray(np.concatenate([self.c, np.zeros((n, 3, 3))]))
+        self.particles_emitted += int(n)
+
+    def _drain(self):
+        """Outflow stage: particles that left the domain through an open side are removed."""
+        keep = self._keep
+        if keep.shape[0] != self.x.shape[0]:
+            keep = self._keep = np.empty(self.x.shape[0], dtype=np.bool_)
+        kept = mark_outside(self.x, self._box_lo, self._box_hi, keep)
+        if kept == self.x.shape[0]:
+            return
+        self.particles_drained += self.x.shape[0] - kept
+        self.x = np.ascontiguousarray(self.x[keep])
+        self.v = np.ascontiguousarray(self.v[keep])
+        self.c = np.ascontiguousarray(self.c[keep])
+
     def _volume_displacement(self):
         """Volume stage (Kugelstadt, Longva, Thuerey and Bender 2019, the position-based density
         projection on the grid): the particle density per cell rho (tent weights, mirrored at
@@ -1284,9 +1561,9 @@ class LiquidFluid:
         s: the particles spread without any change of their velocity. Returns whether d != 0."""
         h = self.cell_size
         particle_density(self.x, self.origin, h, self.dim, self._closed, self.particle_density)
-        worst = density_excess(self.particle_density, self.liquid, self._cell_solid, self._periodic,
-                               self.dim, float(self.particles_per_cell), self.volume_correction,
-                               self._volume_rhs)
+        worst = density_excess(self.particle_density, self.liquid, self._cell_solid, self._frac,
+                               self._closed, self._periodic, self.dim, float(self.particles_per_cell),
+                               self.volume_correction, self._volume_rhs)
         self.last_volume_excess = worst
         if worst <= 0.0:
             return False
