@@ -1886,7 +1886,10 @@ class LiquidFluid:
     def save_state(self):
         st = {"x": self.x.copy(), "v": self.v.copy(), "c": self.c.copy(),
               "time": np.array(self.time), "step_index": np.array(self.step_index),
-              "pressure_phi": self.pressure_phi.copy(), "dt_prev": np.array(self._dt_prev)}
+              "pressure_phi": self.pressure_phi.copy(), "dt_prev": np.array(self._dt_prev),
+              "inflow_travel": self._inflow_travel.copy(),
+              "particle_counters": np.array([self.particles_emitted, self.particles_drained,
+                                             self.particles_seeded, self.particles_removed])}
         return st
 
     def restore_state(self, state):
@@ -1898,6 +1901,11 @@ class LiquidFluid:
         # the pressure the next solve starts from (states saved without it: a cold start)
         self.pressure_phi[...] = state.get("pressure_phi", 0.0)
         self._dt_prev = float(state.get("dt_prev", 0.0))
+        if "inflow_travel" in state:
+            self._inflow_travel[...] = state["inflow_travel"]
+        if "particle_counters" in state:
+            (self.particles_emitted, self.particles_drained, self.particles_seeded,
+             self.particles_removed) = (int(n) for n in state["particle_counters"])
         if self._moving:
             self._update_solids(self.time)
 
