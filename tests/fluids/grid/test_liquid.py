@@ -118,7 +118,7 @@ def _collapse(method):
     while f.time < 10.0 - 1e-9:
         f.advance(0.5)
         rho = np.zeros(f.liquid.shape)
-        particle_density(f.x, f.origin, h, 2, np.ones((3, 2), np.bool_), rho)
+        particle_density(f.x, f.origin, h, 2, np.ones((3, 2), np.bool_), np.zeros(3, np.bool_), rho)
         liq = f.liquid[:, :, 0]
         inner = liq.copy()
         inner[:, 1:] &= liq[:, :-1]

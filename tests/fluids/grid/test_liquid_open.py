@@ -58,8 +58,46 @@ def test_still_water_drains_through_an_outflow_side_and_stays_at_rest_behind_a_w
     assert np.max(np.abs(closed.v)) < 1e-9
 
 
+def test_periodic_layer_carries_a_uniform_stream_exactly():
+    # A layer 0.25 m deep (h = 1/32) streaming at 0.3 m/s through the periodic x sides for 4 s:
+    # the exact solution is the same stream (hydrostatic pressure, flat surface). Measured: the
+    # velocity stays 0.3 m/s to 1e-12 and the vertical one below 2e-10; no particle is lost, the
+    # liquid cells stay the initial 256, every particle stays inside [0, 1).
+    f = LiquidFluid((32, 16), 1 / 32, boundaries={"x-": "periodic", "x+": Periodic()})
+    n0 = f.add_block((0, 0), (1.0, 0.25), velocity=(0.3, 0.0))
+    for _ in range(8):
+        f.advance(0.5)
+        assert f.particle_count == n0 and int(f.liquid.sum()) == 256
+        assert np.max(np.abs(f.v[:, 0] - 0.3)) < 1e-9 and np.max(np.abs(f.v[:, 1])) < 1e-8
+        assert np.all((f.x[:, 0] >= 0.0) & (f.x[:, 0] < 1.0))
+
+
+def test_periodic_layer_with_a_bump_keeps_its_volume():
+    # The same layer at rest with a 0.2 x 0.1 m bump on it sloshes across the periodic sides for
+    # 4 s: the particle count is conserved (nothing drains) and the inner cells' density stays
+    # within 2 % of rho_0 (the volume stage; NGP count per inner cell, measured 0.98-1.01).
+    f = LiquidFluid((32, 16), 1 / 32, boundaries={"x-": "periodic", "x+": "periodic"})
+    n0 = f.add_block((0, 0), (1.0, 0.25))
+    n0 += f.add_block((0.4, 0.25), (0.6, 0.35))
+    crossed = False
+    for _ in range(8):
+        f.advance(0.5)
+        assert f.particle_count == n0
+        cnt = np.zeros((32, 16))
+        idx = np.floor(f.x[:, :2] * 32).astype(int)
+        np.add.at(cnt, (idx[:, 0], idx[:, 1]), 1)
+        liq = cnt > 0
+        inner = liq.copy()
+        inner[:, 1:] &= liq[:, :-1]
+        inner[:, :-1] &= liq[:, 1:]
+        inner &= np.roll(liq, 1, axis=0) & np.roll(liq, -1, axis=0)
+        assert abs(cnt[inner].mean() / 4 - 1) < 0.02, cnt[inner].mean() / 4
+        crossed |= bool(np.any(f.v[f.x[:, 0] < 1 / 32, 0] < 0))
+    assert crossed                      # the slosh reaches the periodic sides
+
+
 @pytest.mark.parametrize("boundaries,word", [
-    ({"x-": Periodic(), "x+": Periodic()}, "periodic"),
+    ({"x-": Periodic()}, "periodic"),
     ({"x-": Inflow(velocity=(-1.0, 0.0))}, "into the domain"),
     ({"x+": Inflow(velocity=(1.0, 0.0))}, "into the domain"),
     ({"y-": Wall(velocity=(0.0, 1.0))}, "moves only along"),
@@ -71,6 +109,13 @@ def test_still_water_drains_through_an_outflow_side_and_stays_at_rest_behind_a_w
 def test_bad_boundaries_name_the_side_and_the_rule(boundaries, word):
     with pytest.raises(ValueError, match=word):
         LiquidFluid((8, 8), 1 / 8, boundaries=boundaries)
+
+
+def test_periodic_axis_needs_an_even_cell_count_and_no_viscosity():
+    with pytest.raises(ValueError, match="even"):
+        LiquidFluid((9, 8), 1 / 8, boundaries={"x-": "periodic", "x+": "periodic"})
+    with pytest.raises(ValueError, match="viscosity"):
+        LiquidFluid((8, 8), 1 / 8, viscosity=0.01, boundaries={"x-": "periodic", "x+": "periodic"})
 
 
 def test_open_channel_resumes_bit_for_bit():

@@ -25,8 +25,10 @@ The liquid is carried by particles; the grid only solves for pressure. One step
    in 4 s; warm-started it stays below 1e-9 m/s), with the
    dynamic bodies' velocities as unknowns of the same solve (Batty et al. 2007): their pressure
    impulses go through `inertia.dynamics.particle_coupling.apply_body_impulses`. Domain sides
-   are walls or inflows (closed faces, which take the solid's or the inflow's normal velocity)
-   or outflows (open: p = 0 in the ghost cell beyond, weight A_f).
+   are walls or inflows (closed faces, which take the solid's or the inflow's normal velocity),
+   outflows (open: p = 0 in the ghost cell beyond, weight A_f) or periodic (the first and last
+   face layer are one face joining the last and the first cell; the transfers, the level set,
+   the particle density and the particle positions wrap around).
 4a. ``volume``    (volume_correction > 0, Kugelstadt, Longva, Thuerey and Bender 2019 on the grid)
    the particles per cell rho from the tent weights at the cell centres (mirrored at walls), s =
    beta (rho / rho_0 - 1) with rho_0 = particles_per_cell, kept where positive and, inside the
@@ -84,8 +86,9 @@ References
 
 Limitations
 -----------
-- Domain sides: slip or no-slip walls, inflow (a whole side at one velocity) and outflow; no
-  periodic sides. Constant density, no surface tension.
+- Domain sides: slip or no-slip walls, inflow (a whole side at one velocity), outflow and
+  periodic (not with viscosity; the velocity extrapolation into the air does not wrap around).
+  Constant density, no surface tension.
 - Volume stage: the density is read with the tent weights, so a cell next to a solid or at the
   free surface reads less than it holds and only gives volume back; bodies do not feel the
   correction (it moves particles only). Reseeding adds a cell of volume per hole it fills (off
@@ -175,11 +178,12 @@ def _tent(x, n_nodes):
 
 
 @njit(cache=True)
-def particles_to_grid(x, v, c, affine, origin, h, dim, vel, wsum):
+def particles_to_grid(x, v, c, affine, origin, h, dim, vel, wsum, per):
     """Scatter particle velocities to the faces of each component a (serial: deterministic).
     x, v (N, 3) (z = 0 in 2-D); c (N, 3, 3) APIC matrices (row a: gradient of component a);
     vel[a], wsum[a] face arrays. Writes vel = sum w (v + C (x_f - x_p)) / sum w (0 where no
-    particle reaches)."""
+    particle reaches). Along a periodic axis (per) node indices wrap and the last face layer is a
+    copy of the first."""
     for a in range(dim):
         vel[a][...] = 0.0
         wsum[a][...] = 0.0
@@ -191,6 +195,10 @@ def particles_to_grid(x, v, c, affine, origin, h, dim, vel, wsum):
         ox = 0.0 if a == 0 else 0.5
         oy = 0.0 if a == 1 else 0.5
         oz = 0.0 if a == 2 else 0.5
+        # periods of the wrapped axes (the face-normal axis has one node more than its period)
+        px = sx - 1 if a == 0 else sx
+        py = sy - 1 if a == 1 else sy
+        pz = sz - 1 if a == 2 else sz
         for p in range(n):
             X = (x[p, 0] - origin[0]) / h - ox
             Y = (x[p, 1] - origin[1]) / h - oy
@@ -201,12 +209,14 @@ def particles_to_grid(x, v, c, affine, origin, h, dim, vel, wsum):
             if dim == 2:
                 for dj in range(2):
                     jj = j0 + dj
-                    if jj < 0 or jj >= sy:
+                    jw = jj % py if per[1] else jj
+                    if jw < 0 or jw >= sy:
                         continue
                     wy = fy if dj else 1.0 - fy
                     for di in range(2):
                         ii = i0 + di
-                        if ii < 0 or ii >= sx:
+                        iw = ii % px if per[0] else ii
+                        if iw < 0 or iw >= sx:
                             continue
                         w = (fx if di else 1.0 - fx) * wy
                         val = v[p, a]
@@ -214,25 +224,28 @@ def particles_to_grid(x, v, c, affine, origin, h, dim, vel, wsum):
                             dxf = (ii + ox) * h + origin[0] - x[p, 0]
                             dyf = (jj + oy) * h + origin[1] - x[p, 1]
                             val += c[p, a, 0] * dxf + c[p, a, 1] * dyf
-                        va[ii, jj, 0] += w * val
-                        wa[ii, jj, 0] += w
+                        va[iw, jw, 0] += w * val
+                        wa[iw, jw, 0] += w
             else:
                 Z = (x[p, 2] - origin[2]) / h - oz
                 k0 = int(math.floor(Z))
                 fz = Z - k0
                 for dk in range(2):
                     kk = k0 + dk
-                    if kk < 0 or kk >= sz:
+                    kw = kk % pz if per[2] else kk
+                    if kw < 0 or kw >= sz:
                         continue
                     wz = fz if dk else 1.0 - fz
                     for dj in range(2):
                         jj = j0 + dj
-                        if jj < 0 or jj >= sy:
+                        jw = jj % py if per[1] else jj
+                        if jw < 0 or jw >= sy:
                             continue
                         wy = (fy if dj else 1.0 - fy) * wz
                         for di in range(2):
                             ii = i0 + di
-                            if ii < 0 or ii >= sx:
+                            iw = ii % px if per[0] else ii
+                            if iw < 0 or iw >= sx:
                                 continue
                             w = (fx if di else 1.0 - fx) * wy
                             val = v[p, a]
@@ -241,18 +254,22 @@ def particles_to_grid(x, v, c, affine, origin, h, dim, vel, wsum):
                                 dyf = (jj + oy) * h + origin[1] - x[p, 1]
                                 dzf = (kk + oz) * h + origin[2] - x[p, 2]
                                 val += c[p, a, 0] * dxf + c[p, a, 1] * dyf + c[p, a, 2] * dzf
-                            va[ii, jj, kk] += w * val
-                            wa[ii, jj, kk] += w
+                            va[iw, jw, kw] += w * val
+                            wa[iw, jw, kw] += w
         for i in range(sx):
             for j in range(sy):
                 for k in range(sz):
                     if wa[i, j, k] > 0.0:
                         va[i, j, k] /= wa[i, j, k]
+        if per[a]:
+            _copy_first_layer(va, a)
+            _copy_first_layer(wa, a)
 
 
 @njit(cache=True)
-def build_surface(x, origin, h, radius, dim, liquid, phi):
-    """Liquid cells (holding a particle) and the particle level set at cell centres (serial)."""
+def build_surface(x, origin, h, radius, dim, liquid, phi, per):
+    """Liquid cells (holding a particle) and the particle level set at cell centres (serial;
+    neighbours wrap along periodic axes per)."""
     nx, ny, nz = phi.shape
     phi[...] = 3.0 * h
     liquid[...] = False
@@ -264,11 +281,20 @@ def build_surface(x, origin, h, radius, dim, liquid, phi):
         cj = min(max(int(math.floor(Y)), 0), ny - 1)
         ck = min(max(int(math.floor(Z)), 0), nz - 1)
         liquid[ci, cj, ck] = True
-        k_lo = max(ck - 1, 0) if dim == 3 else 0
-        k_hi = min(ck + 1, nz - 1) if dim == 3 else 0
-        for i in range(max(ci - 1, 0), min(ci + 1, nx - 1) + 1):
-            for j in range(max(cj - 1, 0), min(cj + 1, ny - 1) + 1):
+        k_lo = ck - 1 if dim == 3 else 0
+        k_hi = ck + 1 if dim == 3 else 0
+        for i in range(ci - 1, ci + 2):
+            iw = i % nx if per[0] else i
+            if iw < 0 or iw >= nx:
+                continue
+            for j in range(cj - 1, cj + 2):
+                jw = j % ny if per[1] else j
+                if jw < 0 or jw >= ny:
+                    continue
                 for k in range(k_lo, k_hi + 1):
+                    kw = k % nz if per[2] else k
+                    if kw < 0 or kw >= nz:
+                        continue
                     dx = (i + 0.5) * h + origin[0] - x[p, 0]
                     dy = (j + 0.5) * h + origin[1] - x[p, 1]
                     d2 = dx * dx + dy * dy
@@ -276,8 +302,8 @@ def build_surface(x, origin, h, radius, dim, liquid, phi):
                         dz = (k + 0.5) * h + origin[2] - x[p, 2]
                         d2 += dz * dz
                     d = math.sqrt(d2) - radius
-                    if d < phi[i, j, k]:
-                        phi[i, j, k] = d
+                    if d < phi[iw, jw, kw]:
+                        phi[iw, jw, kw] = d
     eps = 1e-3 * h
     for i in range(nx):
         for j in range(ny):
@@ -322,8 +348,58 @@ def wet_solid_cells(liquid, phi, cell_solid, frac, dim, h, scratch):
     liquid[...] = scratch
 
 
+@njit(cache=True, inline="always")
+def _wrap_cell(a, i, j, k, n):
+    """Cell (i, j, k) with its index along axis a wrapped into [0, n)."""
+    if a == 0:
+        return i % n, j, k
+    if a == 1:
+        return i, j % n, k
+    return i, j, k % n
+
+
+@njit(cache=True, inline="always")
+def _copy_first_layer(arr, a):
+    """The last layer of face array arr along axis a = its first (the same faces, periodic)."""
+    sx, sy, sz = arr.shape
+    for i in range(sx if a != 0 else 1):
+        for j in range(sy if a != 1 else 1):
+            for k in range(sz if a != 2 else 1):
+                if a == 0:
+                    arr[sx - 1, j, k] = arr[0, j, k]
+                elif a == 1:
+                    arr[i, sy - 1, k] = arr[i, 0, k]
+                else:
+                    arr[i, j, sz - 1] = arr[i, j, 0]
+
+
+@njit(cache=True, inline="always")
+def _pair_weight(liquid, phi, cell_solid, A, i0, j0, k0, i1, j1, k1):
+    """Pressure weight of an open face between cells 0 (low) and 1 (high): A between two liquid
+    cells, A / theta (ghost fluid, theta >= 0.01) between a liquid and an air cell, else 0."""
+    lo = liquid[i0, j0, k0]
+    hi = liquid[i1, j1, k1]
+    if lo and hi:
+        return A
+    if lo and not cell_solid[i1, j1, k1]:
+        return A / max(phi[i0, j0, k0] / (phi[i0, j0, k0] - phi[i1, j1, k1]), 0.01)
+    if hi and not cell_solid[i0, j0, k0]:
+        return A / max(phi[i1, j1, k1] / (phi[i1, j1, k1] - phi[i0, j0, k0]), 0.01)
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def _pair_dp(p, phi, lo, hi, i0, j0, k0, i1, j1, k1):
+    """p_high - p_low across a face, with the ghost-fluid value p = 0 at the surface."""
+    if lo and hi:
+        return p[i1, j1, k1] - p[i0, j0, k0]
+    if lo:
+        return -p[i0, j0, k0] / max(phi[i0, j0, k0] / (phi[i0, j0, k0] - phi[i1, j1, k1]), 0.01)
+    return p[i1, j1, k1] / max(phi[i1, j1, k1] / (phi[i1, j1, k1] - phi[i0, j0, k0]), 0.01)
+
+
 @njit(cache=True)
-def add_gravity_and_walls(vel, liquid, g, dt, dim, closed, side_vel):
+def add_gravity_and_walls(vel, liquid, g, dt, dim, closed, side_vel, per):
     """u += g dt on faces next to a liquid cell; faces on a closed domain side (closed[a, side]:
     a wall or an inflow) get the side's normal velocity side_vel[a, side] (0 on walls); faces on
     an open side count as interior faces of their one cell."""
@@ -341,6 +417,12 @@ def add_gravity_and_walls(vel, liquid, g, dt, dim, closed, side_vel):
                         va[i, j, k] = side_vel[a, side]
                         continue
                     i1, j1, k1 = low_cell(a, i, j, k)
+                    if side >= 0 and per[a]:   # the face joining cell n - 1 and cell 0
+                        lo_i, lo_j, lo_k = _wrap_cell(a, i1, j1, k1, n)
+                        hi_i, hi_j, hi_k = _wrap_cell(a, i, j, k, n)
+                        if liquid[lo_i, lo_j, lo_k] or liquid[hi_i, hi_j, hi_k]:
+                            va[i, j, k] += g[a] * dt
+                        continue
                     wet = False
                     if side != 1 and liquid[i, j, k]:
                         wet = True
@@ -351,7 +433,7 @@ def add_gravity_and_walls(vel, liquid, g, dt, dim, closed, side_vel):
 
 
 @njit(cache=True)
-def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
+def build_face_weights(liquid, phi, frac, cell_solid, dim, weights, per):
     """Pressure weights of the faces (Batty, Bertails and Bridson 2007 with the ghost-fluid free
     surface): A_f between two liquid cells; A_f / theta between a liquid cell and an air cell,
     theta = phi_liquid / (phi_liquid - phi_air) >= 0.01 (Gibou et al. 2002); A_f on an open domain
@@ -374,6 +456,16 @@ def build_face_weights(liquid, phi, frac, cell_solid, dim, weights):
                     if A <= 0.0:
                         continue
                     i0, j0, k0 = low_cell(a, i, j, k)
+                    n = nx if a == 0 else (ny if a == 1 else nz)
+                    c = i if a == 0 else (j if a == 1 else k)
+                    if per[a] and (c == 0 or c == n):
+                        i0, j0, k0 = _wrap_cell(a, i0, j0, k0, n)
+                        ih, jh, kh = _wrap_cell(a, i, j, k, n)
+                        wa[i, j, k] = _pair_weight(liquid, phi, cell_solid, A, i0, j0, k0,
+                                                   ih, jh, kh)
+                        if wa[i, j, k] > 0.0 and not (liquid[i0, j0, k0] and liquid[ih, jh, kh]):
+                            surface = True
+                        continue
                     if i0 < 0 or j0 < 0 or k0 < 0:
                         # an open low side (closed walls have A = 0): p = 0 in the ghost cell
                         if liquid[i, j, k]:
@@ -432,7 +524,7 @@ def liquid_divergence(vel, frac, solid, liquid, h, dim, rhs):
 
 
 @njit(cache=True)
-def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim, valid):
+def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim, valid, per):
     """u -= grad p on faces with a pressure weight (ghost-fluid value across the surface);
     closed faces (open fraction 0: domain walls, solids) take the solid's velocity; open faces
     next to a liquid cell without a weight (beside an empty solid cell) keep their velocity.
@@ -455,6 +547,18 @@ def subtract_pressure_gradient(vel, p, liquid, phi, weights, frac, solid, h, dim
                         ok[i, j, k] = True
                         continue
                     i0, j0, k0 = low_cell(a, i, j, k)
+                    n = nx if a == 0 else (ny if a == 1 else nz)
+                    c = i if a == 0 else (j if a == 1 else k)
+                    if per[a] and (c == 0 or c == n):
+                        i0, j0, k0 = _wrap_cell(a, i0, j0, k0, n)
+                        ih, jh, kh = _wrap_cell(a, i, j, k, n)
+                        lo = liquid[i0, j0, k0]
+                        hi = liquid[ih, jh, kh]
+                        if lo or hi:
+                            ok[i, j, k] = True
+                            if wa[i, j, k] != 0.0:
+                                va[i, j, k] -= _pair_dp(p, phi, lo, hi, i0, j0, k0, ih, jh, kh) * inv_h
+                        continue
                     if i0 < 0 or j0 < 0 or k0 < 0:
                         # an open low side: p = 0 in the ghost cell
                         if liquid[i, j, k]:
@@ -551,32 +655,42 @@ def extrapolate(vel, valid, scratch_valid, dim, layers):
                         va[i, j, k] = 0.0
 
 
+@njit(cache=True, inline="always")
+def _nodes(x, n_nodes, periodic):
+    """The two nodes around index-space coordinate x on an axis of n_nodes nodes, the weight of
+    the second and whether x lies within the outer nodes: clamped (`_tent`), or wrapped on a
+    periodic axis (its period is n_nodes cells for cell-centred samples; for the face-normal
+    component the last face is the first one again, so the caller passes n_nodes - 1)."""
+    if periodic:
+        i = int(math.floor(x))
+        return i % n_nodes, (i + 1) % n_nodes, x - i, 1.0
+    i0, f = _tent(x, n_nodes)
+    return i0, i0 + 1, f, (1.0 if 0.0 <= x <= n_nodes - 1 else 0.0)
+
+
 @njit(cache=True)
-def _interp_face(va, a, X, Y, Z, dim):
+def _interp_face(va, a, X, Y, Z, dim, per):
     """Multilinear interpolation of face component a at index-space point (X, Y, Z) (clamped
-    to the face array: constant beyond the outer nodes), with the weight gradient (per unit
-    index) for APIC: zero along an axis where the point lies beyond the outer nodes, so that an
-    APIC particle there carries the constant it was given (a gradient taken from the inner
-    segment would bias the wall nodes in the next transfer)."""
+    to the face array: constant beyond the outer nodes; wrapped along periodic axes per[axis]),
+    with the weight gradient (per unit index) for APIC: zero along an axis where the point lies
+    beyond the outer nodes, so that an APIC particle there carries the constant it was given (a
+    gradient taken from the inner segment would bias the wall nodes in the next transfer)."""
     sx, sy, sz = va.shape
     x = X - (0.0 if a == 0 else 0.5)
     y = Y - (0.0 if a == 1 else 0.5)
-    i0, fx = _tent(x, sx)
-    j0, fy = _tent(y, sy)
-    inx = 1.0 if 0.0 <= x <= sx - 1 else 0.0
-    iny = 1.0 if 0.0 <= y <= sy - 1 else 0.0
+    i0, i1, fx, inx = _nodes(x, sx - 1 if (a == 0 and per[0]) else sx, per[0])
+    j0, j1, fy, iny = _nodes(y, sy - 1 if (a == 1 and per[1]) else sy, per[1])
     if dim == 2:
         c00 = va[i0, j0, 0]
-        c10 = va[i0 + 1, j0, 0]
-        c01 = va[i0, j0 + 1, 0]
-        c11 = va[i0 + 1, j0 + 1, 0]
+        c10 = va[i1, j0, 0]
+        c01 = va[i0, j1, 0]
+        c11 = va[i1, j1, 0]
         val = (1 - fy) * ((1 - fx) * c00 + fx * c10) + fy * ((1 - fx) * c01 + fx * c11)
         gx = inx * ((1 - fy) * (c10 - c00) + fy * (c11 - c01))
         gy = iny * ((1 - fx) * (c01 - c00) + fx * (c11 - c10))
         return val, gx, gy, 0.0
     z = Z - (0.0 if a == 2 else 0.5)
-    k0, fz = _tent(z, sz)
-    inz = 1.0 if 0.0 <= z <= sz - 1 else 0.0
+    k0, k1, fz, inz = _nodes(z, sz - 1 if (a == 2 and per[2]) else sz, per[2])
     val = 0.0
     gx = 0.0
     gy = 0.0
@@ -584,13 +698,15 @@ def _interp_face(va, a, X, Y, Z, dim):
     for dk in range(2):
         wz = fz if dk else 1.0 - fz
         sgz = 1.0 if dk else -1.0
+        kk = k1 if dk else k0
         for dj in range(2):
             wy = fy if dj else 1.0 - fy
             sgy = 1.0 if dj else -1.0
+            jj = j1 if dj else j0
             for di in range(2):
                 wx = fx if di else 1.0 - fx
                 sgx = 1.0 if di else -1.0
-                cval = va[i0 + di, j0 + dj, k0 + dk]
+                cval = va[i1 if di else i0, jj, kk]
                 val += wx * wy * wz * cval
                 gx += sgx * wy * wz * cval
                 gy += wx * sgy * wz * cval
@@ -599,7 +715,7 @@ def _interp_face(va, a, X, Y, Z, dim):
 
 
 @parallel_kernel
-def grid_to_particles(x, v, c, vel, vel_old, origin, h, dim, method, flip_ratio):
+def grid_to_particles(x, v, c, vel, vel_old, origin, h, dim, method, flip_ratio, per):
     """Gather grid velocities to particles (method 0 APIC, 1 FLIP blend, 2 PIC); for FLIP
     vel_old holds the grid's velocity change of the step."""
     n = x.shape[0]
@@ -609,9 +725,9 @@ def grid_to_particles(x, v, c, vel, vel_old, origin, h, dim, method, flip_ratio)
         Y = (x[p, 1] - origin[1]) * inv_h
         Z = (x[p, 2] - origin[2]) * inv_h if dim == 3 else 0.5
         for a in range(dim):
-            val, gx, gy, gz = _interp_face(vel[a], a, X, Y, Z, dim)
+            val, gx, gy, gz = _interp_face(vel[a], a, X, Y, Z, dim, per)
             if method == 1:
-                delta, _, _, _ = _interp_face(vel_old[a], a, X, Y, Z, dim)
+                delta, _, _, _ = _interp_face(vel_old[a], a, X, Y, Z, dim, per)
                 v[p, a] = (1.0 - flip_ratio) * val + flip_ratio * (v[p, a] + delta)
             else:
                 v[p, a] = val
@@ -622,37 +738,44 @@ def grid_to_particles(x, v, c, vel, vel_old, origin, h, dim, method, flip_ratio)
 
 
 @parallel_kernel
-def advect_particles(x, vel, origin, h, dim, dt, lo, hi):
-    """RK2 (midpoint) particle motion through the grid velocity; clamped into [lo, hi]."""
+def advect_particles(x, vel, origin, h, dim, dt, lo, hi, per, length):
+    """RK2 (midpoint) particle motion through the grid velocity; clamped into [lo, hi], wrapped
+    into [origin, origin + length) along periodic axes (per)."""
     n = x.shape[0]
     inv_h = 1.0 / h
     for p in prange(n):
         X = (x[p, 0] - origin[0]) * inv_h
         Y = (x[p, 1] - origin[1]) * inv_h
         Z = (x[p, 2] - origin[2]) * inv_h if dim == 3 else 0.5
-        vx, _, _, _ = _interp_face(vel[0], 0, X, Y, Z, dim)
-        vy, _, _, _ = _interp_face(vel[1], 1, X, Y, Z, dim)
+        vx, _, _, _ = _interp_face(vel[0], 0, X, Y, Z, dim, per)
+        vy, _, _, _ = _interp_face(vel[1], 1, X, Y, Z, dim, per)
         vz = 0.0
         if dim == 3:
-            vz, _, _, _ = _interp_face(vel[2], 2, X, Y, Z, dim)
+            vz, _, _, _ = _interp_face(vel[2], 2, X, Y, Z, dim, per)
         Xm = X + 0.5 * dt * vx * inv_h
         Ym = Y + 0.5 * dt * vy * inv_h
         Zm = Z + 0.5 * dt * vz * inv_h if dim == 3 else Z
-        vx, _, _, _ = _interp_face(vel[0], 0, Xm, Ym, Zm, dim)
-        vy, _, _, _ = _interp_face(vel[1], 1, Xm, Ym, Zm, dim)
+        vx, _, _, _ = _interp_face(vel[0], 0, Xm, Ym, Zm, dim, per)
+        vy, _, _, _ = _interp_face(vel[1], 1, Xm, Ym, Zm, dim, per)
         if dim == 3:
-            vz, _, _, _ = _interp_face(vel[2], 2, Xm, Ym, Zm, dim)
+            vz, _, _, _ = _interp_face(vel[2], 2, Xm, Ym, Zm, dim, per)
         x[p, 0] = min(max(x[p, 0] + dt * vx, lo[0]), hi[0])
         x[p, 1] = min(max(x[p, 1] + dt * vy, lo[1]), hi[1])
         if dim == 3:
             x[p, 2] = min(max(x[p, 2] + dt * vz, lo[2]), hi[2])
+        for c in range(dim):
+            if per[c]:
+                r = (x[p, c] - origin[c]) % length[c]
+                x[p, c] = origin[c] + (r if r < length[c] else 0.0)
 
 
 # ----------------------------------------------------------------------------- volume
 @njit(cache=True, inline="always")
-def _fold(i, n, lo_closed, hi_closed):
+def _fold(i, n, lo_closed, hi_closed, periodic):
     """Cell index i of an axis with n cells: itself inside, the cell next to a closed side for the
-    ghost cell beyond it (the mirror image), -1 beyond an open side."""
+    ghost cell beyond it (the mirror image), -1 beyond an open side; wrapped on a periodic axis."""
+    if periodic:
+        return i % n
     if i < 0:
         return 0 if lo_closed else -1
     if i >= n:
@@ -661,7 +784,7 @@ def _fold(i, n, lo_closed, hi_closed):
 
 
 @njit(cache=True)
-def particle_density(x, origin, h, dim, closed, density):
+def particle_density(x, origin, h, dim, closed, per, density):
     """Particles per cell measured with the tent weights at the cell centres (serial scatter:
     deterministic): a lattice of spacing h/2 reads 2^dim in every cell. Along an axis with a
     closed side (closed[a, side]) the weight a particle gives the ghost cell beyond it goes to its
@@ -687,17 +810,17 @@ def particle_density(x, origin, h, dim, closed, density):
             k = 0
             wz = 1.0
             if dim == 3:
-                k = _fold(k0 + dk, nz, closed[2, 0], closed[2, 1])
+                k = _fold(k0 + dk, nz, closed[2, 0], closed[2, 1], per[2])
                 wz = fz if dk else 1.0 - fz
             if k < 0:
                 continue
             for dj in range(2):
-                j = _fold(j0 + dj, ny, closed[1, 0], closed[1, 1])
+                j = _fold(j0 + dj, ny, closed[1, 0], closed[1, 1], per[1])
                 if j < 0:
                     continue
                 wy = (fy if dj else 1.0 - fy) * wz
                 for di in range(2):
-                    i = _fold(i0 + di, nx, closed[0, 0], closed[0, 1])
+                    i = _fold(i0 + di, nx, closed[0, 0], closed[0, 1], per[0])
                     if i < 0:
                         continue
                     density[i, j, k] += (fx if di else 1.0 - fx) * wy
@@ -976,9 +1099,10 @@ class LiquidFluid:
     reseed : fill holes inside the liquid and trim over-full cells (default False).
     boundaries : dict side ("x-", ..., "z+") -> `Wall` (may move along itself), `Inflow`
         (velocity into the domain; the side emits particles), `Outflow` (open, p = 0; particles
-        leaving are removed) or their names ("slip", "no-slip", "outflow"), as `GridFluid`'s
-        `boundaries` (`boundaries.parse_boundaries`); sides not named follow ``walls``. No
-        `Periodic`.
+        leaving are removed), `Periodic` (both sides of an axis; an even cell count along it; not
+        with viscosity) or their names ("slip", "no-slip", "outflow", "periodic"), as
+        `GridFluid`'s `boundaries` (`boundaries.parse_boundaries`); sides not named follow
+        ``walls``.
     """
 
     advance_before_rigid = True
@@ -1054,6 +1178,9 @@ class LiquidFluid:
         # domain sides (`boundaries`): closed (wall, inflow) or open (outflow), the velocity each
         # closed side imposes (rows 2 axis + side), the cells along an inflow side
         self.sides = self._parse_sides(boundaries)
+        if self.viscosity > 0.0 and np.any(self._periodic):
+            raise ValueError("viscosity > 0 with periodic boundaries is not supported by "
+                             "LiquidFluid; use walls or outflow sides")
         ghost_value = np.zeros((3, 3, 2))
         ghost_kind = np.zeros((3, 3, 2), dtype=np.int64)
         for c in range(3):
@@ -1096,7 +1223,8 @@ class LiquidFluid:
         if parallel not in (None, True, False):
             raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
         self._pressure = LiquidPressure(cs, method=pressure_solver, tolerance=self.tolerance,
-                                        max_iterations=self.max_iterations, parallel=parallel)
+                                        max_iterations=self.max_iterations, parallel=parallel,
+                                        periodic=self._periodic.copy())
         # particles: x (N, 3) m, v (N, 3) m/s, c (N, 3, 3) 1/s (APIC); z = 0 in 2-D
         self.x = np.zeros((0, 3))
         self.v = np.zeros((0, 3))
@@ -1118,19 +1246,18 @@ class LiquidFluid:
         self._disp = tuple(np.zeros(s) for s in fs)            # displacement -grad q, m
         self._disp_valid = tuple(np.zeros(s, dtype=np.bool_) for s in fs)
         self._zero_faces = tuple(np.zeros(s) for s in fs)
-        self._periodic = np.zeros(3, dtype=np.bool_)
         self._open_cells = np.zeros(cs, dtype=np.bool_)        # cells along an open or inflow side
         self._inflow_side = np.full(cs, -1, dtype=np.int64)    # 2 axis + side of an inflow layer
         for a in range(dim):
             for sd in range(2):
                 idx = [slice(None)] * 3
                 idx[a] = slice(0, 1) if sd == 0 else slice(-1, None)
-                if not self._closed[a, sd] or isinstance(self.sides[2 * a + sd], Inflow):
+                if isinstance(self.sides[2 * a + sd], (Outflow, Inflow)):
                     self._open_cells[tuple(idx)] = True
                 if isinstance(self.sides[2 * a + sd], Inflow):
                     self._inflow_side[tuple(idx)] = 2 * a + sd
         self._any_inflow = bool(np.any(self._inflow_side >= 0))
-        self._any_open = bool(not np.all(self._closed[:dim]))
+        self._any_open = any(isinstance(b, Outflow) for b in self.sides[:2 * dim])
         # per side: how deep the liquid has entered since the last row (the first row lies
         # h/4 inside the side, as add_block's first particles)
         self._inflow_travel = np.full(6, 0.75 * h)
@@ -1160,7 +1287,12 @@ class LiquidFluid:
         self._box_hi[dim:] = np.inf
         self._adv_lo = self._lo.copy()
         self._adv_hi = self._hi.copy()
+        self._length = self.n * h                  # (periodic axes wrap positions into it)
         for a in range(dim):
+            if self._periodic[a]:
+                self._adv_lo[a] = self._box_lo[a] = -np.inf
+                self._adv_hi[a] = self._box_hi[a] = np.inf
+                continue
             if not self._closed[a, 0]:
                 self._adv_lo[a] = lo[a] - 2 * h
             if not self._closed[a, 1]:
@@ -1388,8 +1520,9 @@ class LiquidFluid:
             self._update_solids(self.time + dt)
         m = {"apic": 0, "flip": 1, "pic": 2}[self.method]
         particles_to_grid(self.x, self.v, self.c, m == 0, self.origin, h, self.dim, self.vel,
-                          self._wsum)
-        build_surface(self.x, self.origin, h, self.surface_radius, self.dim, self.liquid, self.phi)
+                          self._wsum, self._periodic)
+        build_surface(self.x, self.origin, h, self.surface_radius, self.dim, self.liquid, self.phi,
+                      self._periodic)
         if self._all_obstacles():
             wet_solid_cells(self.liquid, self.phi, self._cell_solid, self._frac, self.dim, h,
                             self._liquid_scratch)
@@ -1397,9 +1530,9 @@ class LiquidFluid:
             for a in range(self.dim):
                 np.copyto(self.vel_old[a], self.vel[a])
         add_gravity_and_walls(self.vel, self.liquid, self.gravity, dt, self.dim, self._closed,
-                              self._side_normal)
+                              self._side_normal, self._periodic)
         surface = build_face_weights(self.liquid, self.phi, self._frac, self._cell_solid,
-                                     self.dim, self._weights)
+                                     self.dim, self._weights, self._periodic)
         self._pressure.set_operator(self.liquid, self._cell_solid, self._weights, h, self.dim,
                                     surface)
         liquid_divergence(self.vel, self._frac, self._solid, self.liquid, h, self.dim, self._rhs)
@@ -1416,7 +1549,7 @@ class LiquidFluid:
         np.multiply(self.pressure_phi, self.density / dt, out=self.pressure)
         subtract_pressure_gradient(self.vel, self.pressure_phi, self.liquid, self.phi,
                                    self._weights, self._frac, self._solid, h, self.dim,
-                                   self._valid)
+                                   self._valid, self._periodic)
         if self._rigid is not None:
             self._push_bodies(dt)
             if self._any_dynamic:
@@ -1441,12 +1574,12 @@ class LiquidFluid:
                         self.extrapolation_layers)
         extrapolate(self.vel, self._valid, self._valid2, self.dim, self.extrapolation_layers)
         grid_to_particles(self.x, self.v, self.c, self.vel, self.vel_old, self.origin, h,
-                          self.dim, m, self.flip_ratio)
+                          self.dim, m, self.flip_ratio, self._periodic)
         advect_particles(self.x, self.vel, self.origin, h, self.dim, dt, self._adv_lo,
-                         self._adv_hi)
+                         self._adv_hi, self._periodic, self._length)
         if correct:
             advect_particles(self.x, self._disp, self.origin, h, self.dim, 1.0, self._adv_lo,
-                             self._adv_hi)
+                             self._adv_hi, self._periodic, self._length)
         if self._any_open:
             self._drain()
         if self._any_inflow:
@@ -1479,13 +1612,18 @@ class LiquidFluid:
             boundaries = merged
         sides = parse_boundaries(boundaries, dim)
         self._closed = np.ones((3, 2), dtype=np.bool_)
+        self._periodic = np.zeros(3, dtype=np.bool_)
         self._side_vel = np.zeros((6, 3))
         self._side_normal = np.zeros((3, 2))
         for i, b in enumerate(sides[:2 * dim]):
             a, sd = i // 2, i % 2
-            if isinstance(b, Periodic):
-                raise ValueError(f"boundaries[{names[i]!r}]: LiquidFluid has no periodic sides; "
-                                 f"use Wall, Inflow or Outflow")
+            if isinstance(b, Periodic):   # (parse_boundaries checks both sides of the axis)
+                if self.n[a] % 2:
+                    raise ValueError(f"shape[{a}] must be even on a periodic axis (red-black "
+                                     f"smoothing); got {self.n[a]}")
+                self._closed[a, sd] = False
+                self._periodic[a] = True
+                continue
             if isinstance(b, Outflow):
                 self._closed[a, sd] = False
                 continue
@@ -1560,7 +1698,8 @@ class LiquidFluid:
         free surface, closed walls and solids) and move the particles by d = -grad q, so div d =
         s: the particles spread without any change of their velocity. Returns whether d != 0."""
         h = self.cell_size
-        particle_density(self.x, self.origin, h, self.dim, self._closed, self.particle_density)
+        particle_density(self.x, self.origin, h, self.dim, self._closed, self._periodic,
+                         self.particle_density)
         worst = density_excess(self.particle_density, self.liquid, self._cell_solid, self._frac,
                                self._closed, self._periodic, self.dim, float(self.particles_per_cell),
                                self.volume_correction, self._volume_rhs)
@@ -1572,7 +1711,7 @@ class LiquidFluid:
             self._disp[a][...] = 0.0
         subtract_pressure_gradient(self._disp, self._volume_phi, self.liquid, self.phi,
                                    self._weights, self._frac, self._zero_faces, h, self.dim,
-                                   self._disp_valid)
+                                   self._disp_valid, self._periodic)
         extrapolate(self._disp, self._disp_valid, self._valid2, self.dim,
                     self.extrapolation_layers)
         return True
@@ -1585,7 +1724,8 @@ class LiquidFluid:
         index order). Serial kernels: deterministic. Allocates only when it adds or removes."""
         h = self.cell_size
         count_particles(self.x, self.origin, h, self.dim, self._count, self._sub)
-        particle_density(self.x, self.origin, h, self.dim, self._closed, self.particle_density)
+        particle_density(self.x, self.origin, h, self.dim, self._closed, self._periodic,
+                         self.particle_density)
         ppc = self.particles_per_cell
         n_add, n_remove = reseed_plan(self._count, self._sub, self.particle_density,
                                       self._cell_solid, self.dim, ppc, self._periodic,
@@ -1606,7 +1746,7 @@ class LiquidFluid:
             cn = np.zeros((n_add, 3, 3))
             m = 0 if self.method == "apic" else 2    # (FLIP: new particles take the grid's velocity)
             grid_to_particles(xn, vn, cn, self.vel, self.vel_old, self.origin, h, self.dim, m,
-                              self.flip_ratio)
+                              self.flip_ratio, self._periodic)
             self.x = np.ascontiguousarray(np.concatenate([self.x, xn]))
             self.v = np.ascontiguousarray(np.concatenate([self.v, vn]))
             self.c = np.ascontiguousarray(np.concatenate([self.c, cn]))
@@ -1848,7 +1988,7 @@ class LiquidFluid:
     def level_set(self):
         """(nx, ny[, nz]) particle level set at cell centres, m (negative inside the liquid)."""
         build_surface(self.x, self.origin, self.cell_size, self.surface_radius, self.dim,
-                      self.liquid, self.phi)
+                      self.liquid, self.phi, self._periodic)
         return self.phi[:, :, 0].copy() if self.dim == 2 else self.phi.copy()
 
     def surface_mesh(self):

@@ -84,9 +84,10 @@ def coarse_cell_types(fine, cx, cy, cz, coarse):
 
 
 @njit(cache=True)
-def restrict_to_liquid(ax, ay, az, diag, types):
+def restrict_to_liquid(ax, ay, az, diag, types, per):
     """Given face coefficients and diag = their sum per cell: keep the diagonal of liquid cells,
-    zero it elsewhere, and zero every coupling that does not join two liquid cells."""
+    zero it elsewhere, and zero every coupling that does not join two liquid cells (along a
+    periodic axis the first and last face join the last and the first cell)."""
     nx, ny, nz = types.shape
     for i in range(nx):
         for j in range(ny):
@@ -96,17 +97,26 @@ def restrict_to_liquid(ax, ay, az, diag, types):
     for i in range(nx + 1):
         for j in range(ny):
             for k in range(nz):
-                if not (0 < i < nx and types[i - 1, j, k] == LIQUID and types[i, j, k] == LIQUID):
+                if per[0] and (i == 0 or i == nx):
+                    if not (types[nx - 1, j, k] == LIQUID and types[0, j, k] == LIQUID):
+                        ax[i, j, k] = 0.0
+                elif not (0 < i < nx and types[i - 1, j, k] == LIQUID and types[i, j, k] == LIQUID):
                     ax[i, j, k] = 0.0
     for i in range(nx):
         for j in range(ny + 1):
             for k in range(nz):
-                if not (0 < j < ny and types[i, j - 1, k] == LIQUID and types[i, j, k] == LIQUID):
+                if per[1] and (j == 0 or j == ny):
+                    if not (types[i, ny - 1, k] == LIQUID and types[i, 0, k] == LIQUID):
+                        ay[i, j, k] = 0.0
+                elif not (0 < j < ny and types[i, j - 1, k] == LIQUID and types[i, j, k] == LIQUID):
                     ay[i, j, k] = 0.0
     for i in range(nx):
         for j in range(ny):
             for k in range(nz + 1):
-                if not (0 < k < nz and types[i, j, k - 1] == LIQUID and types[i, j, k] == LIQUID):
+                if per[2] and (k == 0 or k == nz):
+                    if not (types[i, j, nz - 1] == LIQUID and types[i, j, 0] == LIQUID):
+                        az[i, j, k] = 0.0
+                elif not (0 < k < nz and types[i, j, k - 1] == LIQUID and types[i, j, k] == LIQUID):
                     az[i, j, k] = 0.0
 
 
@@ -248,13 +258,14 @@ class LiquidPressure:
     residual; max_iterations; parallel : parallel kernels on large levels (None: by size)."""
 
     def __init__(self, shape, *, method="mgpcg", tolerance=1e-8, max_iterations=2000,
-                 parallel=None):
+                 parallel=None, periodic=None):
         if method not in METHODS:
             raise ValueError(f"pressure_solver must be one of {METHODS}; got {method!r}")
         self.method = method
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
-        self.mg = P.PoissonSolver(shape, (False, False, False),
+        self.periodic = np.zeros(3, np.bool_) if periodic is None else np.asarray(periodic, np.bool_)
+        self.mg = P.PoissonSolver(shape, tuple(bool(v) for v in self.periodic),
                                   method="mgpcg" if method == "mgpcg" else "cg",
                                   tolerance=tolerance, parallel=parallel)
         self.types = [np.zeros(lv.diag.shape, np.int8) for lv in self.mg.levels]
@@ -276,7 +287,7 @@ class LiquidPressure:
             cx, cy, cz = mg.coarsen_axes[lvl - 1]
             coarse_cell_types(self.types[lvl - 1], cx, cy, cz, self.types[lvl])
         for lv, t in zip(mg.levels, self.types):
-            restrict_to_liquid(lv.ax, lv.ay, lv.az, lv.diag, t)
+            restrict_to_liquid(lv.ax, lv.ay, lv.az, lv.diag, t, self.periodic)
         np.greater(mg.levels[0].diag, 0.0, out=mg.active)
         mg.active_count = int(np.count_nonzero(mg.active))
         mg.singular = not surface
