@@ -1717,11 +1717,11 @@ class LiquidFluid:
         return True
 
     def _reseed(self):
-        """Reseeding: a hole inside the liquid (a cell holding fewer than half its particles, its
-        neighbours at least that) gets one particle at the centre of each empty h/2 sub-cell until
-        it holds particles_per_cell, with the grid's velocity (APIC: and its gradient); a cell
-        holding more than twice particles_per_cell loses its particles beyond that (the last in
-        index order). Serial kernels: deterministic. Allocates only when it adds or removes."""
+        """Reseeding (`reseed_plan`): a hole inside the liquid (an empty cell reading under half
+        the rest density, its neighbours 3/4 of it or more) gets one particle at the centre of
+        each h/2 sub-cell, with the grid's velocity (APIC: and its gradient); a cell holding more
+        than OVERFULL x particles_per_cell loses its particles beyond that (the last in index
+        order). Serial kernels: deterministic. Allocates only when it adds or removes."""
         h = self.cell_size
         count_particles(self.x, self.origin, h, self.dim, self._count, self._sub)
         particle_density(self.x, self.origin, h, self.dim, self._closed, self._periodic,
