@@ -1,13 +1,12 @@
 """Open liquids (inertia.fluids.grid.liquid with ``boundaries=``): inflow sides emitting particles
-at the face flux, outflow sides draining them, the particle balance, and bad boundary specs."""
+at the face flux, outflow sides draining them, the particle balance, periodic layers, resume, and
+bad boundary specs."""
 
 import numpy as np
 import pytest
 
 from inertia.fluids.grid import Inflow, Outflow, Periodic, Wall
 from inertia.fluids.grid.liquid import LiquidFluid
-
-G = 9.81
 
 
 def test_inflow_emits_the_face_flux_and_outflow_drains_it():
