@@ -141,6 +141,9 @@ METHODS = ("apic", "flip", "pic")
 WALLS = ("slip", "no-slip")
 SIDES = ("x-", "x+", "y-", "y+", "z-", "z+")
 OVERFULL = 3    # reseeding removes the particles of a cell beyond OVERFULL x particles_per_cell
+# relative residual of the volume stage's solve: a position correction of a few percent of a cell
+# per step needs no more (the pressure solve keeps ``tolerance``)
+VOLUME_TOLERANCE = 1e-3
 
 
 def parse_walls(walls, dim):
@@ -1695,8 +1698,9 @@ class LiquidFluid:
         walls) against the lattice's rest value rho_0 = particles_per_cell. With s = beta
         max(rho / rho_0 - 1, 0) the relative volume each over-full cell gives back (beta =
         ``volume_correction``), solve -Lap q = s with the step's pressure operator (p = 0 at the
-        free surface, closed walls and solids) and move the particles by d = -grad q, so div d =
-        s: the particles spread without any change of their velocity. Returns whether d != 0."""
+        free surface, closed walls and solids) to VOLUME_TOLERANCE and move the particles by d =
+        -grad q, so div d = s: the particles spread without any change of their velocity.
+        Returns whether d != 0."""
         h = self.cell_size
         particle_density(self.x, self.origin, h, self.dim, self._closed, self._periodic,
                          self.particle_density)
@@ -1706,7 +1710,7 @@ class LiquidFluid:
         self.last_volume_excess = worst
         if worst <= 0.0:
             return False
-        self._pressure.solve(self._volume_rhs, self._volume_phi, None)
+        self._pressure.solve(self._volume_rhs, self._volume_phi, None, False, VOLUME_TOLERANCE)
         for a in range(self.dim):
             self._disp[a][...] = 0.0
         subtract_pressure_gradient(self._disp, self._volume_phi, self.liquid, self.phi,

@@ -331,10 +331,12 @@ class LiquidPressure:
             jacobi_precondition(r, self.mg.levels[0].diag, z)
         self.mg._remove_mean(z)
 
-    def solve(self, b, phi, coupling=None, warm=False):
+    def solve(self, b, phi, coupling=None, warm=False, tolerance=None):
         """Solve (L [+ body term]) phi = b (b: zero outside the liquid; modified when the system is
         singular) from phi = 0, or with ``warm=True`` from the phi passed in (masked to the liquid
-        cells). Returns (iterations, relative residual ||b - L phi|| / ||b||)."""
+        cells), to the relative residual `tolerance` (default: the solver's). Returns (iterations,
+        relative residual ||b - L phi|| / ||b||)."""
+        tolerance = self.tolerance if tolerance is None else tolerance
         mg = self.mg
         dot = mg._dot
         mg._remove_mean(b)
@@ -350,7 +352,7 @@ class LiquidPressure:
             self.last_iterations, self.last_residual = 0, 0.0
             return 0, 0.0
         rf, zf, pf, qf, phif = (a.reshape(-1) for a in (r, z, p, q, phi))
-        tol = self.tolerance * bnorm
+        tol = tolerance * bnorm
         if warm:
             # r = b - A phi0: the solve only works on what changed since phi0
             self._apply(phi, q, coupling)
@@ -381,7 +383,7 @@ class LiquidPressure:
         if rnorm > tol:
             warnings.warn(f"liquid pressure solve ({self.method}) did not converge: relative "
                           f"residual {rnorm / bnorm:.3e} after {it} iterations (tolerance "
-                          f"{self.tolerance:.1e}); raise max_iterations", RuntimeWarning,
+                          f"{tolerance:.1e}); raise max_iterations", RuntimeWarning,
                           stacklevel=3)
         return it, rnorm / bnorm
 
