@@ -26,7 +26,11 @@ from math import erfc
 import numpy as np
 import pytest
 
+from inertia.colliders import Box, Sphere
 from inertia.fluids.grid import GridFluid, Inflow, Outflow, Wall
+
+
+BALL = Sphere(center=(0.5, 0.5), radius=0.2)
 
 
 def diffuse_blob(dim, n, dt, steps, kappa=0.01, s0=0.04):
@@ -92,10 +96,44 @@ def test_hot_wall_conducts_heat_as_the_error_function():
     assert err64 / err128 > 3.5                            # second order (dt ~ h^2)
 
 
+def hot_slab(n, dt, steps, offset, kappa=1e-3):
+    """A slab obstacle held at 1 fills x < xs, its surface xs = 0.125 m + offset h between two cell
+    centres; fluid at 0, at rest."""
+    h = 1.0 / n
+    xs = 0.125 + offset * h
+    slab = Box(center=(xs - 0.5, 0.5), half_extents=(0.5, 1.0))
+    f = GridFluid((n, 8), h, scalars=("temperature",), diffusivity={"temperature": kappa},
+                  boundaries={"y-": "slip", "y+": "slip"}, obstacles=[slab], obstacle_temperature=1.0)
+    for _ in range(steps):
+        f.step(dt)
+    t = dt * steps
+    x = (np.arange(n) + 0.5) * h
+    fluid = x > xs
+    exact = np.array([erfc((xi - xs) / (2 * np.sqrt(kappa * t))) for xi in x[fluid]])
+    temp = f.scalar("temperature")
+    return f, np.abs(temp[fluid] - exact[:, None]).max(), temp[~fluid]
+
+
+@pytest.mark.parametrize("offset", [0.1, 0.3, 0.8])
+def test_hot_obstacle_conducts_from_its_own_surface(offset):
+    # the erfc solution measured from the obstacle's surface, wherever it cuts the cell: the
+    # ghost-fluid Dirichlet condition places it between the nodes (a staircase at the solid
+    # cell centre would shift the profile by up to h / 2: about 0.04 at n = 64 from the surface
+    # slope 1 / sqrt(pi kappa t) = 5.6 / m)
+    f, err, solid = hot_slab(64, 0.2, 50, offset)
+    assert err < 5e-3                                # measured 3.3e-3 .. 3.5e-3
+    assert np.all(solid == 1.0)                      # the obstacle's cells keep its temperature
+    assert np.all(f.u == 0.0)
+
+
+def test_hot_obstacle_conduction_is_second_order():
+    _, err64, _ = hot_slab(64, 0.2, 50, 0.3)
+    _, err128, _ = hot_slab(128, 0.05, 200, 0.3)
+    assert err64 / err128 > 3.5                      # 3.3e-3 -> 8.2e-4
+
+
 def test_insulating_walls_and_obstacles_conserve_the_scalar():
-    from inertia.colliders import Sphere
-    f = GridFluid((24, 24), 1 / 24, scalars=("dye",), diffusivity={"dye": 0.05},
-                  obstacles=[Sphere(center=(0.5, 0.5), radius=0.2)])
+    f = GridFluid((24, 24), 1 / 24, scalars=("dye",), diffusivity={"dye": 0.05}, obstacles=[BALL])
     dye = f.scalar("dye")
     x = f.grid.cell_positions()
     dye[...] = np.where((x[:, 0] < 0.25) & (x[:, 1] < 0.25), 1.0, 0.0).reshape(dye.shape)
@@ -144,6 +182,11 @@ def test_diffusion_off_costs_no_arrays_and_leaves_scalars_alone():
     ({"boundaries": {"x-": Wall(temperature="hot")}}, r"boundaries\['x-'\].temperature"),
     ({"boundaries": {"x-": Wall(temperature=np.inf)}}, r"boundaries\['x-'\].temperature"),
     ({"boundaries": {"x-": Wall(scalars={"dye": 1.0})}}, r"boundaries\['x-'\].scalars has an unknown scalar 'dye'"),
+    ({"obstacles": [BALL], "obstacle_temperature": 1.0}, r"obstacle_temperature needs the temperature to diffuse"),
+    ({"obstacles": [BALL], "obstacle_temperature": [1.0, 2.0], "diffusivity": {"temperature": 1e-3}},
+     r"obstacle_temperature must be None, one number, or 1 entries"),
+    ({"obstacles": [BALL], "obstacle_temperature": [True], "diffusivity": {"temperature": 1e-3}},
+     r"obstacle_temperature\[0\] must be a finite number or None"),
 ])
 def test_bad_diffusion_input_names_the_argument(kwargs, word):
     with pytest.raises(ValueError, match=word):

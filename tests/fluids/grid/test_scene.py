@@ -57,6 +57,11 @@ def test_diffusion_pressure_sides_and_inflow_profiles_reach_the_fluid():
                               "x+": {"type": "outflow"}}}, name="duct")
     y = (np.arange(8) + 0.5) / 8
     np.testing.assert_allclose(g.u[0], 6 * y * (1 - y))
+    ball = ia.colliders.Sphere(center=(0.5, 0.5), radius=0.2)
+    h = build({"shape": [16, 16], "cell_size": 1 / 16, "obstacles": ["ball"], "obstacle_temperature": [2.0],
+               "diffusivity": {"temperature": 1e-2}}, colliders={"ball": ball}, name="stove")
+    h.step(0.1)
+    assert h.scalar("temperature")[8, 8] == 2.0 and h.scalar("temperature")[8, 3] > 0.0
 
 
 @pytest.mark.parametrize("patch,key", [
@@ -68,11 +73,13 @@ def test_diffusion_pressure_sides_and_inflow_profiles_reach_the_fluid():
     ({"boundaries": {"x-": {"type": "inflow", "velocity": [1.0, 0.0]}}}, "fluids.plume.boundaries"),   # no outlet
     ({"diffusivity": {"smoke": 1.0}}, "fluids.plume.diffusivity"),
     ({"fluid_density": 0.0}, "fluids.plume.fluid_density"),
+    ({"obstacle_temperature": "hot"}, "fluids.plume.obstacle_temperature"),
+    ({"obstacle_temperature": 1.0, "obstacles": ["ball"]}, "fluids.plume.obstacle_temperature"),   # no diffusivity
 ])
 def test_bad_diffusion_and_boundary_keys_name_the_key(patch, key):
     table = dict(SMOKE, obstacles=[], boundaries={}) | patch
     with pytest.raises(ValueError) as e:
-        build(table, name="plume")
+        build(table, colliders={"ball": ia.colliders.Sphere(center=(0.5, 0.9), radius=0.15)}, name="plume")
     assert str(e.value).startswith(key), str(e.value)
 
 

@@ -901,6 +901,33 @@ def cell_node_kinds(solid, solid_kind, fluid_kind, kind):
         kf[m] = solid_kind if sf[m] else fluid_kind
 
 
+@njit(cache=True)
+def held_cell_kinds(solid, best, near, held, free, insulated, fixed, kind, sdf, wall):
+    """Node kinds of a scalar held on some obstacles (held[o]: its value, NaN: insulating): a
+    solid cell whose nearest obstacle holds a value is `fixed` with wall = that value, other
+    solid cells `insulated`, fluid cells `free` (wall = the value of their nearest obstacle, the
+    surface value the ghost-fluid interpolation reads); sdf = the nearest obstacle's signed
+    distance at the cell centre (flat arrays)."""
+    for m in range(solid.shape[0]):
+        v = held[near[m]]
+        sdf[m] = best[m]
+        wall[m] = v if v == v else 0.0
+        if not solid[m]:
+            kind[m] = free
+        elif v == v:
+            kind[m] = fixed
+        else:
+            kind[m] = insulated
+
+
+@njit(cache=True)
+def copy_where_kind(kind, k, src, dst):
+    """dst[m] = src[m] where kind[m] == k (flat arrays)."""
+    for m in range(kind.shape[0]):
+        if kind[m] == k:
+            dst[m] = src[m]
+
+
 @njit(cache=True, inline="always")
 def _side_face(axis, side, a, b, nface):
     """(face index, adjacent cell index) of entry (a, b) of a side's face layer: faces are

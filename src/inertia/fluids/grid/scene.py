@@ -106,6 +106,9 @@ class GridFluidTable(_Strict):
     dissipation: dict[str, float] = Field(default_factory=dict)
     diffusivity: dict[str, float] = Field(default_factory=dict, description="scalar name -> diffusivity, m^2/s")
     fluid_density: float = Field(1.2, gt=0, description="smoke: rho, kg/m^3 (pressure sides and body forces)")
+    obstacle_temperature: float | list[float | None] | None = Field(
+        None, description="smoke: obstacles held at a temperature (one for all, or one per obstacle, null = "
+                          "insulating); needs diffusivity.temperature")
     body_acceleration: list[float] | None = None
     cfl: float = Field(1.0, gt=0, le=5)
     sources: list[SourceTable] = Field(default_factory=list)
@@ -217,7 +220,8 @@ def build(table, world=None, colliders=None, name="fluid"):
                           buoyancy=tuple(t.buoyancy), body_acceleration=t.body_acceleration,
                           dissipation=t.dissipation, vorticity_confinement=t.vorticity_confinement,
                           cfl=t.cfl, obstacles=obstacles, obstacle_slip=slip,
-                          diffusivity=t.diffusivity, fluid_density=t.fluid_density)
+                          diffusivity=t.diffusivity, fluid_density=t.fluid_density,
+                          obstacle_temperature=t.obstacle_temperature)
         for i, s in enumerate(t.sources):
             try:
                 fluid.add_source(s.lower, s.upper, density_rate=s.density_rate,

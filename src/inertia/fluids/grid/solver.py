@@ -189,6 +189,12 @@ class GridFluid:
         Guidance: heat in air 2e-5, in water 1.4e-7, dye in water 1e-9 m^2/s; visual diffusion of
         smoke 1e-4..1e-2 at grid scales of 1/64..1/256 m (the numerical diffusion of the
         advection, about 0.01..0.04 h |u| for semi-Lagrangian, adds to it).
+    obstacle_temperature : None (default: obstacles insulate), one temperature for every obstacle,
+        or one entry per obstacle (a number or None). A held obstacle conducts heat into the
+        fluid: its surface is a Dirichlet boundary of the temperature's diffusion at the cut
+        position between a fluid cell centre and a solid one (ghost fluid, as the no-slip
+        viscosity), and its cells keep the value (advection reads it there). Needs
+        ``diffusivity["temperature"] > 0``.
     """
 
     def __init__(self, shape, cell_size, *, origin=None, boundaries=None, viscosity=0.0,
@@ -196,7 +202,7 @@ class GridFluid:
                  max_iterations=None, scalars=("density", "temperature"), ambient_temperature=0.0,
                  buoyancy=(0.0, 0.0), up=None, body_acceleration=None, dissipation=None,
                  vorticity_confinement=0.0, cfl=1.0, max_dt=np.inf, obstacles=(), obstacle_slip=False,
-                 parallel=None, fluid_density=1.2, diffusivity=None):
+                 parallel=None, fluid_density=1.2, diffusivity=None, obstacle_temperature=None):
         self.grid = g = MACGrid(shape, cell_size, origin)
         if parallel not in (None, True, False):
             raise ValueError(f"parallel must be None (auto), True or False; got {parallel!r}")
@@ -362,6 +368,7 @@ class GridFluid:
                                  f"(signed_distance, velocity); got {o!r}")
         self._moving = any(getattr(o, "motion", None) is not None for o in self.obstacles)
         self._slip = V.slip_flags(obstacle_slip, len(self.obstacles), "obstacle_slip")
+        self._held = self._held_temperatures(obstacle_temperature)   # (n_obstacles,) or None
         self._rigid_slip = False
         self._cells = None            # the obstacles stage's work arrays (`CutCells`, on first need)
         self._cell_solid = np.zeros((nx, ny, nz), dtype=np.bool_)
@@ -487,6 +494,37 @@ class GridFluid:
             return self.ambient_temperature if b.temperature is None else float(b.temperature)
         return 0.0
 
+    def _held_temperatures(self, obstacle_temperature):
+        """Per-obstacle temperature (NaN: insulating) from `obstacle_temperature`, or None when
+        no obstacle holds one; allocates the temperature's own node kinds, distances and values."""
+        if obstacle_temperature is None:
+            return None
+        n = len(self.obstacles)
+        key = "obstacle_temperature"
+        items = [obstacle_temperature] * n if not isinstance(obstacle_temperature, (list, tuple)) \
+            else list(obstacle_temperature)
+        if len(items) != n:
+            raise ValueError(f"{key} must be None, one number, or {n} entries (one per obstacle, a number or "
+                             f"None); got {obstacle_temperature!r}")
+        held = np.full(n, np.nan)
+        for i, x in enumerate(items):
+            if x is None:
+                continue
+            if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, np.integer, np.floating)) \
+                    or not np.isfinite(x):
+                raise ValueError(f"{key}[{i}] must be a finite number or None; got {x!r}")
+            held[i] = float(x)
+        if not np.any(np.isfinite(held)):
+            return None
+        if "temperature" not in self.diffusivity:
+            raise ValueError(f"{key} needs the temperature to diffuse: give diffusivity={{'temperature': "
+                             f"kappa}} (m^2/s, > 0) and a 'temperature' scalar")
+        shape = tuple(int(x) for x in self.grid.n)
+        self._tkind = np.zeros(shape, dtype=np.int8)
+        self._tsdf = np.zeros(shape)
+        self._twall = np.zeros(shape)
+        return held
+
     def _obstacles_changed(self):
         """After the obstacle list changed (constructor, `bind_rigid`): the body of every obstacle
         (-1: a collider), the slip flags, the viscous-torque reference points, the work arrays."""
@@ -513,7 +551,7 @@ class GridFluid:
             visc = self.viscosity > 0.0
             cc = self._cells
             cc.update(obstacles, self._obstacle_body, t, self._frac, self._solid, self._cell_solid,
-                      nodes=visc)
+                      nodes=visc, cells=self._held is not None)
             if check_domain and np.all(cc.vertex_sdf < 0):
                 raise ValueError("obstacles cover the whole domain")
             if check_domain:
@@ -540,6 +578,14 @@ class GridFluid:
             self._solid[axis][tuple(idx)] = value
         if self._diffusing:   # cells inside obstacles insulate (zero flux)
             K.cell_node_kinds(self._cell_solid, V.AIR, V.FREE, self._skind)
+        if self._held is not None:   # the temperature: held obstacles are Dirichlet (ghost fluid)
+            if obstacles:
+                held = self._held_all()
+                K.held_cell_kinds(self._cell_solid.reshape(-1), self._cells.cell_best, self._cells.cell_near, held,
+                                  V.FREE, V.AIR, V.NO_SLIP, self._tkind.reshape(-1), self._tsdf.reshape(-1),
+                                  self._twall.reshape(-1))
+            else:
+                self._tkind[...] = V.FREE
         self.pressure.set_coefficients(*self._frac, g.cell_size, dim,
                                        [(axis, sd) for axis, sd, _ in self._pressure_sides])
         self._closed = [self._closed_buf[a][:_closed_faces(self._frac[a].reshape(-1), self._closed_buf[a])]
@@ -771,6 +817,15 @@ class GridFluid:
                 _add_at(self._vel[a].reshape(-1), idx, acc * dt)
         self._enforce()
 
+    def _held_all(self):
+        """Held temperatures of all obstacles, shape rows of a rigid world insulating."""
+        extra = len(self._rigid_obstacles)
+        if extra == 0:
+            return self._held
+        if getattr(self, "_held_cache", None) is None or self._held_cache.shape[0] != self._held.shape[0] + extra:
+            self._held_cache = np.concatenate([self._held, np.full(extra, np.nan)])
+        return self._held_cache
+
     def _diffuse(self, dt):
         """Implicit viscosity of the velocity (viscosity > 0), then implicit diffusion of every
         scalar with a diffusivity: (I - kappa dt Lap) s = s* (`viscosity.solve_component`, the
@@ -780,8 +835,12 @@ class GridFluid:
             self._diffuse_velocity(dt)
         h2 = self.grid.cell_size ** 2
         for s, kappa in self._diffusing:
-            V.solve_component(self._kv, self._k, self._scal[s], self._skind, self._no_node_data,
-                              self._no_node_data, 3 + s, kappa * dt / h2, self.ctx, self._scg, self._partial)
+            if self._held is not None and self.scalar_names[s] == "temperature":
+                kind, sdf, wall = self._tkind, self._tsdf, self._twall
+            else:
+                kind, sdf, wall = self._skind, self._no_node_data, self._no_node_data
+            V.solve_component(self._kv, self._k, self._scal[s], kind, sdf, wall, 3 + s, kappa * dt / h2,
+                              self.ctx, self._scg, self._partial)
 
     def _diffuse_velocity(self, dt):
         g = self.ctx
@@ -906,6 +965,9 @@ class GridFluid:
         if self.obstacles:
             for a in self._scal:
                 np.copyto(a, 0.0, where=self._cell_solid)
+            if self._held is not None:   # held obstacles keep their temperature in their cells
+                K.copy_where_kind(self._tkind.reshape(-1), V.NO_SLIP, self._twall.reshape(-1),
+                                  self._scal[self.scalar_names.index("temperature")].reshape(-1))
 
     # ------------------------------------------------------------------------ stepping
     def step(self, dt):
