@@ -33,8 +33,8 @@
 
 ``build(table, world=None, colliders=None)`` returns a `GridFluid` or `LiquidFluid`. Every
 error is a ``ValueError`` whose message starts with the key path (``fluids.plume.shape``) and
-names the allowed values. The lead wires the model into ``scene/models.py`` and the builder
-into ``scene/builder.py`` (``world.add_fluid(name, fluid)``).
+names the allowed values. ``inertia.scene`` uses the model for ``[fluids.NAME]`` and adds each
+built fluid to the world (``world.add_fluid(name, fluid)``, `inertia.scene.fluids`).
 
 Limitations: a liquid's domain is closed (its sides are slip or no-slip walls; no inflow,
 outflow or periodic sides); rigid bodies of the world are coupled by the world step itself

@@ -14,8 +14,11 @@ the ones after the arrow:
    surface's cut position between nodes (ghost fluid, Gibou et al. 2002); the momentum each wall
    link takes from the fluid is the viscous force on its obstacle / body. Viscous flow uses an
    incremental pressure correction: the last pressure gradient is subtracted before this solve.
+   Then every scalar with a diffusivity: (I - kappa dt Lap) s = s*, the same solver with the
+   scalar's ghost rules (walls insulate unless they hold a value; inflows hold theirs); obstacles
+   held at a temperature are Dirichlet data at their cut position (ghost fluid), others insulate.
 5. ``project``    weighted divergence -> pressure Poisson solve (MGPCG) -> u -= grad(p dt / rho)
-   (viscous flow: the increment of phi).
+   (viscous flow: the increment of phi). `Pressure` sides are Dirichlet data on their faces.
 6. ``dissipate``  scalar decay s *= exp(-rate dt).
 
 ``advance(frame_dt)`` takes substeps of dt = cfl h / max|u| (capped by ``max_dt``) until the
@@ -39,6 +42,8 @@ References
   flow", SIAM J. Sci. Stat. Comput. 7, 1986; D. L. Brown, R. Cortez and M. L. Minion, "Accurate
   projection methods for the incompressible Navier-Stokes equations", J. Comput. Phys. 168,
   2001 (incremental pressure correction).
+- H. S. Carslaw and J. C. Jaeger, "Conduction of Heat in Solids", 2nd ed., Oxford 1959 (the
+  heat kernel and the erfc solution the scalar diffusion is tested against).
 - F. H. Harlow and J. E. Welch, "Numerical calculation of time-dependent viscous
   incompressible flow of fluid with free surface", Phys. Fluids 8, 1965 (the MAC grid).
 
@@ -66,6 +71,13 @@ Limitations
   convex bodies). Heightfield and SDF rows are skipped.
 - The velocity field handed out (``velocity_field()``) is the current grid state; its ``t``
   argument is ignored.
+- Scalar diffusion: insulating obstacles are staircases (zero flux across the faces of the cells
+  whose centre is inside); only the temperature can be held on obstacles, and the held value is
+  one constant per obstacle; diffusion and advection are split (first order in time).
+- `Outflow` puts p = 0 at the ghost cell centre half a cell outside its side; `Pressure` puts its
+  value on the side's faces (second order). Inflow profiles are fixed when the fluid is built
+  (not time-dependent); a "parabolic" inflow in a 3-D duct is the product of two parabolas, not
+  the exact duct profile (a series).
 """
 
 from __future__ import annotations
