@@ -72,18 +72,23 @@ def test_gaussian_blob_follows_the_heat_kernel_in_3d():
     assert 0.85 * pred <= err <= 1.25 * pred               # 18.4 % (predicted 16.2 %) at 3.1 cells per st
 
 
-def hot_wall(n, dt, steps, kappa=1e-3, t0=0.25, tw=1.25):
-    """Fluid at rest at t0 in [0, 1] x [0, 8 h]; the x- wall is held at tw, the rest insulate."""
+def hot_wall(n, dt, steps, kappa=1e-3, t0=0.25, tw=1.25, dim=2):
+    """Fluid at rest at t0 in [0, 1] x [0, 4 h] (x [0, 4 h]); the x- wall is held at tw, the rest
+    insulate."""
     h = 1.0 / n
-    f = GridFluid((n, 8), h, scalars=("temperature",), diffusivity={"temperature": kappa},
-                  ambient_temperature=t0, boundaries={"x-": Wall(temperature=tw), "y-": "slip", "y+": "slip"})
+    sides = {"x-": Wall(temperature=tw), "y-": "slip", "y+": "slip"}
+    if dim == 3:
+        sides.update({"z-": "slip", "z+": "slip"})
+    f = GridFluid((n,) + (4,) * (dim - 1), h, scalars=("temperature",), diffusivity={"temperature": kappa},
+                  ambient_temperature=t0, boundaries=sides)
     f.scalar("temperature")[...] = t0
     for _ in range(steps):
         f.step(dt)
     t = dt * steps
     x = (np.arange(n) + 0.5) * h
     exact = t0 + (tw - t0) * np.array([erfc(xi / (2 * np.sqrt(kappa * t))) for xi in x])
-    return f, np.abs(f.scalar("temperature") - exact[:, None]).max() / (tw - t0)
+    temp = f.scalar("temperature").reshape(n, -1)
+    return f, np.abs(temp - exact[:, None]).max() / (tw - t0)
 
 
 def test_hot_wall_conducts_heat_as_the_error_function():
@@ -94,6 +99,9 @@ def test_hot_wall_conducts_heat_as_the_error_function():
     _, err128 = hot_wall(128, 0.05, 200)
     assert err128 < 1.5e-3                                 # 8.9e-4
     assert err64 / err128 > 3.5                            # second order (dt ~ h^2)
+    f3, err3 = hot_wall(64, 0.2, 50, dim=3)
+    assert err3 == pytest.approx(err64, rel=1e-6)          # 3-D: the same 1-D problem
+    assert np.all(f3.w == 0.0)
 
 
 def hot_slab(n, dt, steps, offset, kappa=1e-3):
