@@ -168,3 +168,35 @@ def test_pressure_channel_resumes_bit_for_bit():
     for _ in range(3):
         b.step(0.05)
     assert a.state_hash() == b.state_hash()
+
+
+THREADS_SCRIPT = """
+import numpy as np
+from inertia.colliders import Sphere
+from inertia.fluids.grid import GridFluid, Inflow, Outflow, Pressure, Wall
+# parallel kernels forced on small grids: diffusion with a hot obstacle and a hot wall, pressure
+# sides, a parabolic inflow
+f = GridFluid((32, 16), 1 / 16, viscosity=0.01, parallel=True, buoyancy=(0.0, 1.0),
+              diffusivity={"temperature": 1e-3, "density": 1e-3}, obstacles=[Sphere(center=(0.8, 0.5), radius=0.2)],
+              obstacle_temperature=1.0, boundaries={"x-": Pressure(1.0), "x+": Pressure(0.0),
+                                                    "y-": Wall(temperature=0.5)})
+g = GridFluid((32, 16), 1 / 16, viscosity=0.01, parallel=True, scalars=("density",), diffusivity={"density": 1e-2},
+              boundaries={"x-": Inflow(velocity=(1.0, 0.0), density=1.0, profile="parabolic"), "x+": Outflow()})
+for _ in range(5):
+    f.step(0.02)
+    g.step(0.02)
+print(f.state_hash(), g.state_hash())
+"""
+
+
+def test_same_hash_at_one_and_two_threads_with_diffusion_and_pressure_sides():
+    import os
+    import subprocess
+    import sys
+    out = []
+    for threads in ("1", "2"):
+        env = dict(os.environ, NUMBA_NUM_THREADS=threads)
+        run = subprocess.run([sys.executable, "-c", THREADS_SCRIPT], env=env, check=True, capture_output=True,
+                             text=True, timeout=900)
+        out.append(run.stdout.strip().splitlines()[-1])
+    assert out[0] == out[1]
