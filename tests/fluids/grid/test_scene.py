@@ -42,6 +42,47 @@ def test_bad_input_names_the_key(patch, key):
     assert str(e.value).startswith(key), str(e.value)
 
 
+def test_diffusion_pressure_sides_and_inflow_profiles_reach_the_fluid():
+    f = build({"shape": [16, 8], "cell_size": 1 / 8, "viscosity": 0.01, "fluid_density": 1000.0,
+               "diffusivity": {"temperature": 1e-3},
+               "boundaries": {"x-": {"type": "pressure", "pressure": 2.0}, "x+": {"type": "pressure", "pressure": 0.0},
+                              "y-": {"type": "wall", "temperature": 1.5}}}, name="duct")
+    assert f.diffusivity == {"temperature": 1e-3} and f.fluid_density == 1000.0
+    assert [p for _, _, p in f._pressure_sides] == [2.0, 0.0]
+    assert f.sides[2].temperature == 1.5
+    f.step(0.05)
+    assert f.u.mean() > 0.0 and f.scalar("temperature")[:, 0].mean() > 0.0
+    g = build({"shape": [16, 8], "cell_size": 1 / 8,
+               "boundaries": {"x-": {"type": "inflow", "velocity": [1.0, 0.0], "profile": "parabolic"},
+                              "x+": {"type": "outflow"}}}, name="duct")
+    y = (np.arange(8) + 0.5) / 8
+    np.testing.assert_allclose(g.u[0], 6 * y * (1 - y))
+    ball = ia.colliders.Sphere(center=(0.5, 0.5), radius=0.2)
+    h = build({"shape": [16, 16], "cell_size": 1 / 16, "obstacles": ["ball"], "obstacle_temperature": [2.0],
+               "diffusivity": {"temperature": 1e-2}}, colliders={"ball": ball}, name="stove")
+    h.step(0.1)
+    assert h.scalar("temperature")[8, 8] == 2.0 and h.scalar("temperature")[8, 3] > 0.0
+
+
+@pytest.mark.parametrize("patch,key", [
+    ({"boundaries": {"x-": {"type": "pressure"}}}, "fluids.plume.boundaries.x-.pressure"),
+    ({"boundaries": {"x-": {"type": "outflow", "pressure": 1.0}}}, "fluids.plume.boundaries.x-.pressure"),
+    ({"boundaries": {"x-": {"type": "wall", "profile": "parabolic"}}}, "fluids.plume.boundaries.x-.profile"),
+    ({"boundaries": {"x-": {"type": "inflow", "velocity": [1.0, 0.0], "profile": "cosine"}}},
+     "fluids.plume.boundaries.x-.profile"),
+    ({"boundaries": {"x-": {"type": "inflow", "velocity": [1.0, 0.0]}}}, "fluids.plume.boundaries"),   # no outlet
+    ({"diffusivity": {"smoke": 1.0}}, "fluids.plume.diffusivity"),
+    ({"fluid_density": 0.0}, "fluids.plume.fluid_density"),
+    ({"obstacle_temperature": "hot"}, "fluids.plume.obstacle_temperature"),
+    ({"obstacle_temperature": 1.0, "obstacles": ["ball"]}, "fluids.plume.obstacle_temperature"),   # no diffusivity
+])
+def test_bad_diffusion_and_boundary_keys_name_the_key(patch, key):
+    table = dict(SMOKE, obstacles=[], boundaries={}) | patch
+    with pytest.raises(ValueError) as e:
+        build(table, colliders={"ball": ia.colliders.Sphere(center=(0.5, 0.9), radius=0.15)}, name="plume")
+    assert str(e.value).startswith(key), str(e.value)
+
+
 TANK = {"kind": "liquid", "shape": [32, 16], "cell_size": 1 / 16, "viscosity": 0.01,
         "obstacles": ["rock", "post"], "obstacle_slip": [False, True],
         "boundaries": {"y-": {"type": "no-slip"}, "x+": {"type": "slip"}},

@@ -25,7 +25,7 @@ import numpy as np
 import pytest
 
 from inertia.colliders import Motion, Sphere
-from inertia.fluids.grid import GridFluid, Outflow
+from inertia.fluids.grid import GridFluid, Outflow, Pressure, Wall
 from inertia.fluids.grid.liquid import LiquidFluid
 from inertia.model import ModelBuilder
 
@@ -50,6 +50,23 @@ def test_smoke_step_with_a_moving_obstacle_allocates_nothing(alloc):
     peak = alloc.peak_bytes(step, 2, CELL_BYTES)
     assert peak < CELL_BYTES, peak
     assert np.any(f.obstacle_viscous_force != 0.0) and f.face_fractions[0].min() == 0.0
+
+
+@pytest.mark.isolated
+def test_smoke_step_with_diffusion_pressure_sides_and_a_hot_moving_obstacle_allocates_nothing(alloc):
+    # scalar diffusion (a hot wall, a moving obstacle held at a temperature: its cells' nearest
+    # obstacle every step), pressure sides (Dirichlet data in the projection) and viscosity
+    f = GridFluid((N, N), 1 / N, obstacles=[_moving_ball(0.4, 0.5, 0.12)], viscosity=0.01,
+                  diffusivity={"temperature": 1e-3, "density": 1e-4}, obstacle_temperature=2.0,
+                  buoyancy=(0.1, 1.0), boundaries={"x-": Pressure(1.0), "x+": Pressure(0.0),
+                                                   "y-": Wall(temperature=1.0)})
+    step = lambda: f.step(0.01)    # noqa: E731
+    step()
+    step()
+    assert alloc.kernel_allocations(step, 1) == {}
+    peak = alloc.peak_bytes(step, 2, CELL_BYTES)
+    assert peak < CELL_BYTES, peak
+    assert f.scalar("temperature").max() == 2.0 and f.u[0].mean() > 0.0
 
 
 @pytest.mark.isolated

@@ -17,11 +17,11 @@ liquids), ``pressure`` (MGPCG, CG, Jacobi), ``kernels`` (Numba), ``boundaries``,
 (face fractions), ``field``, ``vtk`` (.vti export).
 """
 
-from .boundaries import Inflow, Outflow, Periodic, Wall
+from .boundaries import Inflow, Outflow, Periodic, Pressure, Wall
 from .field import FluidVelocityField
 from .liquid import LiquidFluid
 from .pressure import PoissonSolver
 from .solver import ADVECTION, GridFluid, MACGrid
 
-__all__ = ["GridFluid", "LiquidFluid", "MACGrid", "Wall", "Inflow", "Outflow", "Periodic", "FluidVelocityField",
+__all__ = ["GridFluid", "LiquidFluid", "MACGrid", "Wall", "Inflow", "Outflow", "Pressure", "Periodic", "FluidVelocityField",
            "PoissonSolver", "ADVECTION"]

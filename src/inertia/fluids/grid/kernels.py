@@ -891,6 +891,89 @@ def subtract_gradient(phi, fu, fv, fw, g, u, v, w):
                     w[i, j, k] -= (a - b) * inv_h
 
 
+@njit(cache=True)
+def cell_node_kinds(solid, solid_kind, fluid_kind, kind):
+    """kind = solid_kind where a cell centre is inside a solid, fluid_kind elsewhere (the scalar
+    diffusion's node kinds, `viscosity.FREE` / `AIR`)."""
+    sf = solid.reshape(-1)
+    kf = kind.reshape(-1)
+    for m in range(sf.shape[0]):
+        kf[m] = solid_kind if sf[m] else fluid_kind
+
+
+@njit(cache=True)
+def held_cell_kinds(solid, best, near, held, free, insulated, fixed, kind, sdf, wall):
+    """Node kinds of a scalar held on some obstacles (held[o]: its value, NaN: insulating): a
+    solid cell whose nearest obstacle holds a value is `fixed` with wall = that value, other
+    solid cells `insulated`, fluid cells `free` (wall = the value of their nearest obstacle, the
+    surface value the ghost-fluid interpolation reads); sdf = the nearest obstacle's signed
+    distance at the cell centre (flat arrays)."""
+    for m in range(solid.shape[0]):
+        v = held[near[m]]
+        sdf[m] = best[m]
+        wall[m] = v if v == v else 0.0
+        if not solid[m]:
+            kind[m] = free
+        elif v == v:
+            kind[m] = fixed
+        else:
+            kind[m] = insulated
+
+
+@njit(cache=True)
+def copy_where_kind(kind, k, src, dst):
+    """dst[m] = src[m] where kind[m] == k (flat arrays)."""
+    for m in range(kind.shape[0]):
+        if kind[m] == k:
+            dst[m] = src[m]
+
+
+@njit(cache=True, inline="always")
+def _side_face(axis, side, a, b, nface):
+    """(face index, adjacent cell index) of entry (a, b) of a side's face layer: faces are
+    (i, j, k) with the `axis` index 0 (side 0) or nface - 1 (side 1), a and b the other two
+    indices in order."""
+    m = 0 if side == 0 else nface - 1
+    c = 0 if side == 0 else nface - 2
+    if axis == 0:
+        return m, a, b, c, a, b
+    if axis == 1:
+        return a, m, b, a, c, b
+    return a, b, m, a, b, c
+
+
+@njit(cache=True)
+def pressure_side_rhs(frac, axis, side, value, inv_h2, rhs):
+    """Dirichlet data of a prescribed-pressure side in the Poisson right-hand side: the cell next
+    to each open face of the side gets 2 A_f value / h^2 (value = phi on the face, p dt / rho;
+    the face coefficient is 2 A_f / h^2, `PoissonSolver.set_coefficients`)."""
+    n0, n1 = (frac.shape[1], frac.shape[2]) if axis == 0 else (
+        (frac.shape[0], frac.shape[2]) if axis == 1 else (frac.shape[0], frac.shape[1]))
+    for a in range(n0):
+        for b in range(n1):
+            fi, fj, fk, ci, cj, ck = _side_face(axis, side, a, b, frac.shape[axis])
+            rhs[ci, cj, ck] += 2.0 * frac[fi, fj, fk] * value * inv_h2
+
+
+@njit(cache=True)
+def pressure_side_gradient(phi, frac, axis, side, value, inv_h, vel):
+    """Complete `subtract_gradient` on the open faces of a prescribed-pressure side: it took
+    phi = 0 one cell outside; the value sits on the face, half a cell from the cell centre, so
+    the face's gradient is 2 (value - phi_c) / h outward. Low side: vel -= (phi_c - 2 value) / h
+    more; high side: vel -= (2 value - phi_c) / h more."""
+    n0, n1 = (frac.shape[1], frac.shape[2]) if axis == 0 else (
+        (frac.shape[0], frac.shape[2]) if axis == 1 else (frac.shape[0], frac.shape[1]))
+    for a in range(n0):
+        for b in range(n1):
+            fi, fj, fk, ci, cj, ck = _side_face(axis, side, a, b, frac.shape[axis])
+            if frac[fi, fj, fk] > 0.0:
+                pc = phi[ci, cj, ck]
+                if side == 0:
+                    vel[fi, fj, fk] -= (pc - 2.0 * value) * inv_h
+                else:
+                    vel[fi, fj, fk] -= (2.0 * value - pc) * inv_h
+
+
 # ----------------------------------------------------------------------------- forces
 @njit(cache=True, parallel=True)
 def cell_velocity_and_vorticity(u, v, w, g, vort):

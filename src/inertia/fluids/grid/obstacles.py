@@ -341,6 +341,9 @@ class CutCells:
         self._open = [np.empty(f) for f in nf]
         self._body = [np.empty(f, np.int64) for f in nf]
         self.count = [0, 0, 0]
+        # the nearest obstacle's signed distance and index at every cell centre (``cells=True``;
+        # allocated on first need): the boundary data of scalars held on obstacles
+        self.cell_best = self.cell_near = self._cell_vel = None
         empty = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
         self.cut = [empty] * 3
         self._kernel = K.version(_d.query_points, parallel)
@@ -361,11 +364,12 @@ class CutCells:
             d, vel = self._query(o, pts, t)
             _take_nearest(d, vel, axis, i, best, best_vel, owner)
 
-    def update(self, obstacles, owner_body, t, frac, solid, cell_solid, nodes=False):
+    def update(self, obstacles, owner_body, t, frac, solid, cell_solid, nodes=False, cells=False):
         """Fill frac, solid (three face arrays each; in 2-D frac[2] = 0), cell_solid and ``cut``
         from `obstacles` (one or more) at time t; owner_body (len(obstacles),) int64: the body of
         each (-1: none). nodes: also the nearest obstacle of every face node (``best``,
-        ``near_vel``, ``near``). Fractions: `face_fractions` (bit for bit); a face's nearest
+        ``near_vel``, ``near``); cells: also the nearest obstacle of every cell centre
+        (``cell_best``, ``cell_near``). Fractions: `face_fractions` (bit for bit); a face's nearest
         obstacle: the one with the smallest signed distance at its centre (the first on a tie)."""
         dim = self.dim
         for i, o in enumerate(obstacles):
@@ -390,9 +394,16 @@ class CutCells:
             _cut_values(n, faces, self.near_vel[a], self.near[a], nodes, owner_body, sa, body)
             self.count[a] = n
             self.cut[a] = (faces[:n], open_frac[:n], body[:n])
+        if cells and self.cell_best is None:
+            nc = self.cell_pts.shape[0]
+            self.cell_best, self._cell_vel, self.cell_near = np.empty(nc), np.empty(nc), np.empty(nc, np.int64)
+        if cells:
+            self.cell_best[...] = np.inf
         for i, o in enumerate(obstacles):
-            d, _ = self._query(o, self.cell_pts, t)
+            d, vel = self._query(o, self.cell_pts, t)
             _mark_inside(d, self.inside, i == 0)
+            if cells:
+                _take_nearest(d, vel, 0, i, self.cell_best, self._cell_vel, self.cell_near)
         cell_solid.reshape(-1)[...] = self.inside
 
 

@@ -6,7 +6,10 @@ The system (one unknown per cell, phi = p dt / rho in m^2/s):
     (L phi)_c = sum over the cell's faces f of a_f (phi_c - phi_nb(f)) = b_c,   a_f = A_f / h^2,
 
 with A_f the face's open fraction (Batty, Bertails and Bridson 2007; 0 on walls, inflow faces
-and inside solids, 1 on outflow faces where phi_nb = 0 outside) and b = -div_w(u*). L is
+and inside solids, 1 on outflow faces where phi_nb = 0 outside) and b = -div_w(u*). On a side
+whose pressure is prescribed on the side itself (``dirichlet_sides`` of `set_coefficients`) the
+known value lies half a cell from the cell centre: a_f = 2 A_f / h^2 there, and the value's
+share 2 A_f phi_b / h^2 goes to b (the caller's). L is
 symmetric positive (semi-)definite; without an outflow face it is singular (constants), and
 the solvers then work in the mean-free subspace.
 
@@ -586,8 +589,11 @@ class PoissonSolver:
         self.active_count = 0
 
     # -- setup (when the face fractions change) ---------------------------------------------
-    def set_coefficients(self, fu, fv, fw, h, dim):
-        """Face open fractions of the finest level (MAC face arrays); builds every level."""
+    def set_coefficients(self, fu, fv, fw, h, dim, dirichlet_sides=()):
+        """Face open fractions of the finest level (MAC face arrays); builds every level.
+        dirichlet_sides: (axis, side) pairs (side 0 low, 1 high) of non-periodic sides whose
+        boundary faces carry a value on the face itself (a prescribed pressure): their
+        coefficient doubles (distance h / 2 from the cell centre)."""
         lv = self.levels[0]
         inv_h2 = 1.0 / (h * h)
         np.multiply(fu, inv_h2, out=lv.ax)
@@ -596,6 +602,11 @@ class PoissonSolver:
             np.multiply(fw, inv_h2, out=lv.az)
         else:
             lv.az[...] = 0.0
+        for axis, side in dirichlet_sides:
+            a = (lv.ax, lv.ay, lv.az)[axis]
+            idx = [slice(None)] * 3
+            idx[axis] = 0 if side == 0 else -1
+            a[tuple(idx)] *= 2.0
         for lvl in range(1, len(self.levels)):
             f, c = self.levels[lvl - 1], self.levels[lvl]
             cx, cy, cz = self.coarsen_axes[lvl - 1]

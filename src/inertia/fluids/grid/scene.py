@@ -8,8 +8,10 @@
     buoyancy = [0.1, 1.0]
     vorticity_confinement = 2.0
     obstacles = ["ball"]                 # names of the scene's colliders
+    diffusivity = { temperature = 1e-4 }  # m^2/s per scalar (implicit diffusion)
     [fluids.plume.boundaries]
     "y+" = { type = "outflow" }
+    "y-" = { type = "wall", temperature = 2.0 }   # a hot floor (conducts with the diffusivity)
     [[fluids.plume.sources]]
     lower = [0.45, 0.02]
     upper = [0.55, 0.08]
@@ -31,8 +33,8 @@
 
 ``build(table, world=None, colliders=None)`` returns a `GridFluid` or `LiquidFluid`. Every
 error is a ``ValueError`` whose message starts with the key path (``fluids.plume.shape``) and
-names the allowed values. The lead wires the model into ``scene/models.py`` and the builder
-into ``scene/builder.py`` (``world.add_fluid(name, fluid)``).
+names the allowed values. ``inertia.scene`` uses the model for ``[fluids.NAME]`` and adds each
+built fluid to the world (``world.add_fluid(name, fluid)``, `inertia.scene.fluids`).
 
 Limitations: a liquid's domain is closed (its sides are slip or no-slip walls; no inflow,
 outflow or periodic sides); rigid bodies of the world are coupled by the world step itself
@@ -46,7 +48,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from .boundaries import Inflow, Outflow, Periodic, Wall
+from .boundaries import Inflow, Outflow, Periodic, Pressure, Wall
 from .liquid import LiquidFluid
 from .solver import GridFluid
 
@@ -57,11 +59,16 @@ class _Strict(BaseModel):
 
 class BoundaryTable(_Strict):
     """One side of the domain."""
-    type: Literal["wall", "slip", "no-slip", "inflow", "outflow", "periodic"] = Field(
-        description="wall = no-slip wall (velocity optional: a moving lid), slip, inflow, outflow, periodic")
-    velocity: list[float] | None = Field(None, description="wall or inflow velocity, m/s")
+    type: Literal["wall", "slip", "no-slip", "inflow", "outflow", "pressure", "periodic"] = Field(
+        description="wall = no-slip wall (velocity optional: a moving lid), slip, inflow, outflow, "
+                    "pressure (an open side held at `pressure`), periodic")
+    velocity: list[float] | None = Field(None, description="wall or inflow velocity, m/s (an inflow's mean "
+                                                           "normal speed with profile = \"parabolic\")")
     density: float = Field(0.0, description="inflow density")
-    temperature: float | None = Field(None, description="inflow temperature (default ambient)")
+    temperature: float | None = Field(None, description="inflow temperature (default ambient); on a wall "
+                                                        "the wall's fixed temperature (default: insulating)")
+    profile: Literal["uniform", "parabolic"] = Field("uniform", description="inflow velocity profile")
+    pressure: float | None = Field(None, description="pressure side: its pressure, Pa (relative)")
 
 
 class SourceTable(_Strict):
@@ -97,6 +104,11 @@ class GridFluidTable(_Strict):
     ambient_temperature: float = 0.0
     vorticity_confinement: float = Field(0.0, ge=0)
     dissipation: dict[str, float] = Field(default_factory=dict)
+    diffusivity: dict[str, float] = Field(default_factory=dict, description="scalar name -> diffusivity, m^2/s")
+    fluid_density: float = Field(1.2, gt=0, description="smoke: rho, kg/m^3 (pressure sides and body forces)")
+    obstacle_temperature: float | list[float | None] | None = Field(
+        None, description="smoke: obstacles held at a temperature (one for all, or one per obstacle, null = "
+                          "insulating); needs diffusivity.temperature")
     body_acceleration: list[float] | None = None
     cfl: float = Field(1.0, gt=0, le=5)
     sources: list[SourceTable] = Field(default_factory=list)
@@ -138,16 +150,24 @@ def _liquid_walls(boundaries):
 
 
 def _boundary(b: BoundaryTable):
+    if b.pressure is not None and b.type != "pressure":
+        raise ValueError(f".pressure: only a side of type \"pressure\" takes a pressure (this side is {b.type!r})")
+    if b.profile != "uniform" and b.type != "inflow":
+        raise ValueError(f".profile: only an inflow side takes a profile (this side is {b.type!r})")
     if b.type == "slip":
-        return Wall(slip=True)
+        return Wall(slip=True, temperature=b.temperature)
     if b.type in ("wall", "no-slip"):
-        return Wall(slip=False, velocity=b.velocity)
+        return Wall(slip=False, velocity=b.velocity, temperature=b.temperature)
     if b.type == "inflow":
         if b.velocity is None:
             raise ValueError("velocity is required for an inflow boundary")
-        return Inflow(velocity=b.velocity, density=b.density, temperature=b.temperature)
+        return Inflow(velocity=b.velocity, density=b.density, temperature=b.temperature, profile=b.profile)
     if b.type == "outflow":
         return Outflow()
+    if b.type == "pressure":
+        if b.pressure is None:
+            raise ValueError(".pressure: required for a pressure side (Pa)")
+        return Pressure(b.pressure)
     return Periodic()
 
 
@@ -190,14 +210,18 @@ def build(table, world=None, colliders=None, name="fluid"):
             try:
                 sides[side] = _boundary(b)
             except ValueError as e:
-                raise ValueError(f"boundaries.{side}: {e}") from None
+                msg = str(e)
+                raise ValueError(f"boundaries.{side}{msg}" if msg.startswith(".") else
+                                 f"boundaries.{side}: {msg}") from None
         fluid = GridFluid(t.shape, t.cell_size, origin=t.origin, boundaries=sides or None,
                           viscosity=t.viscosity, advection=t.advection,
                           pressure_solver=t.pressure_solver, tolerance=t.tolerance,
                           scalars=tuple(t.scalars), ambient_temperature=t.ambient_temperature,
                           buoyancy=tuple(t.buoyancy), body_acceleration=t.body_acceleration,
                           dissipation=t.dissipation, vorticity_confinement=t.vorticity_confinement,
-                          cfl=t.cfl, obstacles=obstacles, obstacle_slip=slip)
+                          cfl=t.cfl, obstacles=obstacles, obstacle_slip=slip,
+                          diffusivity=t.diffusivity, fluid_density=t.fluid_density,
+                          obstacle_temperature=t.obstacle_temperature)
         for i, s in enumerate(t.sources):
             try:
                 fluid.add_source(s.lower, s.upper, density_rate=s.density_rate,
