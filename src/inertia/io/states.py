@@ -68,7 +68,8 @@ import numpy as np
 from .atomic import atomic_write, write_text_atomic
 from .manifest import library_versions
 
-__all__ = ["StateWriter", "States", "load_states", "write_states", "FORMAT_NAME", "FORMAT_VERSION"]
+__all__ = ["StateWriter", "States", "load_states", "write_states", "recorded_frame_count", "FORMAT_NAME",
+           "FORMAT_VERSION"]
 
 FORMAT_NAME = "inertia-states"
 FORMAT_VERSION = 1
@@ -324,6 +325,16 @@ def _check_index(index: dict, where: Path) -> dict:
         if not isinstance(spec, dict) or not isinstance(spec.get("shape"), list) or "dtype" not in spec:
             raise ValueError(f"{where}: damaged (field {name!r} lacks dtype or shape)")
     return index
+
+
+def recorded_frame_count(path: str | os.PathLike) -> int:
+    """Frames a state directory holds, from its index alone (0 without an index; the chunk files
+    themselves are not opened). A damaged index is a ValueError naming it."""
+    index_path = Path(path) / _INDEX
+    if not index_path.exists():
+        return 0
+    index = _check_index(_read_json(index_path), index_path)
+    return sum(int(c["count"]) for c in index["chunks"])
 
 
 def _load_directory(path: Path, frames) -> States:

@@ -16,6 +16,7 @@ The format is described key by key in `inertia.scene.models` and in the schema.
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,6 +77,8 @@ def _parse_text(text: str, fmt: str, source) -> dict:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise SceneError(source, [Issue("", f"invalid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})")]) from None
+        except ValueError as exc:        # e.g. an integer of more than 4300 digits
+            raise SceneError(source, [Issue("", f"invalid JSON: {exc}")]) from None
         except RecursionError:
             raise SceneError(source, [too_deep]) from None
     else:
@@ -92,6 +95,53 @@ def _parse_text(text: str, fmt: str, source) -> dict:
     return data
 
 
+#: Largest magnitude of a number in a scene file: beyond it squares and products of positions,
+#: velocities and forces leave the range where float64 physics (and the camera) stays finite.
+MAX_MAGNITUDE = 1e15
+_INT64 = (-(2 ** 63), 2 ** 63 - 1)
+
+
+def _value_issues(data, limit: int = 8) -> list[Issue]:
+    """Values no key accepts, found before the models run (each named by its key path): text that
+    is not valid Unicode (a lone surrogate from a JSON escape), integers outside 64 bits, numbers of
+    magnitude above `MAX_MAGNITUDE`."""
+    from .errors import format_path
+
+    issues: list[Issue] = []
+    stack = [(data, ())]
+    while stack and len(issues) < limit:
+        value, parts = stack.pop()
+        if isinstance(value, dict):
+            for k, v in value.items():
+                if isinstance(k, str) and not _encodable(k):
+                    issues.append(Issue(format_path(parts), f"a key holds text that is not valid Unicode ({k!r:.40})"))
+                    continue
+                stack.append((v, parts + (k,)))
+        elif isinstance(value, list):
+            stack.extend((v, parts + (i,)) for i, v in enumerate(value))
+        elif isinstance(value, str):
+            if not _encodable(value):
+                issues.append(Issue(format_path(parts), f"text that is not valid Unicode (a lone surrogate?): {value!r:.60}"))
+        elif isinstance(value, bool):
+            continue
+        elif isinstance(value, int):
+            if not _INT64[0] <= value <= _INT64[1]:
+                issues.append(Issue(format_path(parts), f"the integer ({len(str(abs(value)))} digits) is outside the "
+                                                        "64-bit range"))
+        elif isinstance(value, float) and math.isfinite(value) and abs(value) > MAX_MAGNITUDE:
+            issues.append(Issue(format_path(parts), f"{value:g} is beyond +-{MAX_MAGNITUDE:g}: numbers this large "
+                                                    "overflow in the physics (squares, products); use smaller units"))
+    return issues
+
+
+def _encodable(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def validate(data: dict, source=None) -> SceneModel:
     """Validate a scene dictionary; raises `SceneError` listing every problem."""
     from .errors import from_validation_error
@@ -99,6 +149,9 @@ def validate(data: dict, source=None) -> SceneModel:
     if "format_version" not in data:
         raise SceneError(source, [Issue("format_version", f"required key is missing: start the scene with "
                                                           f"format_version = {FORMAT_VERSION}")])
+    issues = _value_issues(data)
+    if issues:
+        raise SceneError(source, issues)
     try:
         return SceneModel.model_validate(data)
     except ValidationError as exc:

@@ -56,7 +56,10 @@ def sph_memory(table: SPHTable) -> tuple[int, float]:
     ratio = 2.0 * h / table.spacing
     neighbours = (math.pi * ratio ** 2) if dim == 2 else (4.0 / 3.0 * math.pi * ratio ** 3)
     per_pair = 4 + 8 + 8 * dim
-    return n, n * (BYTES_PER_SPH_PARTICLE + (1.25 * neighbours + 1.5 * neighbours + 8) * per_pair)
+    # the neighbour search's cell grid over the domain (cells of side 2 h: start and count, int64)
+    lo, hi = table.domain
+    cells = math.prod(max(1.0, (b - a) / (2.0 * h) + 1.0) for a, b in zip(lo, hi))
+    return n, n * (BYTES_PER_SPH_PARTICLE + (1.25 * neighbours + 1.5 * neighbours + 8) * per_pair) + 16.0 * cells
 
 
 def add_sph_fluids(builder, world) -> None:
