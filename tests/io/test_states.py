@@ -214,3 +214,17 @@ def test_a_corrupt_header_names_the_file(tmp_path):
         load_states(path)
     with pytest.raises(ValueError, match="header.json"):
         StateWriter.reopen(path)
+
+
+def test_recorded_frame_count_reads_the_index_alone(tmp_path):
+    from inertia.io.states import recorded_frame_count
+
+    writer = StateWriter(tmp_path / "s", dim=2, particle_count=3, fps=10.0, chunk_frames=2)
+    for k in range(5):
+        writer.append(0.1 * k, np.zeros((3, 2)))
+    writer.close()
+    assert recorded_frame_count(tmp_path / "s") == 5
+    assert recorded_frame_count(tmp_path / "empty") == 0
+    (tmp_path / "s" / "index.json").write_text("{not json")
+    with pytest.raises(ValueError, match="index.json"):
+        recorded_frame_count(tmp_path / "s")

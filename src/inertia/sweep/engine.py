@@ -308,7 +308,6 @@ def sweep(scene, params, metrics=None, *, client=None, design: str | None = None
         raise SweepInputError(f"--workers must be an integer >= 1 (got {workers!r})")
     if not isinstance(max_variants, int) or isinstance(max_variants, bool) or max_variants < 1:
         raise SweepInputError(f"--max-variants must be an integer >= 1 (got {max_variants!r})")
-    require_dependencies()
     started = time.perf_counter()
     loaded, data = _read(scene)
     params = _params(params, data)
@@ -333,6 +332,7 @@ def sweep(scene, params, metrics=None, *, client=None, design: str | None = None
     if size > max_variants:
         raise SweepInputError(f"the design has {size:,} variants, more than the limit of {max_variants:,}; "
                               f"raise it with --max-variants {size}")
+    require_dependencies()       # after the design's size is known: a refusal needs no dask
     variants = make_design(params, design=design, samples=samples, seed=seed)
     _check_values(params, data, loaded.path)
 
