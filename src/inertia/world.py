@@ -65,7 +65,14 @@ friction) exactly as before; the table's rows make them visible to the rigid bod
 ``checkpoint.npz`` holds numeric arrays (read with ``allow_pickle=False``) and one JSON tree;
 nothing is pickled, and a file holding a pickled object is refused (`CheckpointError`). On
 resume the run facts (fingerprint, fps, dt, substeps, particle count) are checked before any
-array is read.
+array is read (a changed scene is named by the keys that differ from the scene recorded in the
+state directory); every archive member's header is checked against its stored size before it is
+read (a bad CRC or a truncated file is a `CheckpointError`); then `check_checkpoint` compares the
+decoded state with what this world's ``save_state`` makes (every array's dtype and shape, numbers
+finite and of their kind) and checks every count and index against the arrays it indexes (contact
+rows and their bodies, shapes and particles; each fluid's ``check_state``: the SPH live count
+against its capacity, grid shapes and clocks), the step count against the frame count and the
+frame count against the frames in the state directory, before any of it reaches a kernel.
 
 Ctrl-C (SIGINT) sets a flag checked after every step: the run stops at the current step,
 writes what it has and returns ``status = "interrupted"``. The handler is installed before the
@@ -675,7 +682,13 @@ class World:
         fluids = {name: dict(f.save_state()) for name, f in self.fluids.items()}
         return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups], rigid, fluids)
 
-    def restore_state(self, state: WorldState) -> None:
+    def restore_state(self, state: WorldState, *, check: bool = True) -> None:
+        """Continue from `save_state`'s snapshot. ``check``: first compare it with what this world
+        saves (`check_checkpoint`: every array's dtype and shape, every count and index against the
+        arrays it indexes) and raise `CheckpointError` naming the entry; pass False only for a state
+        already checked."""
+        if check:
+            check_checkpoint(self, state, None, "saved state")
         if len(state.groups) != len(self.groups):
             raise ValueError(f"the saved state has {len(state.groups)} groups; this world has {len(self.groups)}")
         if (state.rigid is None) != (self.rigid is None):
@@ -1109,12 +1122,14 @@ def _rigid_problems(world: "World", r: dict) -> list[str]:
     return [p for p in out if p]
 
 
-def check_checkpoint(world: "World", state: WorldState, info: dict, path, *, frames_recorded: int | None = None) -> None:
+def check_checkpoint(world: "World", state: WorldState, info: dict | None, path, *,
+                     frames_recorded: int | None = None) -> None:
     """Raise `CheckpointError` naming the array or fact if `state` (a loaded checkpoint) does not fit
     `world`: every array's dtype and shape against what this world's ``save_state`` makes, numbers
     finite and of the right kind, every count and index (contact rows, bodies, shapes, particles,
     fluid counters) inside the arrays it indexes, the step count against the frame count, and the
-    frame count against the frames present in the state directory (``frames_recorded``).
+    frame count against the frames present in the state directory (``frames_recorded``; both
+    frame checks need the run facts ``info``, None skips them).
     Nothing of `state` reaches a kernel before this passes."""
     template = world.save_state()
     problems: list[str] = []
@@ -1152,7 +1167,7 @@ def check_checkpoint(world: "World", state: WorldState, info: dict, path, *, fra
                     check(state.fluids[name])
                 except ValueError as exc:
                     problems.append(f"fluids.{name}: {exc}")
-    if not problems:
+    if not problems and info is not None:
         frames = int(info["frame_count"])
         steps = int(state.step_count)
         fps, dt = float(info["fps"]), float(info["dt"])
@@ -1165,8 +1180,9 @@ def check_checkpoint(world: "World", state: WorldState, info: dict, path, *, fra
                             f"holds {frames_recorded}")
     if problems:
         more = "" if len(problems) < 8 else " (and maybe more)"
+        advice = ". Run without --resume to start over." if info is not None else "."
         raise CheckpointError(f"{path}: the checkpoint does not fit this scene: " + "; ".join(problems) + more
-                              + ". Run without --resume to start over.")
+                              + advice)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1352,7 +1368,7 @@ class Run:
             from .io.states import recorded_frame_count
             check_checkpoint(w, state, info, self.checkpoint_path,
                              frames_recorded=recorded_frame_count(self.states_path))
-            w.restore_state(state)
+            w.restore_state(state, check=False)
             frame = int(info["frame_count"])
             writer = StateWriter.reopen(self.states_path, frame_count=frame)
         else:

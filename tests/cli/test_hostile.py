@@ -208,6 +208,8 @@ SCENES = [
     ("duration-too-long", PARTICLES, [("duration = 0.1", "duration = 1e14")], "run", ["simulation.duration", "--force"]),
     ("fps-no-frame", PARTICLES, [("fps = 20", "fps = 0.5"), ("video = []", "video = [\"mp4\"]")], "run",
      ["simulation.fps", "at least 2 frames"]),
+    ("mesh-collider-garbage", PARTICLES, [("[output]", "[[colliders]]\ntype = \"mesh\"\nfile = \"bad.obj\"\n[output]")],
+     "validate", ["colliders[0]", "bad.obj"]),
     ("positions-1e300", PARTICLES, [("[[0.0, 0.0, 0.3]]", "[[1e300, 0.0, 0.3]]")], "validate", ["particles[0].positions[0][0]"]),
 ]
 
@@ -226,6 +228,7 @@ def test_hostile_scene_files_end_in_a_named_error(case, corpus_dir):
     folder = corpus_dir / name
     folder.mkdir()
     lying_npy(folder / "lie.npy")
+    (folder / "bad.obj").write_bytes(bytes(range(256)) * 4)
     scene = folder / "scene.toml"
     scene.write_text(text)
     args = ["validate", scene] if command == "validate" else ["run", scene, "--out", folder / "out", "--quiet"]
@@ -237,6 +240,14 @@ def test_hostile_scene_files_end_in_a_named_error(case, corpus_dir):
         assert word in flat, (name, word, result.output)
     assert "internal error" not in result.output and "Traceback" not in result.output
     assert time.perf_counter() - started < 60
+
+
+def test_a_scene_file_too_large_to_parse_quickly_is_refused_unread(tmp_path):
+    scene = tmp_path / "huge.toml"
+    with open(scene, "wb") as handle:
+        handle.truncate(100_000_000)          # 100 MB (sparse): refused by its size, never read
+    result = invoke("validate", scene)
+    assert result.exit_code == 2 and "100 MB" in result.output and "at most 32 MB" in result.output, result.output
 
 
 def test_json_scenes_with_a_lone_surrogate_or_a_5000_digit_integer(tmp_path):
@@ -434,6 +445,16 @@ def test_render_refuses_recorded_settings_out_of_range(runs, tmp_path):
     (out / "states" / "header.json").write_text(json.dumps(header))
     result = invoke("render", out / "states", "--no-plot", "--video", "none")
     assert result.exit_code == 2 and "render.width" in result.output, result.output
+
+
+def test_render_refuses_a_header_with_a_lone_surrogate(runs, tmp_path):
+    _, source = runs["rigid"]
+    out = tmp_path / "run"
+    shutil.copytree(source, out)
+    path = out / "states" / "header.json"
+    path.write_text(path.read_text().replace('"crates"', '"cr\\ud800tes"', 1))
+    result = invoke("render", out / "states", "--no-plot", "--video", "none")
+    assert result.exit_code == 2 and "not valid Unicode" in " ".join(result.output.split()), result.output
 
 
 def test_rigid_runs_record_finite_energy_and_momentum(runs):

@@ -13,12 +13,20 @@ SCENE is a .toml/.json file or the name of a bundled example (``inertia run foun
 that looks like a path (``./fountain.toml``) and does not exist is an error, never an example.
 
 ``run`` into a directory holding a finished run (completed or diverged) of the same scene file
-replaces it, so the same command works twice; a run that did not finish is kept for
+replaces it, so the same command works twice, and so does a run of it killed before its first
+checkpoint (nothing there can be resumed); a run that did not finish is kept for
 ``--resume`` (which continues with the duration, fps and seed the run was started with; a
 longer ``--duration`` extends it, other values are refused), another scene's run is kept
-unless ``--overwrite``. Paths from a scene file stay inside the working directory; ``--out``
-is the user's choice. A scene that would not fit in memory, or a run that would take more than
-a day even at full speed, is refused before anything is written (``--force`` proceeds).
+unless ``--overwrite``. The output directory is resolved once (links followed) and every file is
+written inside it: an ``--out`` that is a symbolic link is followed with a warning naming its
+target, a scene file's ``output.directory`` that leads outside the working directory is refused,
+and links inside the directory where the run writes (``states``, ``checkpoint.npz``, outputs) are
+refused. A scene that would not fit in memory, a part too large for its method (a hull of more
+than 10 000 points), or a run that would take more than a day even at full speed, is refused
+before anything is written (``--force`` proceeds). On ``--resume`` the checkpoint is checked
+against the scene (every array's shape and dtype, every count and index, the frame count against
+the state directory) before anything of it is used; ``render`` validates the state file's
+recorded render settings as a scene's.
 
 Exit codes: 0 done; 1 an internal error (a bug: the message says to rerun with --debug for the
 traceback); 2 bad input (invalid scene, missing file, unwritable output directory, a checkpoint
@@ -85,6 +93,8 @@ def handle_errors(command):
             return command(*args, **kwargs)
         except typer.Exit:
             raise
+        # input the user controls (scene files, options, checkpoints and state files): exit 2 naming the
+        # key, the file or the array; anything else reaching the last branch is a bug (exit 1)
         except (SceneError, InputError) as exc:
             if debug:
                 raise
@@ -103,6 +113,10 @@ def handle_errors(command):
         except Exception as exc:  # noqa: BLE001 - the last resort: say what and how to see more
             if debug:
                 raise
+            world = sys.modules.get("inertia.world")     # (loaded by every command that reads checkpoints)
+            if world is not None and isinstance(exc, world.CheckpointError):
+                _error(str(exc))
+                raise typer.Exit(EXIT_INPUT) from None
             _error(f"internal error: {type(exc).__name__}: {exc}\n"
                    "  This is a bug in inertia; rerun with --debug for the traceback.")
             raise typer.Exit(1) from None
@@ -181,15 +195,16 @@ def _resolve_out_dir(out: Path, *, from_scene: bool) -> Path:
     (``output.directory``) must stay inside the working directory even through links (refused
     otherwise); an ``--out`` that is (or passes through) a link is the user's choice, said clearly."""
     given = Path(out).expanduser()
-    absolute = given if given.is_absolute() else Path.cwd() / given
+    cwd = Path.cwd().resolve()
+    absolute = given if given.is_absolute() else cwd / given
     try:
         real = absolute.resolve()
     except (OSError, RuntimeError) as exc:          # a loop of links
         raise InputError(f"output directory {given}: cannot be resolved ({exc})") from None
-    if from_scene and not real.is_relative_to(Path.cwd().resolve()):
+    if from_scene and not real.is_relative_to(cwd):
         raise InputError(f"output.directory: {given} leads outside the working directory (to {real}) through a "
                          "symbolic link; pass --out to choose that directory yourself")
-    if real != Path(os.path.abspath(absolute)):
+    if real != Path(os.path.normpath(absolute)):
         console.print(f"[yellow]warning[/]: output directory {given} is a symbolic link (or passes through one): "
                       f"writing into {real}")
     return real
@@ -659,6 +674,11 @@ def render_command(
         raise InputError(f"--color-by must be one of auto, speed, group, uniform (got {color_by!r})")
     out = _resolve_out_dir(out or states_path.parent, from_scene=False)
     _prepare_out_dir(out, resume=False, overwrite=True)
+    try:
+        json.dumps(states.metadata, ensure_ascii=False).encode("utf-8")
+    except (UnicodeEncodeError, TypeError, ValueError) as exc:
+        raise InputError(f"{states_path}: its header holds text that is not valid Unicode or not JSON data "
+                         f"({type(exc).__name__}); the file is damaged") from None
     render = states.metadata.get("render") or {}
     if not isinstance(render, dict):
         raise InputError(f"{states_path}: its recorded render settings are damaged (not a table)")

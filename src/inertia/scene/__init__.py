@@ -54,6 +54,8 @@ class Scene:
 
 #: Deepest nesting of tables and lists a scene file may have (real scenes nest about 5 deep).
 MAX_NESTING = 32
+#: Largest scene file read (TOML parses at about 4 MB/s: 32 MB is ~10 s before validation).
+MAX_SCENE_BYTES = 32_000_000
 
 
 def _nesting_depth(data, limit: int) -> int:
@@ -174,6 +176,14 @@ def read_scene(path) -> Scene:
     if path.is_dir():
         raise SceneError(path, [Issue("", "is a directory, not a scene file")])
     try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise SceneError(path, [Issue("", f"cannot read the file: {exc}")]) from None
+    if size > MAX_SCENE_BYTES:
+        raise SceneError(path, [Issue("", (
+            f"the file is {size / 1e6:.0f} MB; a scene file holds at most {MAX_SCENE_BYTES / 1e6:.0f} MB (parsing more "
+            "takes minutes): lay particles out with lattice or random, and give large grids as .npy files"))])
+    try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(path, [Issue("", f"cannot read the file: {exc}")]) from None
@@ -212,14 +222,16 @@ def build(scene: Scene, *, check_memory: bool = True):
     """Build the `World` of a validated `Scene`.
 
     ``check_memory``: first estimate what the scene allocates (`inertia.scene.resources`) and
-    raise `SceneError` naming the key, the estimate and the available memory if it does not fit.
+    raise `SceneError` naming the key, the estimate and the available memory if it does not fit,
+    or naming a part too large for its method (a hull of more than 10 000 points, ...).
     """
     from .builder import build_world, scene_fingerprint
 
     if check_memory:
         from .resources import estimate_resources
 
-        problem = estimate_resources(scene.model).memory_problem()
+        estimate = estimate_resources(scene.model)
+        problem = estimate.memory_problem() or estimate.size_problem()
         if problem is not None:
             raise SceneError(scene.path, [Issue(*problem)])
 

@@ -431,8 +431,8 @@ class _Builder:
             return Mesh(source, **kwargs)
         except ImportError as exc:
             self.fail(path, str(exc))
-        except (ValueError, OSError) as exc:
-            self.fail(f"{path}.file", f"cannot use {file} as a collider: {exc}")
+        except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds for a file it cannot read
+            self.fail(f"{path}.file", f"cannot use {file} as a collider: {type(exc).__name__}: {exc}")
 
     def _sdf(self, spec, path):
         from scipy.interpolate import RegularGridInterpolator
