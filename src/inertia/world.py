@@ -893,25 +893,14 @@ def save_checkpoint(path, state: WorldState, info: dict) -> Path:
 
 
 def _check_member_sizes(path, data) -> None:
-    """Every array of an open checkpoint archive: its .npy header read alone, and the bytes the
-    header promises (shape x item size) checked against the member's stored size, so that a header
-    that lies about its shape is refused before anything is allocated."""
+    """Every array of an open checkpoint archive: its .npy header read alone and checked against the
+    member's stored size (`inertia.io.states.npz_member_problem`), before anything is allocated."""
+    from .io.states import npz_member_problem
+
     zip_file = getattr(data, "zip", None)
-    if zip_file is None:
-        return
-    for member in zip_file.infolist():
-        name = member.filename.removesuffix(".npy")
-        try:
-            with zip_file.open(member) as handle:
-                version = np.lib.format.read_magic(handle)
-                shape, _, dtype = (np.lib.format.read_array_header_1_0(handle) if version == (1, 0)
-                                   else np.lib.format.read_array_header_2_0(handle))
-        except _DAMAGED as exc:
-            raise CheckpointError(f"{path}: array {name!r} is damaged ({type(exc).__name__}: {exc})") from None
-        promised = math.prod(shape) * dtype.itemsize
-        if promised > member.file_size:
-            raise CheckpointError(f"{path}: array {name!r} is damaged: its header says shape {shape} of {dtype} "
-                                  f"({promised:,} bytes) but the archive holds {member.file_size:,} bytes")
+    problem = None if zip_file is None else npz_member_problem(zip_file)
+    if problem is not None:
+        raise CheckpointError(f"{path}: {problem}")
 
 
 def _read_tree(path, data) -> dict:

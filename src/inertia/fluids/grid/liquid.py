@@ -99,7 +99,7 @@ from numba import njit, prange
 
 from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
-from ...errors import SimulationDiverged, check_substep_runaway
+from ...errors import MAX_SUBSTEPS_PER_ADVANCE, SimulationDiverged, check_substep_runaway
 from . import kernels as K
 from . import viscosity as V
 from .liquid_pressure import BodyCoupling, LiquidPressure, set_body_face_velocities
@@ -1149,7 +1149,7 @@ class LiquidFluid:
             self.step(dt)
             done += dt
             n += 1
-            if n > 100:
+            if n > MAX_SUBSTEPS_PER_ADVANCE:
                 check_substep_runaway("liquid", n, done, frame_dt, self.cfl * self.cell_size / dt,
                                       step=self.step_index, time=self.time)
         return n
