@@ -86,13 +86,14 @@ def add_sph_fluids(builder, world) -> None:
 
 def grid_memory(table: GridFluidTable) -> tuple[int, float]:
     """(cells, bytes) of a grid fluid: about 40 float64 values per cell (velocity faces, pressure,
-    multigrid levels, scalars and their advection scratch); liquids add their particles (4 per cell
-    of each block, 200 bytes each)."""
+    multigrid levels, scalars and their advection scratch); liquids add their particles (2 per cell
+    per axis of each block: 4 per cell in 2-D, 8 in 3-D; 200 bytes each)."""
     cells = math.prod(table.shape)
     cost = cells * 40 * 8
     if table.kind == "liquid":
+        per_cell = 2 ** len(table.shape)
         for b in table.blocks:
-            cost += 4 * math.prod(max(0.0, (hi - lo) / table.cell_size) for lo, hi in zip(b.lower, b.upper)) * 200
+            cost += per_cell * math.prod(max(0.0, (hi - lo) / table.cell_size) for lo, hi in zip(b.lower, b.upper)) * 200
     return cells, cost
 
 
