@@ -6,7 +6,11 @@
 
 from __future__ import annotations
 
-__all__ = ["SimulationDiverged"]
+__all__ = ["SimulationDiverged", "check_substep_runaway", "MAX_SUBSTEPS_PER_ADVANCE"]
+
+#: CFL substeps one ``advance`` may take before a fluid is declared diverged: a flow whose speed
+#: keeps growing shrinks its CFL step without bound and never reaches the end of the step
+MAX_SUBSTEPS_PER_ADVANCE = 2000
 
 
 class SimulationDiverged(RuntimeError):
@@ -27,3 +31,16 @@ class SimulationDiverged(RuntimeError):
         self.step = step
         self.time = time
         self.indices = indices
+
+
+def check_substep_runaway(kind: str, substeps: int, done: float, frame_dt: float, speed: float, *,
+                          step: int, time: float) -> None:
+    """Raise `SimulationDiverged` once a CFL-limited ``advance`` has taken more than
+    `MAX_SUBSTEPS_PER_ADVANCE` substeps: the flow's speed (``speed``, m/s) grew so fast that its
+    stable step shrinks faster than time advances, so the run would never end."""
+    if substeps <= MAX_SUBSTEPS_PER_ADVANCE:
+        return
+    raise SimulationDiverged(
+        f"{kind} step {step} (t = {time:.6g} s): {substeps} CFL substeps covered only {done:.3g} of the "
+        f"{frame_dt:g} s step (max speed {speed:.3g} m/s); likely cause: a body acceleration, source or "
+        "inflow too strong for the grid, or a velocity blow-up", step=step, time=time, indices=[])

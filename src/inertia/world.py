@@ -65,7 +65,14 @@ friction) exactly as before; the table's rows make them visible to the rigid bod
 ``checkpoint.npz`` holds numeric arrays (read with ``allow_pickle=False``) and one JSON tree;
 nothing is pickled, and a file holding a pickled object is refused (`CheckpointError`). On
 resume the run facts (fingerprint, fps, dt, substeps, particle count) are checked before any
-array is read.
+array is read (a changed scene is named by the keys that differ from the scene recorded in the
+state directory); every archive member's header is checked against its stored size before it is
+read (a bad CRC or a truncated file is a `CheckpointError`); then `check_checkpoint` compares the
+decoded state with what this world's ``save_state`` makes (every array's dtype and shape, numbers
+finite and of their kind) and checks every count and index against the arrays it indexes (contact
+rows and their bodies, shapes and particles; each fluid's ``check_state``: the SPH live count
+against its capacity, grid shapes and clocks), the step count against the frame count and the
+frame count against the frames in the state directory, before any of it reaches a kernel.
 
 Ctrl-C (SIGINT) sets a flag checked after every step: the run stops at the current step,
 writes what it has and returns ``status = "interrupted"``. The handler is installed before the
@@ -108,6 +115,7 @@ import signal
 import threading
 import time as _time
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
@@ -124,7 +132,7 @@ from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
            "CHECKPOINT_NAME", "STATES_NAME", "frame_steps", "CheckpointError",
-           "read_checkpoint_info", "model_file_arrays", "STAGES"]
+           "read_checkpoint_info", "check_checkpoint", "model_file_arrays", "STAGES"]
 
 #: the world step's stages (``world.profile`` keys, besides one per group and ``fluid/<name>``)
 STAGES = ("kinematics", "rigid", "fluids", "coupling")
@@ -628,6 +636,27 @@ class World:
                 momentum[i] = g.system.momentum()
         return kinetic, potential, momentum
 
+    def body_energies(self) -> tuple[float, float, np.ndarray]:
+        """Of the dynamic rigid bodies: kinetic energy (J; translation 1/2 m |v|^2 plus rotation
+        1/2 w_b . I w_b with w_b the angular velocity in the principal axes), potential energy in
+        gravity (J; -m g . x) and linear momentum (3,) kg m/s; zeros without bodies."""
+        if self.rigid is None:
+            return 0.0, 0.0, np.zeros(3)
+        m, st = self.model, self.rigid.state
+        dynamic = np.asarray(m.body_inv_mass) > 0
+        mass = np.asarray(m.body_mass)[dynamic]
+        q, qd = st.body_q[dynamic], st.body_qd[dynamic]
+        w, v = qd[:, :3], qd[:, 3:]
+        # angular velocity in the body's principal axes: rotate by the conjugate quaternion
+        qw, qv = q[:, 3:4], -q[:, 4:7]
+        t = 2.0 * np.cross(qv, w)
+        w_body = w + qw * t + np.cross(qv, t)
+        kinetic = 0.5 * float(np.sum(mass * np.einsum("ij,ij->i", v, v)))
+        kinetic += 0.5 * float(np.sum(np.asarray(m.body_inertia)[dynamic] * w_body * w_body))
+        gravity = np.asarray(m.gravity, dtype=np.float64).reshape(3)
+        potential = -float(np.sum(mass * (q[:, :3] @ gravity)))
+        return kinetic, potential, (mass[:, None] * v).sum(axis=0)
+
     @property
     def has_emitters(self) -> bool:
         return any(getattr(g.system, "emitters", None) for g in self.groups)
@@ -653,7 +682,13 @@ class World:
         fluids = {name: dict(f.save_state()) for name, f in self.fluids.items()}
         return WorldState(self.step_count, [g.simulation.save_state() for g in self.groups], rigid, fluids)
 
-    def restore_state(self, state: WorldState) -> None:
+    def restore_state(self, state: WorldState, *, check: bool = True) -> None:
+        """Continue from `save_state`'s snapshot. ``check``: first compare it with what this world
+        saves (`check_checkpoint`: every array's dtype and shape, every count and index against the
+        arrays it indexes) and raise `CheckpointError` naming the entry; pass False only for a state
+        already checked."""
+        if check:
+            check_checkpoint(self, state, None, "saved state")
         if len(state.groups) != len(self.groups):
             raise ValueError(f"the saved state has {len(state.groups)} groups; this world has {len(self.groups)}")
         if (state.rigid is None) != (self.rigid is None):
@@ -857,14 +892,30 @@ def save_checkpoint(path, state: WorldState, info: dict) -> Path:
     return Path(path)
 
 
+def _check_member_sizes(path, data) -> None:
+    """Every array of an open checkpoint archive: its .npy header read alone and checked against the
+    member's stored size (`inertia.io.states.npz_member_problem`), before anything is allocated."""
+    from .io.states import npz_member_problem
+
+    zip_file = getattr(data, "zip", None)
+    problem = None if zip_file is None else npz_member_problem(zip_file)
+    if problem is not None:
+        raise CheckpointError(f"{path}: {problem}")
+
+
 def _read_tree(path, data) -> dict:
     """The JSON tree of an open checkpoint, version-checked (nothing else is read)."""
+    _check_member_sizes(path, data)
     if "tree" not in data.files:
         raise CheckpointError(f"{path}: not an inertia checkpoint (no tree inside)")
     try:
-        text = str(data["tree"][()])
-        tree = json.loads(text)
-    except (ValueError, RecursionError) as exc:
+        raw = data["tree"]
+    except _DAMAGED as exc:
+        raise CheckpointError(f"{path}: the checkpoint is damaged: its tree cannot be read "
+                              f"({type(exc).__name__}: {exc})") from None
+    try:
+        tree = json.loads(str(raw[()]))
+    except (ValueError, RecursionError, IndexError) as exc:
         raise CheckpointError(f"{path}: the checkpoint's tree is not valid JSON ({type(exc).__name__})") from None
     if not isinstance(tree, dict) or not isinstance(tree.get("info"), dict) or not isinstance(tree.get("groups"), list):
         raise CheckpointError(f"{path}: not an inertia checkpoint (its tree lacks info or groups)")
@@ -874,12 +925,17 @@ def _read_tree(path, data) -> dict:
     return tree
 
 
+#: what reading a damaged archive member raises (bad CRC, truncated stream, bad header)
+_DAMAGED = (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error, NotImplementedError, KeyError,
+            OverflowError, MemoryError)
+
+
 def _open_checkpoint(path):
     try:
         return np.load(path, allow_pickle=False)
     except FileNotFoundError:
         raise CheckpointError(f"{path}: checkpoint not found") from None
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+    except _DAMAGED as exc:
         raise CheckpointError(f"{path}: not a readable checkpoint ({exc})") from None
 
 
@@ -913,11 +969,13 @@ def load_checkpoint(path, *, fingerprint: str | None = None) -> tuple[WorldState
                 continue
             try:
                 arrays[key] = data[key]
-            except ValueError as exc:     # an object array: numpy refuses it without pickle
-                raise CheckpointError(f"{path}: array {key!r} holds Python objects, which is refused "
-                                      f"(loading it could run code): {exc}") from None
-            except (OSError, zipfile.BadZipFile, EOFError) as exc:
+            except ValueError as exc:
+                if "allow_pickle" in str(exc):    # an object array: numpy refuses it without pickle
+                    raise CheckpointError(f"{path}: array {key!r} holds Python objects, which is refused "
+                                          f"(loading it could run code): {exc}") from None
                 raise CheckpointError(f"{path}: array {key!r} is damaged ({exc})") from None
+            except _DAMAGED as exc:
+                raise CheckpointError(f"{path}: array {key!r} is damaged ({type(exc).__name__}: {exc})") from None
     try:
         groups = [SimulationState(g["time"], g["step_count"], _decode(g["system"], arrays, path),
                                   _decode(g["integrator"], arrays, path), _decode(g["extra"], arrays, path))
@@ -927,6 +985,193 @@ def load_checkpoint(path, *, fingerprint: str | None = None) -> tuple[WorldState
         return WorldState(tree["step_count"], groups, rigid, fluids), info
     except (KeyError, TypeError) as exc:
         raise CheckpointError(f"{path}: the checkpoint is damaged (missing or malformed entry {exc})") from None
+
+
+# ----------------------------------------------------------------------------------------------
+# checking a loaded checkpoint against the world it is restored into: every array's shape and
+# dtype against what this scene's world saves, every count and index against the arrays it
+# indexes, before any kernel runs (a checkpoint from anyone must never reach memory it does not own)
+# ----------------------------------------------------------------------------------------------
+def _describe(value) -> str:
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape} and dtype {value.dtype}"
+    if isinstance(value, np.generic):
+        return f"a {value.dtype} scalar"
+    return f"a {type(value).__name__}"
+
+
+def _compare_layout(template, loaded, where: str, problems: list, variable_rows=(), depth: int = 0) -> None:
+    """Append to `problems` each place where `loaded` differs in layout from `template` (what this
+    world's ``save_state`` makes): arrays by dtype and shape (rows free for the keys in
+    `variable_rows`), numbers by kind and finiteness, dicts by key, lists by length."""
+    if len(problems) >= 8 or depth > _MAX_DEPTH:
+        return
+    if isinstance(template, (np.ndarray, np.generic)):
+        t = np.asarray(template)
+        if not isinstance(loaded, (np.ndarray, np.generic)):
+            problems.append(f"{where}: expected {_describe(t)}, the checkpoint holds {_describe(loaded)}")
+            return
+        got = np.asarray(loaded)
+        if got.dtype != t.dtype:
+            problems.append(f"{where}: dtype {got.dtype}, this scene makes {t.dtype}")
+        elif where.rsplit(".", 1)[-1] in variable_rows and t.ndim >= 1:
+            if got.ndim != t.ndim or got.shape[1:] != t.shape[1:]:
+                problems.append(f"{where}: shape {got.shape}, this scene makes (rows,) + {t.shape[1:]}")
+        elif got.shape != t.shape:
+            problems.append(f"{where}: shape {got.shape}, this scene makes {t.shape}")
+        return
+    if isinstance(template, dict):
+        if not isinstance(loaded, dict):
+            problems.append(f"{where}: expected a table, the checkpoint holds {_describe(loaded)}")
+            return
+        for key, value in template.items():
+            if key not in loaded:
+                problems.append(f"{where}.{key}: missing from the checkpoint")
+                continue
+            _compare_layout(value, loaded[key], f"{where}.{key}", problems, variable_rows, depth + 1)
+        return
+    if isinstance(template, (list, tuple)):
+        if not isinstance(loaded, (list, tuple)) or len(loaded) != len(template):
+            n = len(loaded) if isinstance(loaded, (list, tuple)) else _describe(loaded)
+            problems.append(f"{where}: {n} entries, this scene makes {len(template)}")
+            return
+        for i, (a, b) in enumerate(zip(template, loaded)):
+            _compare_layout(a, b, f"{where}[{i}]", problems, variable_rows, depth + 1)
+        return
+    if isinstance(template, bool):
+        if not isinstance(loaded, (bool, np.bool_)):
+            problems.append(f"{where}: expected true or false, the checkpoint holds {loaded!r:.40}")
+        return
+    if isinstance(template, (int, float)):
+        if isinstance(loaded, (bool, np.bool_)) or not isinstance(loaded, (int, float, np.integer, np.floating)):
+            problems.append(f"{where}: expected a number, the checkpoint holds {_describe(loaded)}")
+        elif isinstance(template, int) and not isinstance(loaded, (int, np.integer)):
+            problems.append(f"{where}: expected an integer, the checkpoint holds {loaded!r:.40}")
+        elif isinstance(loaded, (float, np.floating)) and not math.isfinite(loaded):
+            problems.append(f"{where}: {loaded!r} is not a finite number")
+        return
+    if isinstance(template, str) and not isinstance(loaded, str):
+        problems.append(f"{where}: expected a string, the checkpoint holds {_describe(loaded)}")
+
+
+def _index_problem(where: str, values, lo: int, hi: int) -> str | None:
+    """A message if an integer array holds a value outside [lo, hi) (indices into hi rows)."""
+    values = np.asarray(values)
+    if values.size == 0:
+        return None
+    bad = (values < lo) | (values >= hi)
+    if bad.any():
+        first = int(np.flatnonzero(bad.ravel())[0])
+        return (f"{where}: holds {int(values.ravel()[first])} at entry {first}, outside {lo}..{hi - 1} "
+                f"(the rows it indexes)")
+    return None
+
+
+def _count_problem(where: str, value, lo: int, hi: int) -> str | None:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        return f"{where}: expected an integer count, the checkpoint holds {value!r:.40}"
+    if not lo <= int(value) <= hi:
+        return f"{where}: {int(value)} is outside {lo}..{hi} (the capacity of the arrays it counts)"
+    return None
+
+
+def _rigid_problems(world: "World", r: dict) -> list[str]:
+    """Counts and indices of the rigid state and contact cache against their arrays."""
+    from .dynamics.contacts import _SPEC
+    m = world.model
+    nb, ns = int(m.body_count), int(m.shape_count)
+    rows = {r[f"contacts/{name}"].shape[0] for name in _SPEC if f"contacts/{name}" in r}
+    if len(rows) != 1:
+        return [f"rigid.contacts: its arrays have different row counts {sorted(rows)}"]
+    cap = rows.pop()
+    out = [_count_problem("rigid.contacts_count", r["contacts_count"], 0, cap)]
+    if out[0] is not None:
+        return out
+    count = int(r["contacts_count"])
+    out += [_count_problem("rigid.contacts_active_count", r["contacts_active_count"], 0, count),
+            _count_problem("rigid.contacts_particle_count", r.get("contacts_particle_count", 0), 0, cap - count)]
+    if any(out):
+        return [p for p in out if p]
+    used = count + int(r.get("contacts_particle_count", 0))
+    active = int(r["contacts_active_count"])
+    out += [_index_problem("rigid.contacts/active", r["contacts/active"][:active], 0, count),
+            _index_problem("rigid.contacts/contact_body", r["contacts/contact_body"][:used], -1, nb),
+            _index_problem("rigid.contacts/contact_shape", r["contacts/contact_shape"][:count], -1, ns),
+            _index_problem("rigid.contacts/contact_point_count", r["contacts/contact_point_count"][:count], 0, 5),
+            _index_problem("rigid.body_sleep_island", r["body_sleep_island"], -1, nb)]
+    if "contacts/contact_particle" in r and used > count:
+        particle = r["contacts/contact_particle"][count:used]
+        out.append(_index_problem("rigid.contacts/contact_particle[group]", particle[:, 0], 0, max(len(world.groups), 1)))
+        out.append(_index_problem("rigid.contacts/contact_particle[particle]", particle[:, 1], 0,
+                                  max([g.particle_count for g in world.groups] + [1])))
+    for key in ("clock", "step_index"):
+        value = np.asarray(r[key])
+        if not np.all(np.isfinite(value)) or np.any(value < 0):
+            out.append(f"rigid.{key}: {value.tolist()} is not a finite value >= 0")
+    return [p for p in out if p]
+
+
+def check_checkpoint(world: "World", state: WorldState, info: dict | None, path, *,
+                     frames_recorded: int | None = None) -> None:
+    """Raise `CheckpointError` naming the array or fact if `state` (a loaded checkpoint) does not fit
+    `world`: every array's dtype and shape against what this world's ``save_state`` makes, numbers
+    finite and of the right kind, every count and index (contact rows, bodies, shapes, particles,
+    fluid counters) inside the arrays it indexes, the step count against the frame count, and the
+    frame count against the frames present in the state directory (``frames_recorded``; both
+    frame checks need the run facts ``info``, None skips them).
+    Nothing of `state` reaches a kernel before this passes."""
+    template = world.save_state()
+    problems: list[str] = []
+    _compare_layout(template.step_count, state.step_count, "step_count", problems)
+    if len(state.groups) != len(template.groups):
+        problems.append(f"groups: {len(state.groups)} in the checkpoint, this scene has {len(template.groups)}")
+    else:
+        for i, (t, s) in enumerate(zip(template.groups, state.groups)):
+            name = world.groups[i].name
+            for part in ("system", "integrator", "extra"):
+                _compare_layout(getattr(t, part), getattr(s, part), f"groups[{name}].{part}", problems)
+            for part in ("time", "step_count"):
+                _compare_layout(getattr(t, part), getattr(s, part), f"groups[{name}].{part}", problems)
+    if (template.rigid is None) != (state.rigid is None):
+        problems.append("rigid: the checkpoint " + ("has" if state.rigid is not None else "lacks")
+                        + " rigid bodies, this scene " + ("has none" if template.rigid is None else "has them"))
+    elif template.rigid is not None:
+        from .dynamics.contacts import _SPEC
+        rows = tuple(f"contacts/{name}" for name in _SPEC)
+        _compare_layout(template.rigid, state.rigid, "rigid", problems, rows)
+    if not isinstance(state.fluids, dict) or sorted(state.fluids) != sorted(template.fluids):
+        got = sorted(state.fluids) if isinstance(state.fluids, dict) else _describe(state.fluids)
+        problems.append(f"fluids: the checkpoint holds {got}, this scene has {sorted(template.fluids)}")
+    else:
+        for name, t in template.fluids.items():
+            rows = tuple(getattr(world.fluids[name], "state_variable_rows", ()))
+            _compare_layout(t, state.fluids[name], f"fluids.{name}", problems, rows)
+    if not problems and template.rigid is not None:
+        problems += _rigid_problems(world, state.rigid)
+    if not problems:
+        for name, fluid in world.fluids.items():
+            check = getattr(fluid, "check_state", None)
+            if check is not None:
+                try:
+                    check(state.fluids[name])
+                except ValueError as exc:
+                    problems.append(f"fluids.{name}: {exc}")
+    if not problems and info is not None:
+        frames = int(info["frame_count"])
+        steps = int(state.step_count)
+        fps, dt = float(info["fps"]), float(info["dt"])
+        low = 0 if frames == 0 else frame_steps(frames - 1, fps, dt)
+        if frames < 0 or not low <= steps <= frame_steps(frames, fps, dt):
+            problems.append(f"frame_count: {frames} frames do not go with step_count {steps} (frame k is "
+                            f"recorded at step ceil(k / (fps dt)))")
+        elif frames_recorded is not None and frames > frames_recorded:
+            problems.append(f"frame_count: the checkpoint counts {frames} frames but the state directory "
+                            f"holds {frames_recorded}")
+    if problems:
+        more = "" if len(problems) < 8 else " (and maybe more)"
+        advice = ". Run without --resume to start over." if info is not None else "."
+        raise CheckpointError(f"{path}: the checkpoint does not fit this scene: " + "; ".join(problems) + more
+                              + advice)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -1047,6 +1292,9 @@ class Run:
             "dt": w.dt, "substeps": w.substeps, "duration": self.duration,
             "body_names": [] if w.model is None else [str(n) for n in w.model.body_name],
             "fluids": list(w.fluids),
+            # what kinetic_energy, potential_energy and momentum sum (NaN when none of these exists)
+            "diagnostics_cover": ((["particles"] if any(g.kind == "particles" for g in w.groups) else [])
+                                  + (["bodies"] if w.rigid is not None else [])),
         }
         meta.update(self.metadata)
         return meta
@@ -1057,10 +1305,17 @@ class Run:
         w.velocities(self._v)
         kinetic, potential, momentum = w.energies()
         particles = [i for i, g in enumerate(w.groups) if g.kind == "particles"]
+        total_k = np.float64(np.sum(kinetic[particles])) if particles else np.float64(np.nan)
+        total_p = np.float64(np.sum(potential[particles])) if particles else np.float64(np.nan)
+        total_m = np.sum(momentum[particles], axis=0) if particles else np.full(w.dim, np.nan)
+        if w.rigid is not None:
+            # the bodies' share (3-D scenes only: bodies live in 3-D)
+            bk, bp, bm = w.body_energies()
+            total_k = np.float64(bk + (total_k if particles else 0.0))
+            total_p = np.float64(bp + (total_p if particles else 0.0))
+            total_m = (total_m if particles else 0.0) + bm[:w.dim]
         fields = {
-            "kinetic_energy": np.float64(np.sum(kinetic[particles])) if particles else np.float64(np.nan),
-            "potential_energy": np.float64(np.sum(potential[particles])) if particles else np.float64(np.nan),
-            "momentum": np.sum(momentum[particles], axis=0) if particles else np.full(w.dim, np.nan),
+            "kinetic_energy": total_k, "potential_energy": total_p, "momentum": total_m,
             "group_kinetic_energy": kinetic, "group_potential_energy": potential,
         }
         if w.has_emitters:
@@ -1099,7 +1354,10 @@ class Run:
         if self.resume:
             self._check_compatible(read_checkpoint_info(self.checkpoint_path))
             state, info = load_checkpoint(self.checkpoint_path, fingerprint=self.fingerprint)
-            w.restore_state(state)
+            from .io.states import recorded_frame_count
+            check_checkpoint(w, state, info, self.checkpoint_path,
+                             frames_recorded=recorded_frame_count(self.states_path))
+            w.restore_state(state, check=False)
             frame = int(info["frame_count"])
             writer = StateWriter.reopen(self.states_path, frame_count=frame)
         else:
@@ -1172,7 +1430,8 @@ class Run:
         problems = []
         try:
             if info.get("fingerprint") != self.fingerprint:
-                problems.append("the scene's physics changed since the checkpoint was written")
+                problems.append("the scene's physics changed since the checkpoint was written"
+                                + self._scene_changes())
             if float(info["fps"]) != self.fps:
                 problems.append(f"fps is {self.fps:g} but the checkpoint was recorded at {float(info['fps']):g}")
             if float(info["dt"]) != w.dt or int(info["substeps"]) != w.substeps:
@@ -1189,6 +1448,17 @@ class Run:
         if problems:
             raise CheckpointError(f"cannot resume from {self.checkpoint_path}: {'; '.join(problems)}. "
                                   "Run without --resume to start over.")
+
+    def _scene_changes(self) -> str:
+        """' (key: old -> new, ...)' between the scene text recorded with the run and this run's."""
+        try:
+            header = json.loads((self.states_path / "header.json").read_text(encoding="utf-8"))
+            from .scene.errors import scene_changes
+            changes = scene_changes(str(header["scene"]), str(header.get("scene_format", "toml")),
+                                    str(self.metadata["scene"]), str(self.metadata.get("scene_format", "toml")))
+        except Exception:  # noqa: BLE001 - no recorded scene: nothing more to say
+            return ""
+        return f" ({'; '.join(changes)})" if changes else ""
 
     @contextlib.contextmanager
     def catching_sigint(self):

@@ -214,3 +214,52 @@ def test_a_corrupt_header_names_the_file(tmp_path):
         load_states(path)
     with pytest.raises(ValueError, match="header.json"):
         StateWriter.reopen(path)
+
+
+def test_recorded_frame_count_reads_the_index_alone(tmp_path):
+    from inertia.io.states import recorded_frame_count
+
+    writer = StateWriter(tmp_path / "s", dim=2, particle_count=3, fps=10.0, chunk_frames=2)
+    for k in range(5):
+        writer.append(0.1 * k, np.zeros((3, 2)))
+    writer.close()
+    assert recorded_frame_count(tmp_path / "s") == 5
+    assert recorded_frame_count(tmp_path / "empty") == 0
+    (tmp_path / "s" / "index.json").write_text("{not json")
+    with pytest.raises(ValueError, match="index.json"):
+        recorded_frame_count(tmp_path / "s")
+
+
+def _one_chunk(tmp_path):
+    writer = StateWriter(tmp_path / "s", dim=2, particle_count=3, fps=10.0, chunk_frames=4, compress=False)
+    for k in range(2):
+        writer.append(0.1 * k, np.zeros((3, 2)), energy=np.float64(k))
+    writer.close()
+    return next((tmp_path / "s").glob("chunk-*.npz"))
+
+
+def test_a_chunk_whose_npy_header_lies_about_its_shape_is_refused_before_allocating(tmp_path):
+    import io
+    import zipfile
+
+    chunk = _one_chunk(tmp_path)
+    with zipfile.ZipFile(chunk) as archive:
+        members = {name: archive.read(name) for name in archive.namelist()}
+    lie = io.BytesIO()             # says 10^9 frames (48 GB), holds 16 bytes
+    np.lib.format.write_array_header_1_0(lie, {"descr": "<f8", "fortran_order": False, "shape": (10 ** 9, 3, 2)})
+    members["positions.npy"] = lie.getvalue() + bytes(16)
+    with zipfile.ZipFile(chunk, "w") as archive:
+        for name, blob in members.items():
+            archive.writestr(name, blob)
+    with pytest.raises(ValueError, match="header says shape"):
+        load_states(tmp_path / "s")
+
+
+def test_a_chunk_array_of_the_wrong_shape_is_named(tmp_path):
+    chunk = _one_chunk(tmp_path)
+    with np.load(chunk) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["positions"] = arrays["positions"][:, :2]
+    np.savez(chunk, **arrays)
+    with pytest.raises(ValueError, match="positions has shape"):
+        load_states(tmp_path / "s")

@@ -80,3 +80,70 @@ positions = [[0, 0, 1]]
     assert "simulation.duration" in problem and "substeps" in problem and "years" in problem and "--force" in problem
     short = estimate_resources(parse_scene(text.replace("1e12", "1.0").replace("1000", "1")).model)
     assert short.run_time_problem() is None
+
+
+# ---- every part counted (issue 22) ---------------------------------------------------------------
+BOXES = """
+format_version = 1
+[bodies.box]
+shape = { type = "box", half_extents = [0.1, 0.1, 0.1] }
+array = { count = [100, 100, 10], spacing = [0.3, 0.3, 0.3] }
+"""
+
+
+def test_bodies_cost_the_measured_memory_each():
+    from inertia.scene.resources import BYTES_PER_BODY
+
+    est = estimate_resources(parse_scene(BOXES).model)
+    # 100k boxes peaked at about 3.1 GB in a run: the estimate must not be far below it
+    assert est.memory >= 100_000 * BYTES_PER_BODY >= 3.0e9
+    assert est.largest_key == "bodies.box.array.count"
+
+
+def test_a_huge_hull_is_listed_as_a_limit_naming_its_key():
+    points = ", ".join(f"[{i % 7 * 0.01}, {i % 11 * 0.01}, {i % 13 * 0.01}]" for i in range(10_001))
+    text = BOXES.replace('shape = { type = "box", half_extents = [0.1, 0.1, 0.1] }',
+                         f'shape = {{ type = "hull", points = [{points}] }}').replace("[100, 100, 10]", "[1, 1, 1]")
+    key, message = estimate_resources(parse_scene(text).model).size_problem()
+    assert key == "bodies.box.shape.points" and "10,001 points" in message and "--force" in message
+
+
+def test_sph_particles_come_from_the_spacing_and_the_boxes_and_cost_run_time():
+    text = """
+format_version = 1
+[simulation]
+dim = 2
+dt = 0.005
+duration = 2.0
+[sph.water]
+spacing = 1e-4
+domain = [[0, 0], [0.8, 0.6]]
+fluid = [{ box = [[0, 0], [0.2, 0.4]] }]
+"""
+    est = estimate_resources(parse_scene(text).model)
+    assert abs(est.particles - 2000 * 4000) <= 6000      # (0.2 / 1e-4) x (0.4 / 1e-4) lattice points
+    assert est.memory > 8e6 * 1000 and est.largest_key == "sph.water.spacing"
+    assert est.seconds >= 400 * 8e6 * 5e-8           # steps x particles x the per-particle lower bound
+
+
+def test_grid_cells_cost_memory_and_run_time_and_negative_sizes_are_refused():
+    text = """
+format_version = 1
+[simulation]
+dim = 2
+dt = 0.01
+duration = 1.0
+[fluids.box]
+shape = [1000, 1000]
+cell_size = 0.001
+"""
+    est = estimate_resources(parse_scene(text).model)
+    assert est.cells == 1_000_000 and est.seconds >= 100 * 1e6 * 1e-8
+    with pytest.raises(SceneError, match=r"fluids\.box\.shape\[0\]"):
+        parse_scene(text.replace("[1000, 1000]", "[-1000, 1000]"))
+
+
+def test_an_absurd_step_count_does_not_overflow_the_estimate():
+    text = "format_version = 1\n[simulation]\ndt = 1e-300\nduration = 1e15\n[[particles]]\npositions = [[0, 0, 0]]\n"
+    est = estimate_resources(parse_scene(text).model)
+    assert est.steps > 1e300 and est.run_time_problem() is not None

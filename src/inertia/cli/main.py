@@ -13,12 +13,20 @@ SCENE is a .toml/.json file or the name of a bundled example (``inertia run foun
 that looks like a path (``./fountain.toml``) and does not exist is an error, never an example.
 
 ``run`` into a directory holding a finished run (completed or diverged) of the same scene file
-replaces it, so the same command works twice; a run that did not finish is kept for
+replaces it, so the same command works twice, and so does a run of it killed before its first
+checkpoint (nothing there can be resumed); a run that did not finish is kept for
 ``--resume`` (which continues with the duration, fps and seed the run was started with; a
 longer ``--duration`` extends it, other values are refused), another scene's run is kept
-unless ``--overwrite``. Paths from a scene file stay inside the working directory; ``--out``
-is the user's choice. A scene that would not fit in memory, or a run that would take more than
-a day even at full speed, is refused before anything is written (``--force`` proceeds).
+unless ``--overwrite``. The output directory is resolved once (links followed) and every file is
+written inside it: an ``--out`` that is a symbolic link is followed with a warning naming its
+target, a scene file's ``output.directory`` that leads outside the working directory is refused,
+and links inside the directory where the run writes (``states``, ``checkpoint.npz``, outputs) are
+refused. A scene that would not fit in memory, a part too large for its method (a hull of more
+than 10 000 points), or a run that would take more than a day even at full speed, is refused
+before anything is written (``--force`` proceeds). On ``--resume`` the checkpoint is checked
+against the scene (every array's shape and dtype, every count and index, the frame count against
+the state directory) before anything of it is used; ``render`` validates the state file's
+recorded render settings as a scene's.
 
 Exit codes: 0 done; 1 an internal error (a bug: the message says to rerun with --debug for the
 traceback); 2 bad input (invalid scene, missing file, unwritable output directory, a checkpoint
@@ -85,6 +93,8 @@ def handle_errors(command):
             return command(*args, **kwargs)
         except typer.Exit:
             raise
+        # input the user controls (scene files, options, checkpoints and state files): exit 2 naming the
+        # key, the file or the array; anything else reaching the last branch is a bug (exit 1)
         except (SceneError, InputError) as exc:
             if debug:
                 raise
@@ -103,6 +113,10 @@ def handle_errors(command):
         except Exception as exc:  # noqa: BLE001 - the last resort: say what and how to see more
             if debug:
                 raise
+            world = sys.modules.get("inertia.world")     # (loaded by every command that reads checkpoints)
+            if world is not None and isinstance(exc, world.CheckpointError):
+                _error(str(exc))
+                raise typer.Exit(EXIT_INPUT) from None
             _error(f"internal error: {type(exc).__name__}: {exc}\n"
                    "  This is a bug in inertia; rerun with --debug for the traceback.")
             raise typer.Exit(1) from None
@@ -175,6 +189,55 @@ def _finished_run(out: Path) -> tuple[str, str] | None:
     return (status, str(manifest.get("scene_path"))) if status in ("completed", "diverged") else None
 
 
+def _resolve_out_dir(out: Path, *, from_scene: bool) -> Path:
+    """The output directory as one absolute path with every symbolic link followed, resolved once;
+    every file of the run is written inside it. A directory named by a scene file
+    (``output.directory``) must stay inside the working directory even through links (refused
+    otherwise); an ``--out`` that is (or passes through) a link is the user's choice, said clearly."""
+    given = Path(out).expanduser()
+    cwd = Path.cwd().resolve()
+    absolute = given if given.is_absolute() else cwd / given
+    try:
+        real = absolute.resolve()
+    except (OSError, RuntimeError) as exc:          # a loop of links
+        raise InputError(f"output directory {given}: cannot be resolved ({exc})") from None
+    if from_scene and not real.is_relative_to(cwd):
+        raise InputError(f"output.directory: {given} leads outside the working directory (to {real}) through a "
+                         "symbolic link; pass --out to choose that directory yourself")
+    if real != Path(os.path.normpath(absolute)):
+        console.print(f"[yellow]warning[/]: output directory {given} is a symbolic link (or passes through one): "
+                      f"writing into {real}")
+    return real
+
+
+def _check_no_links_inside(out: Path) -> None:
+    """Refuse an output directory whose entries inertia writes are symbolic links (they would lead
+    the run's files outside the directory)."""
+    from inertia.world import CHECKPOINT_NAME, STATES_NAME
+
+    from .outputs import OUTPUT_NAMES
+
+    for name in (CHECKPOINT_NAME, STATES_NAME, *OUTPUT_NAMES.values()):
+        entry = out / name
+        if entry.is_symlink():
+            raise InputError(f"{entry} is a symbolic link (to {os.readlink(entry)}); inertia writes only inside the "
+                             "output directory: remove the link or choose another --out")
+
+
+def _stale_start(out: Path, scene_path: Path | None) -> bool:
+    """True when `out` holds only the start of a run of `scene_path` killed before its first checkpoint
+    (a state directory, no checkpoint, no finished manifest): nothing there can be resumed."""
+    from inertia.world import CHECKPOINT_NAME, STATES_NAME
+
+    if (out / CHECKPOINT_NAME).exists() or not (out / STATES_NAME).exists() or scene_path is None:
+        return False
+    try:
+        header = json.loads((out / STATES_NAME / "header.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return True                          # not even a header: the run died while starting
+    return isinstance(header, dict) and header.get("scene_path") == str(scene_path.resolve())
+
+
 def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool, scene_path: Path | None = None) -> None:
     """Create the output directory or say clearly why it cannot be used.
 
@@ -204,7 +267,13 @@ def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool, scene_path: Pa
     for directory in (out, out / STATES_NAME):
         if directory.is_dir():
             remove_stale_partials(directory)
+    _check_no_links_inside(out)
+    for directory in (out / "frames",):
+        if directory.is_dir() and not directory.is_symlink():
+            remove_stale_partials(directory)
     has_run = (out / CHECKPOINT_NAME).exists() or (out / STATES_NAME).exists()
+    if has_run and not resume and not overwrite and _stale_start(out, scene_path):
+        has_run = False                      # killed before its first checkpoint: a plain re-run replaces it
     if resume:
         if not (out / CHECKPOINT_NAME).exists():
             raise InputError(f"nothing to resume: {out} has no {CHECKPOINT_NAME} (run without --resume)")
@@ -270,12 +339,14 @@ def run(
     _interrupt_note[0] = "nothing was written (stopped before the run started)"
     path = resolve_scene(scene)
     loaded = read_scene(path)
-    out = Path(out) if out is not None else Path(loaded.model.output.directory or Path("out") / loaded.name)
+    out = _resolve_out_dir(out if out is not None else Path(loaded.model.output.directory or Path("out") / loaded.name),
+                           from_scene=out is None and loaded.model.output.directory is not None)
     if resume:
         duration, fps, seed = _resume_settings(out, duration, fps, seed)
     loaded = with_overrides(loaded, duration=duration, fps=fps, seed=seed)
     model = loaded.model
     _check_resources(loaded, force=force)
+    _check_frames(loaded, render)
     _prepare_out_dir(out, resume=resume, overwrite=overwrite, scene_path=path)
     world = build(loaded, check_memory=not force)
     sim = model.simulation
@@ -401,12 +472,35 @@ def _resume_settings(out: Path, duration, fps, seed) -> tuple[float, float, int]
             int(started["seed"]))
 
 
+def _check_frames(loaded, render: bool) -> None:
+    """A video needs frames: refuse a frame rate so low that the run records fewer than two, or
+    below one frame per second (the video encoder's least), before anything is written."""
+    from inertia.scene.errors import Issue, SceneError
+
+    from .outputs import frame_count_for
+
+    sim, output = loaded.model.simulation, loaded.model.output
+    if not render or not output.video:
+        return
+    frames = frame_count_for(sim.duration, sim.fps)
+    if frames < 2 or sim.fps < 1.0:
+        raise SceneError(loaded.path, [Issue("simulation.fps", (
+            f"{sim.fps:g} frames per second over {sim.duration:g} s records {frames} frame(s); a video "
+            f"({', '.join(output.video)}) needs at least 2 frames and fps >= 1: raise fps or duration, or set "
+            "output.video = [] (or --no-render)"))])
+
+
 def _check_resources(loaded, *, force: bool, warn_only: bool = False) -> None:
     """Refuse (or with `force`/`warn_only`, warn about) a scene too big for memory or too long to run."""
     from inertia.scene.errors import Issue, SceneError
     from inertia.scene.resources import estimate_resources
 
     estimate = estimate_resources(loaded.model)
+    size = estimate.size_problem()
+    if size is not None:
+        if not (force or warn_only):
+            raise SceneError(loaded.path, [Issue(*size)])
+        console.print(f"[yellow]warning[/]: {size[0]}: {size[1]}")
     memory = estimate.memory_problem()
     if memory is not None:
         if not force:
@@ -531,6 +625,22 @@ def _scene_colliders(states) -> list:
     return build_colliders(loaded.model, source=scene_path, base_dir=base)
 
 
+def _checked_render(render: dict, states_path: Path) -> dict:
+    """The render settings recorded in a state file (with the command's overrides), validated as a
+    scene's [render] table is; a bad value is an error naming ``render.KEY``."""
+    from pydantic import ValidationError
+
+    from inertia.scene.errors import from_validation_error
+    from inertia.scene.models import Render
+
+    try:
+        return Render.model_validate(render).model_dump(mode="json")
+    except ValidationError as exc:
+        error = from_validation_error(exc, Render, states_path)
+        issues = "; ".join(f"render.{i.path}: {i.message}" if i.path else i.message for i in error.issues)
+        raise InputError(f"{states_path}: the recorded render settings are invalid: {issues}") from None
+
+
 @app.command("render")
 @handle_errors
 def render_command(
@@ -562,12 +672,21 @@ def render_command(
         raise InputError(f"--video: unknown format {bad[0]!r}; allowed: mp4, gif, none")
     if color_by is not None and color_by not in ("auto", "speed", "group", "uniform"):
         raise InputError(f"--color-by must be one of auto, speed, group, uniform (got {color_by!r})")
-    out = out or (states_path.parent if states_path.is_dir() else states_path.parent)
+    out = _resolve_out_dir(out or states_path.parent, from_scene=False)
     _prepare_out_dir(out, resume=False, overwrite=True)
-    render = dict(states.metadata.get("render") or {})
+    try:
+        json.dumps(states.metadata, ensure_ascii=False).encode("utf-8")
+    except (UnicodeEncodeError, TypeError, ValueError) as exc:
+        raise InputError(f"{states_path}: its header holds text that is not valid Unicode or not JSON data "
+                         f"({type(exc).__name__}); the file is damaged") from None
+    render = states.metadata.get("render") or {}
+    if not isinstance(render, dict):
+        raise InputError(f"{states_path}: its recorded render settings are damaged (not a table)")
+    render = dict(render)
     for key, value in (("width", width), ("height", height), ("color_by", color_by)):
         if value is not None:
             render[key] = value
+    render = _checked_render(render, states_path)
     output = {"video": kinds, "frames": frames, "plot": plot, "ply": ply, "usd": usd}
     try:
         colliders = _scene_colliders(states)

@@ -65,16 +65,17 @@ def register(app: typer.Typer) -> None:
         stop_after: Annotated[Optional[int], typer.Option(hidden=True, help="Stop after N variants (tests).")] = None,
     ):
         """Run variants of a scene over a grid, random or Latin-hypercube design; tabulate their metrics."""
-        from inertia.sweep import SweepInputError, SweepInterrupted, require_dependencies, sweep
+        from inertia.sweep import SweepInputError, SweepInterrupted, sweep
 
-        try:
-            require_dependencies()
-        except SweepInputError as exc:
-            raise InputError(str(exc)) from None
+        from .main import _resolve_out_dir
+
+        # (the sweep checks its dependencies itself, once the design's size is known: a design
+        # refused for its size needs none of them)
         path = resolve_scene(scene)
         if out is None:
             from inertia.scene import read_scene
             out = Path("out") / f"{read_scene(path).name}-sweep"
+        out = _resolve_out_dir(out, from_scene=False)
         kinds = [k.strip() for k in outputs.split(",") if k.strip()]
         shown = {"link": False}
         bar = Progress(TextColumn("[bold]sweep"), BarColumn(), _Counts(), console=console, disable=quiet)

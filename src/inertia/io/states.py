@@ -68,7 +68,8 @@ import numpy as np
 from .atomic import atomic_write, write_text_atomic
 from .manifest import library_versions
 
-__all__ = ["StateWriter", "States", "load_states", "write_states", "FORMAT_NAME", "FORMAT_VERSION"]
+__all__ = ["StateWriter", "States", "load_states", "write_states", "recorded_frame_count", "FORMAT_NAME",
+           "FORMAT_VERSION"]
 
 FORMAT_NAME = "inertia-states"
 FORMAT_VERSION = 1
@@ -97,12 +98,38 @@ def _write_npz(path: Path, arrays: Mapping[str, np.ndarray], *, compress: bool, 
                 archive.writestr(name, json.dumps(payload, indent=1, sort_keys=True))
 
 
+def npz_member_problem(zip_file) -> str | None:
+    """A message naming the first member of an open .npz (a `zipfile.ZipFile`) whose .npy header is
+    unreadable or promises more bytes (shape x item size) than the member holds; None if all fit.
+    Reads the headers only, so a header that lies about its shape is caught before anything the
+    size of that shape is allocated."""
+    for member in zip_file.infolist():
+        if not member.filename.endswith(".npy"):       # (JSON members beside the arrays)
+            continue
+        name = member.filename.removesuffix(".npy")
+        try:
+            with zip_file.open(member) as handle:
+                version = np.lib.format.read_magic(handle)
+                shape, _, dtype = (np.lib.format.read_array_header_1_0(handle) if version == (1, 0)
+                                   else np.lib.format.read_array_header_2_0(handle))
+        except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+            return f"array {name!r} is damaged ({type(exc).__name__}: {exc})"
+        promised = math.prod(shape) * dtype.itemsize
+        if promised > member.file_size:
+            return (f"array {name!r} is damaged: its header says shape {shape} of {dtype} ({promised:,} bytes) but "
+                    f"the archive holds {member.file_size:,} bytes")
+    return None
+
+
 def _read_npz(path: Path) -> dict[str, np.ndarray]:
     """Every array of an .npz (never pickled objects); a damaged file is a ValueError naming it."""
     try:
         with np.load(path, allow_pickle=False) as data:
             if not hasattr(data, "files"):
                 raise ValueError("a single array, not an archive")
+            problem = npz_member_problem(data.zip)
+            if problem is not None:
+                raise ValueError(problem)
             return {name: data[name] for name in data.files}
     except FileNotFoundError:
         raise ValueError(f"{path}: file is missing (the state directory is incomplete)") from None
@@ -326,6 +353,37 @@ def _check_index(index: dict, where: Path) -> dict:
     return index
 
 
+def recorded_frame_count(path: str | os.PathLike) -> int:
+    """Frames a state directory holds, from its index alone (0 without an index; the chunk files
+    themselves are not opened). A damaged index is a ValueError naming it."""
+    index_path = Path(path) / _INDEX
+    if not index_path.exists():
+        return 0
+    index = _check_index(_read_json(index_path), index_path)
+    return sum(int(c["count"]) for c in index["chunks"])
+
+
+def _check_chunk(arrays: dict, count: int, particles: tuple, specs: dict, where: Path) -> None:
+    """Every array of a chunk holds `count` frames of the shape the header and index give (times (F,),
+    positions and velocities (F, N, D), each field (F, *shape) of its dtype); a ValueError names the
+    array otherwise (so a damaged state file never reaches the renderer)."""
+    for name, value in arrays.items():
+        if name == "times":
+            expected, dtype = (count,), None
+        elif name in ("positions", "velocities"):
+            expected, dtype = (count, *particles), None
+        elif name.startswith(_FIELD_PREFIX) and name[len(_FIELD_PREFIX):] in specs:
+            spec = specs[name[len(_FIELD_PREFIX):]]
+            expected, dtype = (count, *spec["shape"]), spec["dtype"]
+        else:
+            continue
+        if tuple(value.shape) != tuple(expected):
+            raise ValueError(f"{where}: damaged ({name} has shape {value.shape}; the index and header say {expected})")
+        if value.dtype.kind not in "fiub" or (dtype is not None and value.dtype != np.dtype(dtype)):
+            raise ValueError(f"{where}: damaged ({name} has dtype {value.dtype}"
+                             + (f"; the index says {dtype})" if dtype is not None else ")"))
+
+
 def _load_directory(path: Path, frames) -> States:
     header_path = path / _HEADER
     if not header_path.exists():
@@ -352,6 +410,7 @@ def _load_directory(path: Path, frames) -> States:
         if local.size == 0:
             continue
         arrays = _read_npz(path / chunk["file"])
+        _check_chunk(arrays, count, (n, d), index.get("fields") or {}, path / chunk["file"])
         for name, value in arrays.items():
             parts.setdefault(name, []).append(value[local])
 

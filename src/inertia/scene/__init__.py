@@ -16,6 +16,7 @@ The format is described key by key in `inertia.scene.models` and in the schema.
 from __future__ import annotations
 
 import json
+import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -53,6 +54,8 @@ class Scene:
 
 #: Deepest nesting of tables and lists a scene file may have (real scenes nest about 5 deep).
 MAX_NESTING = 32
+#: Largest scene file read (TOML parses at about 4 MB/s: 32 MB is ~10 s before validation).
+MAX_SCENE_BYTES = 32_000_000
 
 
 def _nesting_depth(data, limit: int) -> int:
@@ -76,6 +79,8 @@ def _parse_text(text: str, fmt: str, source) -> dict:
             data = json.loads(text)
         except json.JSONDecodeError as exc:
             raise SceneError(source, [Issue("", f"invalid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})")]) from None
+        except ValueError as exc:        # e.g. an integer of more than 4300 digits
+            raise SceneError(source, [Issue("", f"invalid JSON: {exc}")]) from None
         except RecursionError:
             raise SceneError(source, [too_deep]) from None
     else:
@@ -92,6 +97,53 @@ def _parse_text(text: str, fmt: str, source) -> dict:
     return data
 
 
+#: Largest magnitude of a number in a scene file: beyond it squares and products of positions,
+#: velocities and forces leave the range where float64 physics (and the camera) stays finite.
+MAX_MAGNITUDE = 1e15
+_INT64 = (-(2 ** 63), 2 ** 63 - 1)
+
+
+def _value_issues(data, limit: int = 8) -> list[Issue]:
+    """Values no key accepts, found before the models run (each named by its key path): text that
+    is not valid Unicode (a lone surrogate from a JSON escape), integers outside 64 bits, numbers of
+    magnitude above `MAX_MAGNITUDE`."""
+    from .errors import format_path
+
+    issues: list[Issue] = []
+    stack = [(data, ())]
+    while stack and len(issues) < limit:
+        value, parts = stack.pop()
+        if isinstance(value, dict):
+            for k, v in value.items():
+                if isinstance(k, str) and not _encodable(k):
+                    issues.append(Issue(format_path(parts), f"a key holds text that is not valid Unicode ({k!r:.40})"))
+                    continue
+                stack.append((v, parts + (k,)))
+        elif isinstance(value, list):
+            stack.extend((v, parts + (i,)) for i, v in enumerate(value))
+        elif isinstance(value, str):
+            if not _encodable(value):
+                issues.append(Issue(format_path(parts), f"text that is not valid Unicode (a lone surrogate?): {value!r:.60}"))
+        elif isinstance(value, bool):
+            continue
+        elif isinstance(value, int):
+            if not _INT64[0] <= value <= _INT64[1]:
+                issues.append(Issue(format_path(parts), f"the integer ({len(str(abs(value)))} digits) is outside the "
+                                                        "64-bit range"))
+        elif isinstance(value, float) and math.isfinite(value) and abs(value) > MAX_MAGNITUDE:
+            issues.append(Issue(format_path(parts), f"{value:g} is beyond +-{MAX_MAGNITUDE:g}: numbers this large "
+                                                    "overflow in the physics (squares, products); use smaller units"))
+    return issues
+
+
+def _encodable(text: str) -> bool:
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def validate(data: dict, source=None) -> SceneModel:
     """Validate a scene dictionary; raises `SceneError` listing every problem."""
     from .errors import from_validation_error
@@ -99,6 +151,9 @@ def validate(data: dict, source=None) -> SceneModel:
     if "format_version" not in data:
         raise SceneError(source, [Issue("format_version", f"required key is missing: start the scene with "
                                                           f"format_version = {FORMAT_VERSION}")])
+    issues = _value_issues(data)
+    if issues:
+        raise SceneError(source, issues)
     try:
         return SceneModel.model_validate(data)
     except ValidationError as exc:
@@ -120,6 +175,14 @@ def read_scene(path) -> Scene:
         raise SceneError(path, [Issue("", "file not found")])
     if path.is_dir():
         raise SceneError(path, [Issue("", "is a directory, not a scene file")])
+    try:
+        size = path.stat().st_size
+    except OSError as exc:
+        raise SceneError(path, [Issue("", f"cannot read the file: {exc}")]) from None
+    if size > MAX_SCENE_BYTES:
+        raise SceneError(path, [Issue("", (
+            f"the file is {size / 1e6:.0f} MB; a scene file holds at most {MAX_SCENE_BYTES / 1e6:.0f} MB (parsing more "
+            "takes minutes): lay particles out with lattice or random, and give large grids as .npy files"))])
     try:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -159,14 +222,16 @@ def build(scene: Scene, *, check_memory: bool = True):
     """Build the `World` of a validated `Scene`.
 
     ``check_memory``: first estimate what the scene allocates (`inertia.scene.resources`) and
-    raise `SceneError` naming the key, the estimate and the available memory if it does not fit.
+    raise `SceneError` naming the key, the estimate and the available memory if it does not fit,
+    or naming a part too large for its method (a hull of more than 10 000 points, ...).
     """
     from .builder import build_world, scene_fingerprint
 
     if check_memory:
         from .resources import estimate_resources
 
-        problem = estimate_resources(scene.model).memory_problem()
+        estimate = estimate_resources(scene.model)
+        problem = estimate.memory_problem() or estimate.size_problem()
         if problem is not None:
             raise SceneError(scene.path, [Issue(*problem)])
 

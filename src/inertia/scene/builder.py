@@ -26,7 +26,7 @@ from ..particles.system import ParticleSystem
 from ..particles.tracers import Tracers
 from ..world import World, fingerprint
 from . import models as M
-from .errors import Issue, SceneError, did_you_mean, read_mesh_file
+from .errors import Issue, SceneError, check_mesh_suffix, did_you_mean, read_mesh_file, read_npy_file
 from .fluids import add_grid_fluids, add_sph_fluids
 
 __all__ = ["build_world", "derive_seed", "scene_fingerprint", "build_colliders"]
@@ -116,12 +116,9 @@ class _Builder:
             self.fail(path, f"file not found: {p}" + (" (it is a directory)" if p.is_dir() else ""))
         return p
 
-    def npy(self, name: str, path: str) -> np.ndarray:
-        file = self.file(name, path)
-        try:
-            return np.load(file, allow_pickle=False)
-        except Exception as exc:  # noqa: BLE001 - any unreadable file is an input error
-            self.fail(path, f"cannot read {file} as a .npy array: {exc}")
+    def npy(self, name: str, path: str, *, ndim: int | None = None) -> np.ndarray:
+        """A .npy file's array, its header checked against the file and the memory (`read_npy_file`)."""
+        return read_npy_file(self.file(name, path), path, self.fail, ndim=ndim)
 
     def per_item(self, value, count: int, path: str) -> np.ndarray:
         if isinstance(value, list):
@@ -420,6 +417,7 @@ class _Builder:
         from ..collision.mesh import Mesh
 
         file = self.file(spec.file, f"{path}.file")
+        check_mesh_suffix(file, f"{path}.file", self.fail)
         source = str(file)
         if spec.scale != 1.0 or spec.translation is not None:
             vertices, faces = read_mesh_file(file, path, self.fail, spec.scale)
@@ -433,8 +431,8 @@ class _Builder:
             return Mesh(source, **kwargs)
         except ImportError as exc:
             self.fail(path, str(exc))
-        except (ValueError, OSError) as exc:
-            self.fail(f"{path}.file", f"cannot use {file} as a collider: {exc}")
+        except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds for a file it cannot read
+            self.fail(f"{path}.file", f"cannot use {file} as a collider: {type(exc).__name__}: {exc}")
 
     def _sdf(self, spec, path):
         from scipy.interpolate import RegularGridInterpolator

@@ -15,6 +15,7 @@ unknown key was found, for the "did you mean" suggestion (difflib).
 from __future__ import annotations
 
 import difflib
+import re
 import types
 import typing
 from dataclasses import dataclass
@@ -23,7 +24,8 @@ from pathlib import Path
 import numpy as np
 from pydantic import BaseModel, ValidationError
 
-__all__ = ["SceneError", "Issue", "format_path", "did_you_mean", "from_validation_error"]
+__all__ = ["SceneError", "Issue", "format_path", "did_you_mean", "from_validation_error", "scene_changes",
+           "read_mesh_file", "read_npy_file", "check_mesh_suffix", "MESH_SUFFIXES"]
 
 
 @dataclass(frozen=True)
@@ -220,6 +222,9 @@ def _message(error: dict, parent_model) -> str:
     return f"{error['msg'][:1].lower()}{error['msg'][1:]} (got {_show(got)})"
 
 
+_KEY_FIRST = re.compile(r"^([A-Za-z_][\w\-+]*(?:\[\d+\])*(?:\.[A-Za-z_][\w\-+]*(?:\[\d+\])*)*): ")
+
+
 def from_validation_error(error: ValidationError, root, source) -> SceneError:
     """Convert a pydantic error for model class `root` into a `SceneError` for `source`."""
     by_path: dict[str, list[tuple[str, bool]]] = {}
@@ -228,6 +233,13 @@ def from_validation_error(error: ValidationError, root, source) -> SceneError:
         parts, parent, via_union = _walk(root, e["loc"])
         path = format_path(parts)
         message = _message(e, parent)
+        # a relation between keys checked on a whole table names its key first ("box: ..."): move it
+        # into the path
+        if e["type"] == "value_error":
+            match = _KEY_FIRST.match(message)
+            if match:
+                path = f"{path}.{match.group(1)}" if path else match.group(1)
+                message = message[match.end():]
         if path not in by_path:
             by_path[path] = []
             order.append(path)
@@ -258,9 +270,64 @@ def from_validation_error(error: ValidationError, root, source) -> SceneError:
     return SceneError(source, issues)
 
 
+#: mesh file types a scene may name (read with trimesh)
+MESH_SUFFIXES = (".obj", ".stl", ".ply", ".off", ".glb", ".gltf")
+
+
+def check_mesh_suffix(file, path: str, fail) -> None:
+    """Refuse (``fail(key_path, message)``) a mesh file whose type is not one trimesh reads."""
+    suffix = Path(file).suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        fail(path, f"{file}: not a mesh file type inertia reads (got {suffix or 'no suffix'!r}; allowed: "
+                   f"{', '.join(MESH_SUFFIXES)})")
+
+
+def read_npy_file(file, path: str, fail, *, ndim: int | None = None, max_bytes: float | None = None) -> np.ndarray:
+    """A numeric array from a ``.npy`` file, its header checked before anything is allocated: the
+    ``.npy`` suffix, a numeric dtype, ``ndim`` dimensions, and the bytes the header promises against
+    the file's size (a header that lies about its shape) and against ``max_bytes`` (default: the
+    memory available); values must be finite. ``fail(key_path, message)`` reports every problem."""
+    import math
+
+    from .resources import _human_bytes, available_memory
+
+    file = Path(file)
+    if file.suffix.lower() != ".npy":
+        fail(path, f"{file}: expected a .npy file (got {file.suffix or 'no suffix'!r})")
+    try:
+        with open(file, "rb") as handle:
+            version = np.lib.format.read_magic(handle)
+            shape, fortran, dtype = (np.lib.format.read_array_header_1_0(handle) if version == (1, 0)
+                                     else np.lib.format.read_array_header_2_0(handle))
+            offset = handle.tell()
+        size = file.stat().st_size
+    except Exception as exc:  # noqa: BLE001 - any unreadable header is an input error
+        fail(path, f"cannot read {file} as a .npy array: {exc}")
+    if dtype.hasobject or dtype.kind not in "fiub":
+        fail(path, f"{file}: holds {dtype} values; a numeric array is needed")
+    if ndim is not None and len(shape) != ndim:
+        fail(path, f"{file}: holds a {len(shape)}-D array of shape {shape}; a {ndim}-D array is needed")
+    promised = math.prod(shape) * dtype.itemsize
+    if promised > size - offset:
+        fail(path, f"{file}: its header says shape {shape} of {dtype} ({promised:,} bytes) but the file holds "
+                   f"{size - offset:,} bytes of data (damaged or not written by numpy)")
+    limit = max_bytes if max_bytes is not None else available_memory()
+    if limit is not None and 2 * promised > limit:
+        fail(path, f"{file}: an array of shape {shape} ({_human_bytes(promised)}) does not fit in the memory "
+                   f"available ({_human_bytes(limit)})")
+    try:
+        array = np.load(file, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001
+        fail(path, f"cannot read {file} as a .npy array: {exc}")
+    if array.dtype.kind == "f" and not np.all(np.isfinite(array)):
+        fail(path, f"{file}: holds values that are not finite (inf or nan)")
+    return array
+
+
 def read_mesh_file(file, path: str, fail, scale: float = 1.0):
     """(vertices (V, 3) float64 scaled by ``scale``, faces (F, 3) int64) of a mesh file read with
     trimesh; ``fail(key_path, message)`` reports a missing extra or an unreadable file."""
+    check_mesh_suffix(file, f"{path}.file", fail)
     try:
         import trimesh
     except ImportError:
@@ -269,4 +336,44 @@ def read_mesh_file(file, path: str, fail, scale: float = 1.0):
         mesh = trimesh.load(str(file), force="mesh")
     except Exception as exc:  # noqa: BLE001 - trimesh raises many kinds
         fail(f"{path}.file", f"cannot read {file} as a mesh: {exc}")
-    return np.asarray(mesh.vertices, dtype=np.float64) * scale, np.asarray(mesh.faces, dtype=np.int64)
+    vertices, faces = np.asarray(mesh.vertices, dtype=np.float64) * scale, np.asarray(mesh.faces, dtype=np.int64)
+    if len(faces) == 0 or not np.all(np.isfinite(vertices)):
+        fail(f"{path}.file", f"{file}: " + ("holds no triangles" if len(faces) == 0 else "holds vertices that are not finite"))
+    return vertices, faces
+
+
+def _scene_dict(text: str, fmt: str):
+    import json
+    import tomllib
+    return json.loads(text) if fmt == "json" else tomllib.loads(text)
+
+
+def scene_changes(old_text: str, old_format: str, new_text: str, new_format: str, *, limit: int = 6) -> list[str]:
+    """The keys whose values differ between two scene texts, as ``path: old -> new`` lines (at most
+    `limit`; ``[]`` if either text does not parse). Says what changed when a checkpoint of one scene
+    meets another."""
+    try:
+        old, new = _scene_dict(old_text, old_format), _scene_dict(new_text, new_format)
+    except Exception:  # noqa: BLE001 - a text that does not parse names nothing
+        return []
+    out: list[str] = []
+
+    def walk(a, b, parts):
+        if len(out) >= limit:
+            return
+        if isinstance(a, dict) and isinstance(b, dict):
+            for key in list(a) + [k for k in b if k not in a]:
+                if key in ("name", "description", "output", "render"):
+                    if not parts:
+                        continue
+                walk(a.get(key, "(absent)"), b.get(key, "(absent)"), parts + [key])
+            return
+        if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+            for i, (x, y) in enumerate(zip(a, b)):
+                walk(x, y, parts + [i])
+            return
+        if a != b:
+            out.append(f"{format_path(parts)}: {_show(a)} -> {_show(b)}")
+
+    walk(old, new, [])
+    return out

@@ -56,7 +56,10 @@ def sph_memory(table: SPHTable) -> tuple[int, float]:
     ratio = 2.0 * h / table.spacing
     neighbours = (math.pi * ratio ** 2) if dim == 2 else (4.0 / 3.0 * math.pi * ratio ** 3)
     per_pair = 4 + 8 + 8 * dim
-    return n, n * (BYTES_PER_SPH_PARTICLE + (1.25 * neighbours + 1.5 * neighbours + 8) * per_pair)
+    # the neighbour search's cell grid over the domain (cells of side 2 h: start and count, int64)
+    lo, hi = table.domain
+    cells = math.prod(max(1.0, (b - a) / (2.0 * h) + 1.0) for a, b in zip(lo, hi))
+    return n, n * (BYTES_PER_SPH_PARTICLE + (1.25 * neighbours + 1.5 * neighbours + 8) * per_pair) + 16.0 * cells
 
 
 def add_sph_fluids(builder, world) -> None:
@@ -83,13 +86,14 @@ def add_sph_fluids(builder, world) -> None:
 
 def grid_memory(table: GridFluidTable) -> tuple[int, float]:
     """(cells, bytes) of a grid fluid: about 40 float64 values per cell (velocity faces, pressure,
-    multigrid levels, scalars and their advection scratch); liquids add their particles (4 per cell
-    of each block, 200 bytes each)."""
+    multigrid levels, scalars and their advection scratch); liquids add their particles (2 per cell
+    per axis of each block: 4 per cell in 2-D, 8 in 3-D; 200 bytes each)."""
     cells = math.prod(table.shape)
     cost = cells * 40 * 8
     if table.kind == "liquid":
+        per_cell = 2 ** len(table.shape)
         for b in table.blocks:
-            cost += 4 * math.prod(max(0.0, (hi - lo) / table.cell_size) for lo, hi in zip(b.lower, b.upper)) * 200
+            cost += per_cell * math.prod(max(0.0, (hi - lo) / table.cell_size) for lo, hi in zip(b.lower, b.upper)) * 200
     return cells, cost
 
 

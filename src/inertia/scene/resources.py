@@ -7,6 +7,12 @@ distance grids of mesh colliders) and the steps of a run, without allocating any
 that `inertia.scene.build` can refuse a scene that does not fit (naming the key, the estimate
 and the machine's available memory) and `inertia run` can refuse a run that would not finish.
 
+Every part is counted: particle groups, emitter pools, springs, mesh-collider distance grids,
+rigid bodies (with their hull points and inline mesh triangles), SPH particles (from the spacing
+and the fluid boxes, with their neighbour lists and search grid) and grid-fluid cells. Parts too
+large for their method (a hull of more than `MAX_HULL_POINTS` points, a mesh of more than
+`MAX_MESH_TRIANGLES` triangles) are listed in ``limits`` and refused like a scene that does not fit.
+
 Model of the cost (measured on the bundled integrators with tracemalloc, 1e5 particles, 3-D):
 a particle costs 600-1900 bytes through building and stepping (state, integrator stages,
 forces, collision scratch, the recorder's frame copies); ``BYTES_PER_PARTICLE = 2000`` covers
@@ -40,16 +46,31 @@ SECONDS_PER_PARTICLE_STEP = 2e-9
 SECONDS_PER_GROUP_STEP = 2e-6
 #: A run whose lower-bound time exceeds this needs ``--force`` (one day).
 MAX_RUN_SECONDS = 86400.0
-#: a rigid body's arrays, its shapes' rows, contact manifolds (about 3 per body in a pile) and scratch
-BYTES_PER_BODY = 4000
+#: a rigid body's arrays, its shapes' rows, contact manifolds, broad-phase pairs, solver scratch and the
+#: recorder: peak resident memory of a 0.1 s run of 16,000 resting boxes minus that of 1,000 boxes,
+#: over the 15,000 extra bodies, measured 930 - 246 MB -> 45.6 kB a body (was 4 kB, 8-10x low)
+BYTES_PER_BODY = 46_000
+#: a convex hull's point (body-local copy, support scans, hull faces for drawing) and a mesh triangle
+#: (vertices, BVH node share, drawing copy)
+BYTES_PER_HULL_POINT = 100
+BYTES_PER_TRIANGLE = 300
+#: largest hull and mesh a body may carry without --force (contact queries scan hull points)
+MAX_HULL_POINTS = 10_000
+MAX_MESH_TRIANGLES = 2_000_000
+#: lower bounds on the work of a fluid: an SPH particle per fluid substep (neighbour search,
+#: density, pressure solve: tens of neighbours, several passes) and a grid cell per step
+#: (advection, pressure iterations)
+SECONDS_PER_SPH_PARTICLE_STEP = 5e-8
+SECONDS_PER_GRID_CELL_STEP = 1e-8
 #: rigid solve per body and substep, a lower bound: the 204-box pyramid (examples/box_pyramid.toml) runs
 #: 240 steps x 8 substeps in ~15 s on a shared 2-core machine, 3.8e-5 s per body-substep, most bodies asleep
 SECONDS_PER_BODY_SUBSTEP = 5e-6
 
 
 def available_memory() -> int | None:
-    """Bytes of memory this process can still use: the smaller of the system's available memory
-    (``MemAvailable`` of /proc/meminfo, else sysconf) and a cgroup v2 limit; None if unknown."""
+    """Bytes of memory this process can still use: the smallest of the system's available memory
+    (``MemAvailable`` of /proc/meminfo, else sysconf), the address-space limit (``RLIMIT_AS``, less
+    what the process maps already) and a cgroup v2 limit; None if unknown."""
     candidates = []
     try:
         with open("/proc/meminfo", encoding="ascii") as handle:
@@ -64,6 +85,15 @@ def available_memory() -> int | None:
             candidates.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
         except (ValueError, OSError, AttributeError):
             pass
+    try:
+        import resource
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            with open("/proc/self/statm", encoding="ascii") as handle:
+                used = int(handle.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+            candidates.append(max(0, soft - used))
+    except (ImportError, OSError, ValueError, IndexError, AttributeError):
+        pass
     try:
         limit = Path("/sys/fs/cgroup/memory.max").read_text().strip()
         if limit != "max":
@@ -107,6 +137,10 @@ class ResourceEstimate:
     groups: int = 0
     duration: float = 0.0
     substeps: int = 1
+    bodies: int = 0
+    cells: int = 0
+    #: (key, message): parts larger than their method handles in reasonable time (refused without --force)
+    limits: list = field(default_factory=list)
 
     @property
     def largest_key(self) -> str | None:
@@ -122,13 +156,19 @@ class ResourceEstimate:
         return key, (f"{what} need about {_human_bytes(self.memory)} of memory in all, but this machine has "
                      f"{_human_bytes(available)} available; lower it")
 
+    def size_problem(self) -> tuple[str, str] | None:
+        """(key, message) of the first part too large for its method (hull points, mesh triangles)."""
+        return self.limits[0] if self.limits else None
+
     def run_time_problem(self, limit: float = MAX_RUN_SECONDS) -> str | None:
         """A message naming simulation.duration (and dt, substeps) if the run would take longer
         than `limit` seconds even at the fastest speed this library reaches, else None."""
         if self.seconds <= limit:
             return None
+        parts = [f"{self.particles:,} particles"] + ([f"{self.bodies:,} bodies"] if self.bodies else []) + (
+            [f"{self.cells:,} grid cells"] if self.cells else [])
         return (f"simulation.duration: a run of {self.duration:g} s is {self.steps:.3g} integrator steps "
-                f"(duration / dt x substeps = {self.substeps}) of {self.particles:,} particles: at least "
+                f"(duration / dt x substeps = {self.substeps}) of {', '.join(parts)}: at least "
                 f"{_human_seconds(self.seconds)} of computing even at the fastest speed inertia reaches. "
                 "Lower duration or substeps (or raise dt), or pass --force to run it anyway")
 
@@ -211,8 +251,21 @@ def estimate_resources(model: M.SceneModel) -> ResourceEstimate:
         n = body.copies
         bodies += n
         key = f"bodies.{name}" + (".array.count" if body.array is not None else ".pyramid.base" if body.pyramid is not None else "")
-        est.memory += n * BYTES_PER_BODY
-        est.items[key] = (n * BYTES_PER_BODY, f"{n:,} rigid bodies")
+        cost = n * BYTES_PER_BODY
+        for k, shape in _body_shapes(body):
+            points, triangles = _shape_size(shape)
+            cost += n * (points * BYTES_PER_HULL_POINT + triangles * BYTES_PER_TRIANGLE)
+            if points > MAX_HULL_POINTS:
+                est.limits.append((f"bodies.{name}.{k}.points", (
+                    f"a convex hull of {points:,} points: every contact query scans them all; at most "
+                    f"{MAX_HULL_POINTS:,} (simplify the hull, or pass --force)")))
+            if triangles > MAX_MESH_TRIANGLES:
+                est.limits.append((f"bodies.{name}.{k}.triangles", (
+                    f"a mesh of {triangles:,} triangles; at most {MAX_MESH_TRIANGLES:,} (decimate it, or pass --force)")))
+        est.memory += cost
+        est.items[key] = (cost, f"{n:,} rigid bodies")
+    est.bodies = bodies
+    world_steps = _whole_steps(sim.duration, sim.dt)
     for name, table in model.sph.items():
         from .fluids import sph_memory
 
@@ -220,15 +273,56 @@ def estimate_resources(model: M.SceneModel) -> ResourceEstimate:
         est.memory += cost
         est.particles += n
         est.items[f"sph.{name}.spacing"] = (cost, f"an SPH fluid of {n:,} particles")
+        # the fluid steps at most dt_max (or its fixed dt) per substep
+        fluid_dt = table.dt if table.dt is not None else table.dt_max
+        est.seconds += world_steps * max(1.0, sim.dt / fluid_dt) * n * SECONDS_PER_SPH_PARTICLE_STEP
     for name, table in model.fluids.items():
         from .fluids import grid_memory
 
         cells, cost = grid_memory(table)
         est.memory += cost
+        est.cells += cells
         est.items[f"fluids.{name}.shape"] = (cost, f"a fluid grid of {cells:,} cells")
+        est.seconds += world_steps * cells * SECONDS_PER_GRID_CELL_STEP
     est.groups = len(model.particles) + len(model.tracers)
     est.duration, est.substeps = sim.duration, sim.substeps
-    est.steps = math.ceil(sim.duration / sim.dt - 1e-9) * float(sim.substeps)
-    est.seconds = est.steps * (est.particles * SECONDS_PER_PARTICLE_STEP + est.groups * SECONDS_PER_GROUP_STEP)
-    est.seconds += math.ceil(sim.duration / sim.dt - 1e-9) * model.rigid.substeps * bodies * SECONDS_PER_BODY_SUBSTEP
+    est.steps = world_steps * float(sim.substeps)
+    particle_steps = est.particles - sum(sph_particles(t) for t in model.sph.values())
+    est.seconds += est.steps * (particle_steps * SECONDS_PER_PARTICLE_STEP + est.groups * SECONDS_PER_GROUP_STEP)
+    est.seconds += world_steps * model.rigid.substeps * bodies * SECONDS_PER_BODY_SUBSTEP
     return est
+
+
+def sph_particles(table) -> int:
+    from .fluids import sph_particle_count
+    return sph_particle_count(table)
+
+
+def _whole_steps(duration: float, dt: float) -> float:
+    """Steps of a run, ceil(duration / dt), as a float (no overflow for absurd ratios)."""
+    ratio = duration / dt
+    return float(math.ceil(ratio - 1e-9)) if ratio < 1e15 else ratio
+
+
+def _body_shapes(body):
+    """(key, shape spec) of each shape of a body table (shape, shapes[i], mix[i])."""
+    if body.shape is not None:
+        return [("shape", body.shape)]
+    key = "shapes" if body.shapes is not None else "mix"
+    return [(f"{key}[{i}]", s) for i, s in enumerate(body.shapes if body.shapes is not None else body.mix)]
+
+
+def _shape_size(shape) -> tuple[int, int]:
+    """(hull points, mesh or heightfield triangles) a shape spec holds inline."""
+    t = getattr(shape, "type", None)
+    if t == "hull":
+        if shape.points is not None:
+            return len(shape.points), 0
+        return sum(len(p) for p in shape.parts), 0
+    if t == "mesh" and getattr(shape, "triangles", None) is not None:
+        return len(shape.vertices), len(shape.triangles)
+    if t == "heightfield" and getattr(shape, "heights", None) is not None:
+        rows = len(shape.heights)
+        cols = max((len(r) for r in shape.heights), default=0)
+        return rows * cols, 2 * max(rows - 1, 0) * max(cols - 1, 0)
+    return 0, 0

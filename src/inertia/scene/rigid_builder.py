@@ -21,7 +21,7 @@ import numpy as np
 from ..geometry import shapes as S
 from ..math import rotate_vectors
 from . import rigid_models as R
-from .errors import Issue, SceneError, did_you_mean, read_mesh_file
+from .errors import Issue, SceneError, did_you_mean, read_mesh_file, read_npy_file
 
 __all__ = ["RigidScene", "VehicleController", "build_rigid", "rigid_world", "step_scene", "body_copies"]
 
@@ -253,11 +253,7 @@ class _RigidBuilder:
                         self.fail(f"{path}.heights", f"all rows need the same length (got lengths {sorted(rows)})")
                     heights = np.asarray(spec.heights, dtype=np.float64)
                 else:
-                    file = self.file(spec.file, f"{path}.file")
-                    try:
-                        heights = np.load(file, allow_pickle=False)
-                    except Exception as exc:  # noqa: BLE001
-                        self.fail(f"{path}.file", f"cannot read {file} as a .npy array: {exc}")
+                    heights = read_npy_file(self.file(spec.file, f"{path}.file"), f"{path}.file", self.fail, ndim=2)
                 kw.pop("density", None)
                 b.add_heightfield(heights, spec.spacing, body=bi, **kw)
 

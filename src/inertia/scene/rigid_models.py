@@ -45,6 +45,10 @@ from typing import Annotated, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+#: Fastest initial body speed a scene may give (m/s): the RigidWorld's ``max_speed`` default, above
+#: which a step reports the body as diverged (so `inertia validate` says it before any run)
+MAX_BODY_SPEED = 1e4
+
 #: Most bodies one [bodies.NAME] table may make (the solver is far from real time beyond ~10^4).
 MAX_COPIES = 100_000
 
@@ -258,6 +262,10 @@ class Body(_Model):
             raise ValueError("give array or pyramid, not both")
         if self.copies > MAX_COPIES:
             raise ValueError(f"array/pyramid makes {self.copies:,} bodies; at most {MAX_COPIES:,} per table")
+        speed = math.sqrt(sum(c * c for c in self.velocity))
+        if speed > MAX_BODY_SPEED:
+            raise ValueError(f"velocity: |v| = {speed:.3g} m/s is above the rigid solver's limit of {MAX_BODY_SPEED:g} "
+                             "m/s (RigidWorld max_speed): the first step would stop the run as diverged")
         if self.color is not None and (len(self.color) != 7 or self.color[0] != "#"
                                        or any(c not in "0123456789abcdefABCDEF" for c in self.color[1:])):
             raise ValueError(f"color must be '#rrggbb'; got {self.color!r}")

@@ -204,7 +204,7 @@ def _connect(client, scheduler, workers, dashboard, connect_timeout):
             c.close()
         return
     cores = _usable_cores()
-    n = int(workers) if workers else cores
+    n = cores if workers is None else int(workers)
     if n < 1:
         raise SweepInputError(f"--workers must be >= 1 (got {workers})")
     threads = max(1, cores // n)
@@ -304,7 +304,10 @@ def sweep(scene, params, metrics=None, *, client=None, design: str | None = None
     ("completed", "diverged", "error", "lost"), error, wall_time and cpu_time (s, of the process that ran
     the variant, from scene validation to the last metric), pid (that process).
     """
-    require_dependencies()
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise SweepInputError(f"--workers must be an integer >= 1 (got {workers!r})")
+    if not isinstance(max_variants, int) or isinstance(max_variants, bool) or max_variants < 1:
+        raise SweepInputError(f"--max-variants must be an integer >= 1 (got {max_variants!r})")
     started = time.perf_counter()
     loaded, data = _read(scene)
     params = _params(params, data)
@@ -329,6 +332,7 @@ def sweep(scene, params, metrics=None, *, client=None, design: str | None = None
     if size > max_variants:
         raise SweepInputError(f"the design has {size:,} variants, more than the limit of {max_variants:,}; "
                               f"raise it with --max-variants {size}")
+    require_dependencies()       # after the design's size is known: a refusal needs no dask
     variants = make_design(params, design=design, samples=samples, seed=seed)
     _check_values(params, data, loaded.path)
 

@@ -230,6 +230,11 @@ def thaw(value):
     return [thaw(v) for v in value] if isinstance(value, tuple) else value
 
 
+#: Most points one ``lo:hi:N`` range may have (checked before any is made; the design's variant
+#: count, the product over the parameters, is checked against ``max_variants`` before it is made).
+MAX_RANGE_POINTS = 1_000_000
+
+
 def _parse_range(key: str, text: str, base: dict | None) -> Param:
     pieces = [p.strip() for p in text.split(":")]
     if len(pieces) < 2 or len(pieces) > 4:
@@ -250,6 +255,9 @@ def _parse_range(key: str, text: str, base: dict | None) -> Param:
                                       "a scale (allowed: an integer N, log10, linear)") from None
     if count is not None and count < 1:
         raise SweepInputError(f"--param {key}: the range {text!r} has {count} points (empty range)")
+    if count is not None and count > MAX_RANGE_POINTS:
+        raise SweepInputError(f"--param {key}: the range {text!r} asks for {count:,} points; a range takes at most "
+                              f"{MAX_RANGE_POINTS:,} (a sweep of that many variants would not finish)")
     if high < low or (high == low and count != 1):
         raise SweepInputError(f"--param {key}: the range {text!r} is empty (the end must be above the start)")
     if scale == "log10" and low <= 0:

@@ -130,7 +130,7 @@ from numba import njit, prange
 
 from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
-from ...errors import SimulationDiverged
+from ...errors import MAX_SUBSTEPS_PER_ADVANCE, SimulationDiverged, check_substep_runaway
 from . import kernels as K
 from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
@@ -1879,6 +1879,9 @@ class LiquidFluid:
             self.step(dt)
             done += dt
             n += 1
+            if n > MAX_SUBSTEPS_PER_ADVANCE:
+                check_substep_runaway("liquid", n, done, frame_dt, self.cfl * self.cell_size / dt,
+                                      step=self.step_index, time=self.time)
         return n
 
     def _predict_gravity(self, dt, sign):
@@ -2036,7 +2039,34 @@ class LiquidFluid:
                                              self.particles_seeded, self.particles_removed])}
         return st
 
+    #: state arrays whose row count (particles) may differ from a fresh fluid's (checkpoint checks)
+    state_variable_rows = ("x", "v", "c")
+
+    def check_state(self, state):
+        """Raise ValueError naming the entry if ``state`` (from a checkpoint) does not fit this liquid:
+        ``x``, ``v`` and ``c`` with one row per particle each and this liquid's trailing shapes, finite
+        positions, a finite time and step index >= 0. Called first by ``restore_state``."""
+        mine = self.save_state()
+        rows = None
+        for key in ("x", "v", "c"):
+            if key not in state:
+                raise ValueError(f"state is missing {key!r}")
+            got = np.asarray(state[key])
+            if got.ndim != mine[key].ndim or got.shape[1:] != mine[key].shape[1:] or got.dtype.kind != "f":
+                raise ValueError(f"state[{key!r}] has shape {got.shape} and dtype {got.dtype}; this liquid needs "
+                                 f"(particles,) + {mine[key].shape[1:]} floats")
+            if rows is not None and got.shape[0] != rows:
+                raise ValueError(f"state[{key!r}] has {got.shape[0]} rows but state['x'] has {rows}")
+            rows = got.shape[0]
+            if not np.all(np.isfinite(got)):
+                raise ValueError(f"state[{key!r}] holds values that are not finite")
+        for key in ("time", "step_index"):
+            value = np.asarray(state.get(key, np.nan), dtype=float)
+            if value.shape != () or not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"state[{key!r}] must be a finite number >= 0")
+
     def restore_state(self, state):
+        self.check_state(state)
         self.x = np.ascontiguousarray(state["x"], dtype=np.float64).copy()
         self.v = np.ascontiguousarray(state["v"], dtype=np.float64).copy()
         self.c = np.ascontiguousarray(state["c"], dtype=np.float64).copy()

@@ -46,11 +46,17 @@ from __future__ import annotations
 
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from .boundaries import Inflow, Outflow, Periodic, Pressure, Wall
 from .liquid import LiquidFluid
 from .solver import GridFluid
+
+
+#: smallest grid cell a scene may ask for, and most cells along one axis (the memory estimate
+#: refuses what does not fit long before this)
+MIN_CELL_SIZE = 1e-6
+MAX_CELLS_PER_AXIS = 1_000_000
 
 
 class _Strict(BaseModel):
@@ -124,6 +130,41 @@ class GridFluidTable(_Strict):
     blocks: list[BlockTable] = Field(default_factory=list)
 
 
+    @model_validator(mode="after")
+    def _relations(self):
+        dim = len(self.shape)
+        if dim not in (2, 3):
+            raise ValueError(f"shape: needs 2 or 3 entries (cells per axis); got {len(self.shape)}")
+        for a, n in enumerate(self.shape):
+            if not 4 <= n <= MAX_CELLS_PER_AXIS:
+                raise ValueError(f"shape[{a}]: cells per axis must be in 4..{MAX_CELLS_PER_AXIS} (got {n})")
+        if self.cell_size < MIN_CELL_SIZE:
+            raise ValueError(f"cell_size: must be >= {MIN_CELL_SIZE:g} m (got {self.cell_size!r})")
+        origin = self.origin or [0.0] * dim
+        if len(origin) != dim:
+            raise ValueError(f"origin: needs {dim} components like shape (got {len(origin)})")
+        upper = [o + n * self.cell_size for o, n in zip(origin, self.shape)]
+        for key, items in (("sources", self.sources), ("blocks", self.blocks)):
+            for i, box in enumerate(items):
+                lo, hi = box.lower, box.upper
+                if len(lo) != dim or len(hi) != dim:
+                    raise ValueError(f"{key}[{i}]: lower and upper need {dim} components like shape")
+                if any(not a < b for a, b in zip(lo, hi)):
+                    raise ValueError(f"{key}[{i}]: every component of lower must be below upper (got {lo} and {hi})")
+                if any(a < o - 1e-9 for a, o in zip(lo, origin)) or any(b > u + 1e-9 for b, u in zip(hi, upper)):
+                    raise ValueError(f"{key}[{i}]: the box {lo}..{hi} must lie inside the grid {origin}..{upper}")
+        sides = [s for s in ("x-", "x+", "y-", "y+", "z-", "z+")[:2 * dim]]
+        extra = [s for s in self.boundaries if s not in sides]
+        if extra:
+            raise ValueError(f"boundaries.{extra[0]}: a {dim}-D grid has sides {sides}")
+        inflows = [s for s, b in self.boundaries.items() if b.type == "inflow"]
+        outlets = [s for s, b in self.boundaries.items() if b.type == "outflow"]
+        if self.kind == "smoke" and inflows and not outlets:
+            raise ValueError(f"boundaries.{inflows[0]}: an inflow needs an outflow side to leave by (the other "
+                             "sides are closed: the incompressible flow cannot take in fluid); make one side "
+                             "type = \"outflow\"")
+        return self
+
     @field_validator("obstacle_slip", mode="before")
     @classmethod
     def _slip_values(cls, v):
@@ -181,7 +222,8 @@ def build(table, world=None, colliders=None, name="fluid"):
         except ValidationError as e:
             err = e.errors()[0]
             key = ".".join(str(p) for p in err["loc"])
-            raise ValueError(f"{prefix}.{key}: {err['msg']}") from None
+            msg = str(err["msg"]).removeprefix("Value error, ")
+            raise ValueError(f"{prefix}.{key}: {msg}" if key else f"{prefix}.{msg}") from None
     t = table
     try:
         obstacles = []

@@ -88,7 +88,7 @@ import math
 import numpy as np
 
 from ..._validate import as_vector, positive_scalar
-from ...errors import SimulationDiverged
+from ...errors import MAX_SUBSTEPS_PER_ADVANCE, SimulationDiverged, check_substep_runaway
 from . import kernels as K
 from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Pressure, Wall, parse_boundaries, side_velocity
@@ -1034,6 +1034,9 @@ class GridFluid:
             self.step(dt)
             done += dt
             n += 1
+            if n > MAX_SUBSTEPS_PER_ADVANCE:
+                check_substep_runaway("grid fluid", n, done, frame_dt, self.max_speed(), step=self.step_index,
+                                      time=self.time)
         return n
 
     # ------------------------------------------------------------------------ rigid coupling
@@ -1156,8 +1159,30 @@ class GridFluid:
         st["step_index"] = np.array(self.step_index)
         return st
 
+    def check_state(self, state):
+        """Raise ValueError naming the entry if ``state`` (from a checkpoint) does not fit this grid:
+        a missing array, a shape other than this grid's, a time, step index or pressure dt that is
+        not finite and >= 0. Called first by ``restore_state``."""
+        mine = self.save_state()
+        for key, value in mine.items():
+            if key not in state:
+                if key in ("phi_increment", "phi_dt"):
+                    continue
+                raise ValueError(f"state is missing {key!r}")
+            got = np.asarray(state[key])
+            if got.shape != value.shape:
+                raise ValueError(f"state[{key!r}] has shape {got.shape}; this grid needs {value.shape}")
+            if got.dtype.kind not in "fiu":
+                raise ValueError(f"state[{key!r}] has dtype {got.dtype}; this grid needs numbers")
+        for key in ("time", "step_index", "phi_dt"):
+            if key in state:
+                value = float(np.asarray(state[key]))
+                if not (math.isfinite(value) and value >= 0):
+                    raise ValueError(f"state[{key!r}] is {value!r}; it must be a finite number >= 0")
+
     def restore_state(self, state):
-        """Restore a `save_state` dict (same grid and scalars)."""
+        """Restore a `save_state` dict (same grid and scalars); `check_state` first."""
+        self.check_state(state)
         for a in range(self.dim):
             self._vel[a][...] = state[f"vel{a}"]
         for name, a in zip(self.scalar_names, self._scal):

@@ -745,9 +745,45 @@ class SPHFluid:
                                     self._dt_scale], float)
         return out
 
+    def check_state(self, state: dict) -> None:
+        """Raise ValueError naming the entry if ``state`` (from a checkpoint) holds a count or index
+        outside the arrays it indexes: the live particle count against the capacity, the counters
+        finite, the boundary cell starts inside the boundary rows, the boundary owners among the
+        bodies. Called first by ``restore_state``: nothing of a bad state reaches a kernel."""
+        cap = self._F.x.shape[0]
+        c = np.asarray(state.get("counters", ()))
+        if c.ndim != 1 or c.shape[0] < 5 or c.dtype.kind not in "fi":
+            raise ValueError(f"state['counters'] has shape {c.shape} and dtype {c.dtype}; expected at least 5 numbers")
+        if not np.all(np.isfinite(c)):
+            raise ValueError(f"state['counters'] holds a value that is not finite: {c.tolist()}")
+        if not (0 <= c[3] <= cap and c[3] == int(c[3])):
+            raise ValueError(f"state['counters'][3] (live particles) is {c[3]:g}; this fluid's capacity is {cap}")
+        if c[4] < c[3] or c[1] < 0 or c[0] < 0 or c[2] < 0:
+            raise ValueError(f"state['counters'] (time, steps, last dt, live particles, next id) = {c[:5].tolist()} "
+                             "are not a state this fluid can be in")
+        nb = self._B.x.shape[0] if self._B is not None else None
+        start = state.get("boundary_cell_start")
+        if start is not None and nb is not None:
+            start = np.asarray(start)
+            # (cells + 2,): the cells' starts, then the total, then one spare slot
+            if start.dtype.kind not in "iu" or (start.size and (start.min() < 0 or start.max() > nb
+                                                                or np.any(np.diff(start[:-1]) < 0))):
+                raise ValueError(f"state['boundary_cell_start'] must be non-decreasing integers in 0..{nb}")
+        body = state.get("boundary_body")
+        if body is not None:
+            body = np.asarray(body)
+            nbody = max(len(self._bodies), int(np.asarray(state.get("body_x", np.zeros((0, 3)))).shape[0]))
+            if body.dtype.kind not in "iu" or (body.size and (body.min() < -1 or body.max() >= nbody)):
+                raise ValueError(f"state['boundary_body'] must hold -1 or body indices 0..{nbody - 1}")
+        ids = np.asarray(state.get("particle_id", ()))
+        if ids.dtype.kind in "iu" and ids.shape == (cap,) and np.any(ids[:int(c[3])] < 0):
+            raise ValueError(f"state['counters'][3] counts {int(c[3])} live particles but rows "
+                             f"{int(np.flatnonzero(ids[:int(c[3])] < 0)[0])}.. hold none (particle_id -1)")
+
     def restore_state(self, state: dict) -> None:
         """Continue from ``save_state``'s arrays (same fluid set-up: capacity, boundaries, bodies,
-        emitters); raises ValueError naming the first key that is missing or has the wrong shape.
+        emitters); raises ValueError naming the first key that is missing or has the wrong shape,
+        or a count or index outside its arrays (`check_state`).
         A fluid coupled to a RigidWorld samples its bodies on the first ``advance``: restoring
         before that keeps the state and applies it right after the sampling."""
         if "body_x" in state and not self._bodies:
@@ -755,6 +791,7 @@ class SPHFluid:
             return
         if self._B is None:
             self._finalize_boundary()
+        self.check_state(state)
 
         def put(key, dst):
             if key not in state:

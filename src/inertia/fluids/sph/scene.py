@@ -18,10 +18,10 @@ The lead wires ``SPHTable`` into ``scene/models.py`` and ``build`` into ``scene/
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from .fluid import METHODS, SPHFluid, sample_block
 from .smoothing import KERNELS
@@ -30,12 +30,28 @@ __all__ = ["SPHTable", "FluidBlock", "EmitterTable", "OutflowTable", "build", "p
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """Strict types (no bool or string where a number goes; an integer is a number), finite values."""
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True, allow_inf_nan=False)
+
+
+Positive = Annotated[float, Field(gt=0)]
+NonNegative = Annotated[float, Field(ge=0)]
+Corners = Annotated[list[Annotated[list[float], Field(min_length=2, max_length=3)]], Field(min_length=2, max_length=2)]
+#: smallest particle spacing and time step a scene may ask for (far below any practical fluid)
+MIN_SPACING = 1e-6
+MIN_DT = 1e-7
+
+
+def _check_corners(lo, hi, what: str):
+    if len(lo) != len(hi):
+        raise ValueError(f"{what}: lo and hi must have the same number of components (got {len(lo)} and {len(hi)})")
+    if any(not a < b for a, b in zip(lo, hi)):
+        raise ValueError(f"{what}: every component of lo must be below hi (got {lo} and {hi})")
 
 
 class FluidBlock(_Strict):
     """A block of fluid particles on the lattice: ``box = [[lo], [hi]]`` [m], initial ``velocity`` [m/s]."""
-    box: tuple[list[float], list[float]]
+    box: Corners
     velocity: list[float] | None = None
 
 
@@ -43,7 +59,7 @@ class EmitterTable(_Strict):
     """Inflow: a line (2D) / square (3D) of side ``width`` [m] at ``center`` emitting along ``velocity``."""
     center: list[float]
     velocity: list[float]
-    width: float
+    width: Positive
 
 
 class OutflowTable(_Strict):
@@ -54,31 +70,51 @@ class OutflowTable(_Strict):
 
 class SPHTable(_Strict):
     """One ``[sph.NAME]`` table (see ``SPHFluid`` for every parameter's meaning and units)."""
-    spacing: float
-    domain: tuple[list[float], list[float]]
+    spacing: Annotated[float, Field(ge=MIN_SPACING)]
+    domain: Corners
     fluid: list[FluidBlock]
     method: Literal[METHODS] = "dfsph"  # type: ignore[valid-type]
     kernel: Literal[tuple(KERNELS)] = "cubic_spline"  # type: ignore[valid-type]
-    smoothing_length: float | None = None
-    rest_density: float = 1000.0
+    smoothing_length: Positive | None = None
+    rest_density: Positive = 1000.0
     gravity: list[float] | None = None
-    viscosity: float = 0.0
+    viscosity: NonNegative = 0.0
     implicit_viscosity: bool = False
-    xsph: float = 0.0
-    surface_tension: float = 0.0
-    density_tolerance: float = 1e-3
-    max_iterations: int = 100
+    xsph: Annotated[float, Field(ge=0, le=1)] = 0.0
+    surface_tension: NonNegative = 0.0
+    density_tolerance: Annotated[float, Field(gt=0, lt=1)] = 1e-3
+    max_iterations: Annotated[int, Field(ge=1, le=100_000)] = 100
     periodic: list[bool] | None = None
-    cfl: float = 0.4
-    dt: float | None = None
-    dt_max: float = 0.005
-    max_speed: float | None = None
-    capacity: int | None = None
+    cfl: Annotated[float, Field(gt=0, le=1)] = 0.4
+    dt: Annotated[float, Field(ge=MIN_DT)] | None = None
+    dt_max: Annotated[float, Field(ge=MIN_DT)] = 0.005
+    max_speed: Positive | None = None
+    capacity: Annotated[int, Field(ge=1)] | None = None
     boundaries: list[str] = []
     slip: bool = False
-    boundary_viscosity: float | None = None
+    boundary_viscosity: NonNegative | None = None
     emitters: list[EmitterTable] = []
     outflows: list[OutflowTable] = []
+
+    @model_validator(mode="after")
+    def _relations(self):
+        lo, hi = self.domain
+        _check_corners(lo, hi, "domain")
+        for i, block in enumerate(self.fluid):
+            blo, bhi = block.box
+            _check_corners(blo, bhi, f"fluid[{i}].box")
+            if len(blo) != len(lo):
+                raise ValueError(f"domain: it has {len(lo)} components but fluid[{i}].box has {len(blo)}; "
+                                 "give both in the scene's dimension")
+            if any(a < c for a, c in zip(blo, lo)) or any(b > d for b, d in zip(bhi, hi)):
+                raise ValueError(f"fluid[{i}].box: the block {blo}..{bhi} must lie inside the domain {lo}..{hi}")
+        for key in ("gravity", "periodic"):
+            value = getattr(self, key)
+            if value is not None and len(value) != len(lo):
+                raise ValueError(f"{key}: needs {len(lo)} components like domain (got {len(value)})")
+        for i, o in enumerate(self.outflows):
+            _check_corners(o.lo, o.hi, f"outflows[{i}]")
+        return self
 
 
 _KEYS_OF_ARGUMENTS = ("smoothing_length", "rest_density", "spacing", "domain", "method", "kernel", "gravity",
@@ -98,7 +134,8 @@ def parse(table: dict, name: str = "fluid") -> SPHTable:
         err = exc.errors()[0]
         key = ".".join(str(p) for p in err["loc"])
         allowed = f" (allowed keys: {sorted(SPHTable.model_fields)})" if err["type"] == "extra_forbidden" else ""
-        raise ValueError(f"sph.{name}.{key}: {err['msg']}{allowed}") from None
+        msg = str(err["msg"]).removeprefix("Value error, ")
+        raise ValueError((f"sph.{name}.{key}: {msg}" if key else f"sph.{name}.{msg}") + allowed) from None
 
 
 def build(table, world=None, colliders=None, name: str = "fluid") -> SPHFluid:
