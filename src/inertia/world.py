@@ -119,7 +119,7 @@ from .errors import SimulationDiverged
 from .collision.particle_kernels import NEAR_ALWAYS as _NEAR_ALWAYS
 from .collision.particle_kernels import NEAR_BALL as _NEAR_BALL
 from .geometry import shapes as _S
-from .math import quat_to_mat3_entries
+from .math import quat_to_mat3_entries, rotate_vectors
 from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
@@ -628,6 +628,49 @@ class World:
                 momentum[i] = g.system.momentum()
         return kinetic, potential, momentum
 
+    def system_diagnostics(self) -> dict[str, float | np.ndarray]:
+        """Per-frame diagnostics of the bodies and fluids (recorded by `Run` as ``diag/<system>/<quantity>``):
+
+        - ``bodies``: ``kinetic_energy`` J (translation + rotation of the dynamic bodies,
+          sum m |v|^2 / 2 + w_b . I w_b / 2 in the principal frame), ``potential_energy`` J
+          (-sum m g . c, relative to the origin), ``momentum`` (3,) kg m/s;
+        - an SPH fluid: ``kinetic_energy`` J, ``mass`` kg, ``density_error`` (mean relative
+          compression of the last step) and ``divergence_error`` (1/s, DFSPH's divergence pass);
+        - a grid smoke: ``kinetic_energy`` J (``fluid_density`` times the face velocities' energy),
+          ``divergence`` 1/s (largest |div u| after the projection);
+        - a grid liquid: ``kinetic_energy`` J (``density`` h^D / particles-per-cell per particle),
+          ``volume`` m^3 (cells inside the particle level set).
+        One call per recorded frame (it may allocate; never called inside a step)."""
+        out: dict[str, float | np.ndarray] = {}
+        m, rigid = self.model, self.rigid
+        if rigid is not None and m is not None and np.any(m.body_type == 0):
+            dyn = np.flatnonzero(m.body_type == 0)
+            q, qd = rigid.state.body_q[dyn], rigid.state.body_qd[dyn]
+            mass, inertia = m.body_mass[dyn], m.body_inertia[dyn]
+            conj = q[:, 3:] * np.array([1.0, -1.0, -1.0, -1.0])
+            w_body = rotate_vectors(conj, qd[:, :3])  # angular velocity in the principal frame
+            out["bodies/kinetic_energy"] = float(0.5 * np.sum(mass * np.einsum("bi,bi->b", qd[:, 3:], qd[:, 3:]))
+                                                 + 0.5 * np.sum(inertia * w_body * w_body))
+            out["bodies/potential_energy"] = float(-np.sum(mass * (q[:, :3] @ np.asarray(m.gravity, np.float64))))
+            out["bodies/momentum"] = np.sum(mass[:, None] * qd[:, 3:], axis=0)
+        for name, fluid in self.fluids.items():
+            key = f"{name}/"
+            if hasattr(fluid, "rest_density") and hasattr(fluid, "stats"):      # SPH
+                n, v = fluid.particle_count, fluid.v
+                out[key + "kinetic_energy"] = float(0.5 * fluid.mass * np.sum(v * v))
+                out[key + "mass"] = float(fluid.mass * n)
+                out[key + "density_error"] = float(fluid.stats.get("density_error", np.nan))
+                out[key + "divergence_error"] = float(fluid.stats.get("divergence_error", np.nan))
+            elif hasattr(fluid, "fluid_density") and hasattr(fluid, "measure_divergence"):  # grid smoke
+                out[key + "kinetic_energy"] = float(fluid.fluid_density * fluid.kinetic_energy())
+                out[key + "divergence"] = float(np.max(np.abs(fluid.measure_divergence()), initial=0.0))
+            elif hasattr(fluid, "particles_per_cell") and hasattr(fluid, "level_set"):  # grid liquid
+                h = float(fluid.cell_size)
+                out[key + "kinetic_energy"] = float(fluid.density * h ** fluid.dim / fluid.particles_per_cell
+                                                    * fluid.kinetic_energy())
+                out[key + "volume"] = float(np.count_nonzero(fluid.level_set() < 0.0) * h ** fluid.dim)
+        return out
+
     @property
     def has_emitters(self) -> bool:
         return any(getattr(g.system, "emitters", None) for g in self.groups)
@@ -1067,6 +1110,8 @@ class Run:
             fields["active"] = w.active(self._active)
         if w.rigid is not None:
             fields["body_q"] = w.rigid.state.body_q
+        for key, value in w.system_diagnostics().items():
+            fields[f"diag/{key}"] = np.asarray(value, np.float64)
         for name, fluid in w.fluids.items():
             for key, value in fluid.frame_arrays().items():
                 fields[f"fluid/{name}/{key}"] = value

@@ -5,7 +5,7 @@ while writing leaves no truncated file. Frames are rendered once and handed to e
 output (MP4, GIF, PNG): frames come from `inertia.render.Renderer` (camera from the scene's
 [render] table, group colours from the scene), videos are encoded by
 `inertia.render.VideoWriter` (ffmpeg from imageio-ffmpeg) and the plot drawn by
-`inertia.render.plot_energy` from the energies the run recorded.
+`inertia.render.plots.plot_systems` from what the run recorded per system (particles, bodies, fluids).
 
 Limitations: GIFs are written at half resolution above 640 pixels wide (file size).
 """
@@ -94,7 +94,7 @@ def _group_colors(states, renderer):
 
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
-    from inertia.render.drawables import ModelDrawables, frame_options
+    from inertia.render.drawables import ModelDrawables, frame_options, subject_bounds
     from inertia.render.fluid_particles import (LiquidSurfaces, fluid_legend, frame_grids, frame_volumes, grid_scales,
                                                 grid_streaks, grid_fluids, paint_grids, paint_volumes, smoke_styles,
                                                 with_fluid_particles)
@@ -111,7 +111,7 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:
-        draw = list(draw) + drawables.plane_colliders()
+        draw = list(draw) + drawables.plane_colliders(subject_bounds(states, drawables))
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
@@ -155,17 +155,15 @@ def _legend(states, renderer, render: dict | None):
 
 
 def plot_energy(states, path) -> Path:
-    """Energy (kinetic, potential, total) and momentum over time (PNG), from the recorded fields."""
-    from inertia.render import plot_energy as _plot, plot_states_energy
+    """Energy and momentum over time (PNG), one row per system the run recorded: particles,
+    rigid bodies, each fluid (`inertia.render.plots.system_series`), with units."""
+    from inertia.render.plots import plot_systems, system_series
 
-    fields = states.fields
-    title = f"{states.metadata.get('scene_name', 'run')}: energy and momentum"
-    kinetic = fields.get("kinetic_energy")
-    if kinetic is None or not np.any(np.isfinite(kinetic)):
-        if states.velocities is None:
-            raise ValueError("the run recorded no energies and no velocities")
-        return plot_states_energy(states, path, title=title)
-    return _plot(states.times, kinetic, fields.get("potential_energy"), fields.get("momentum"), path, title=title)
+    systems = system_series(states)
+    if not systems:
+        raise ValueError("the run recorded no energies and no velocities")
+    title = f"{states.metadata.get('scene_name', 'run')}: energy and momentum per system"
+    return plot_systems(states.times, systems, path, title=title)
 
 
 def write_outputs(states, out_dir, output: dict, render: dict | None = None, colliders=(),
@@ -205,7 +203,10 @@ def write_outputs(states, out_dir, output: dict, render: dict | None = None, col
                 if progress is not None:
                     progress("render", f + 1, total)
     if output.get("plot"):
-        written["plot"] = plot_energy(states, out / OUTPUT_NAMES["plot"])
+        from inertia.render.plots import system_series
+
+        if system_series(states):  # a run with nothing recorded to plot writes no plot
+            written["plot"] = plot_energy(states, out / OUTPUT_NAMES["plot"])
     if output.get("ply"):
         directory = out / OUTPUT_NAMES["ply"]
         write_ply_sequence(states, directory)

@@ -6,8 +6,11 @@
 - the shape table (``shape_type``, ``shape_body``, ``shape_local_pose (S, 7)`` position +
   quaternion (w, x, y, z) in the body frame, ``shape_params``, ``geom_vertices``...,
   ``shape_color (S, 3)`` optional) -> every shape tessellated once in its own frame
-  (`inertia.render.meshes.tessellate_shape`); static planes become the renderer's analytic
-  ground (`planes`);
+  (`inertia.render.meshes.tessellate_shape`); a static plane facing up becomes the renderer's
+  analytic ground, any other static plane a finite patch under the subject (`plane_colliders`);
+  rows a scene collider added (``shape_source >= 0``: a container's walls, a kinematic paddle) are
+  left to the colliders' own drawing (`inertia.render.colliders`: a container as a box cut away
+  toward the camera), unless ``include_collider_rows=True``;
 - ``surface_triangles (T, 3)`` global particle indices -> a cloth surface over the particle
   positions of each frame (smooth normals per frame); its particles are not also drawn as
   spheres (`hidden`);
@@ -31,7 +34,7 @@ from ..math import compose_poses, rotate_vectors
 from .colormaps import GROUP_PALETTE
 from .meshes import LineSet, TriangleMesh, tessellate_shape
 
-__all__ = ["ModelDrawables", "frame_options", "trail_lines"]
+__all__ = ["ModelDrawables", "PlanePatch", "subject_bounds", "frame_options", "trail_lines"]
 
 #: Colours of cloth surfaces and spring lines when the model gives none (sRGB).
 CLOTH_COLOR = (0.86, 0.42, 0.32)
@@ -65,7 +68,7 @@ class ModelDrawables:
     """Meshes and lines of a model (see the module docstring); ``group_colors`` (N, 3) sRGB per
     particle, optional, colours cloth surfaces by their first vertex's group."""
 
-    def __init__(self, model: dict, *, particle_colors=None):
+    def __init__(self, model: dict, *, particle_colors=None, include_collider_rows: bool = False):
         model = dict(model or {})
         self.model = model
         from ..geometry import shapes as S
@@ -79,7 +82,10 @@ class ModelDrawables:
         shape_body = np.asarray(model.get("shape_body", np.full(shape_type.shape, -1)), np.int64)
         pose = np.asarray(model.get("shape_local_pose", np.tile([0, 0, 0, 1.0, 0, 0, 0], (len(shape_type), 1))), np.float64)
         colors = model.get("shape_color")
+        source = np.asarray(model.get("shape_source", np.full(shape_type.shape, -1)), np.int64)
         for s in range(len(shape_type)):
+            if source[s] >= 0 and not include_collider_rows:
+                continue  # a scene collider's row: drawn from the collider (walls cut away, motion)
             if shape_type[s] == S.PLANE:
                 if shape_body[s] < 0:
                     normal = rotate_vectors(pose[s, 3:], np.array([0.0, 0.0, 1.0]))
@@ -128,23 +134,35 @@ class ModelDrawables:
         self.particle_colors = None if particle_colors is None else np.asarray(particle_colors, np.float32)
 
     @classmethod
-    def from_states(cls, states, *, particle_colors=None) -> "ModelDrawables | None":
+    def from_states(cls, states, *, particle_colors=None, include_collider_rows: bool = False) -> "ModelDrawables | None":
         """Drawables of a `States` (its ``model`` dict), or None when it has nothing to draw."""
         model = getattr(states, "model", None)
         if not model or states.dim != 3:
             return None
-        drawables = cls(model, particle_colors=particle_colors)
+        drawables = cls(model, particle_colors=particle_colors, include_collider_rows=include_collider_rows)
         return drawables if not drawables.empty else None
 
     @property
     def empty(self) -> bool:
         return self.local_vertices is None and self.surface_triangles is None and self.spring_pairs is None and not self.planes
 
-    def plane_colliders(self) -> list:
-        """Static planes as `inertia.colliders.Plane` (drawn as the renderer's ground)."""
+    def plane_colliders(self, bounds=None) -> list:
+        """Static planes to draw: a plane facing up (+z) as `inertia.colliders.Plane` (the
+        renderer's ground, under the subject); any other plane as a finite square patch
+        (`PlanePatch`) around the projection of the subject's bounds ``(lower (3,), upper (3,))``
+        onto it, 1.2 times the bounds' diagonal wide (without bounds: an infinite plane)."""
         from ..colliders import Plane
 
-        return [Plane(point=tuple(p), normal=tuple(n)) for p, n in self.planes]
+        out = []
+        for p, n in self.planes:
+            if bounds is None or n[2] > 0.95:
+                out.append(Plane(point=tuple(p), normal=tuple(n)))
+                continue
+            lo, hi = (np.asarray(b, np.float64) for b in bounds)
+            centre = 0.5 * (lo + hi)
+            centre = centre - np.dot(centre - p, n) * n  # the subject's centre projected onto the plane
+            out.append(PlanePatch(centre, n, 0.6 * float(np.linalg.norm(hi - lo)) + 1e-3))
+        return out
 
     def hidden(self, count: int) -> np.ndarray | None:
         """(N,) bool: particles drawn as a surface, so not as spheres (None when there are none)."""
@@ -203,6 +221,44 @@ class ModelDrawables:
         picks = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), 12)).astype(int))
         stride = max(1, self.local_vertices.shape[0] // 4000)
         return np.concatenate([self.body_vertices(frames[f])[0][::stride] for f in picks])
+
+
+def subject_bounds(states, drawables: "ModelDrawables | None" = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(lower (3,), upper (3,)) of what a run shows: the particles of its first and last frames
+    and the shapes' vertices over the run; None when there is nothing finite."""
+    points = []
+    if states.frame_count and states.particle_count:
+        for f in {0, states.frame_count - 1}:
+            x = np.asarray(states.positions[f], np.float64).reshape(-1, states.dim)
+            points.append(x[np.all(np.isfinite(x), axis=1)])
+    if drawables is not None:
+        extra = drawables.bounds_points(states.fields.get("body_q"))
+        if extra is not None:
+            points.append(extra)
+    points = [p for p in points if p.size]
+    if not points or states.dim != 3:
+        return None
+    allp = np.concatenate(points)
+    return allp.min(axis=0), allp.max(axis=0)
+
+
+class PlanePatch:
+    """A finite square patch of a plane, drawn as a thin box (its back face on the plane):
+    ``centre (3,)`` on the plane, unit ``normal (3,)``, ``half_size`` m (half the side)."""
+
+    def __init__(self, centre, normal, half_size: float):
+        self.normal = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+        helper = np.array([0.0, 0.0, 1.0]) if abs(self.normal[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        a = np.cross(helper, self.normal)
+        a /= np.linalg.norm(a)
+        b = np.cross(self.normal, a)
+        self.rotation = np.stack([a, b, self.normal], axis=1)  # world from local: columns a, b, n
+        self.thickness = 0.01 * float(half_size)
+        self.center = np.asarray(centre, np.float64) - 0.5 * self.thickness * self.normal
+        self.half_extents = np.array([half_size, half_size, 0.5 * self.thickness])
+
+    def render_primitive(self, t: float = 0.0):
+        return "box", {"center": self.center, "half_extents": self.half_extents, "rotation": self.rotation}
 
 
 #: Colour of motion trails (sRGB) and the opacity of their newest segment.
