@@ -288,7 +288,8 @@ def plot_systems(times, systems: list[SystemSeries], path: str | os.PathLike = "
             heading += f" (dissipated by {system.dissipation})"
         ax.set_title(heading, fontsize="medium", loc="left")
         ax.grid(True, alpha=0.3)
-        ax.legend(loc="best", fontsize="small")
+        if system.energy:
+            ax.legend(loc="best", fontsize="small")
         ax = axes[row, 1]
         for i, (label, values) in enumerate(system.right.items()):
             ax.plot(times, values, label=label, lw=1.8 if label.startswith("|") else 1.2,
