@@ -99,3 +99,18 @@ def test_energy_plot_of_a_body_only_scene_has_the_bodies_curves(tmp_path):
     np.testing.assert_allclose(total - total[0], -0.5 * m * g * g * h * t, rtol=1e-6, atol=1e-9)
     np.testing.assert_allclose(bodies.right["pz"], -m * g * t, rtol=1e-9, atol=1e-12)
     assert plot_energy(states, tmp_path / "energy.png").stat().st_size > 10_000
+
+
+def test_wind_attractor_is_drawn_where_it_pulls():
+    from inertia.cli.outputs import attractor_markers
+    from inertia.io import States
+    from inertia.render.colliders import collider_primitives
+
+    text = (bundled_examples()["wind"]).read_text()
+    x = np.random.default_rng(0).uniform(-1.0, 1.0, (2, 50, 3))
+    states = States(times=np.array([0.0, 0.1]), positions=x, metadata={"scene": text, "scene_format": "toml"})
+    [marker] = attractor_markers(states)
+    prims = collider_primitives([marker], 0.0, 3)
+    np.testing.assert_allclose(prims.params[0, :3], (1.0, 0.0, 1.0))  # the scene's attractor centre
+    assert 0.0 < prims.params[0, 3] <= 0.15  # half its 0.3 m softening, at most 5 % of the 2 m cloud
+    assert attractor_markers(States(times=np.zeros(1), positions=x[:1], metadata={"scene": "format_version = 1"})) == []

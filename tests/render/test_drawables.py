@@ -106,3 +106,23 @@ def test_trails_follow_each_particle_back_in_time_and_fade():
     assert trail_lines(states, 0, 4) is None
     with pytest.raises(ValueError, match="trails"):
         list(render_states(states, None, trails=-1))
+
+
+def test_scene_collider_rows_are_left_to_the_colliders_and_a_terrain_sets_the_ground_level():
+    """Rows a scene collider added (shape_source >= 0: a container's walls) are not drawn as planes
+    (the collider draws itself, cut away); a static heightfield puts the ground grid at its lowest
+    point, so the terrain rests on it."""
+    from inertia.model import ModelBuilder
+    from inertia.world import World, model_file_arrays
+    import inertia.colliders as C
+
+    b = ModelBuilder()
+    heights = np.array([[0.3, 0.5, 0.4], [0.2, 0.6, 0.35], [0.45, 0.25, 0.5]])
+    b.add_heightfield(heights, (1.0, 1.0), position=(0.0, 0.0, 1.0))
+    world = World(dt=0.01, model=b.finalize(), colliders=[C.Container(center=(0, 0, 1), half_extents=(2, 2, 2))])
+    model = model_file_arrays(world)
+    assert np.count_nonzero(model["shape_source"] >= 0) == 6  # the container's six wall rows
+    drawables = ModelDrawables(model)
+    assert drawables.planes == []                                   # walls left to the container
+    assert drawables.heightfield_floor() == pytest.approx(1.0 + heights.min())
+    assert len(ModelDrawables(model, include_collider_rows=True).planes) == 6

@@ -164,6 +164,17 @@ class ModelDrawables:
             out.append(PlanePatch(centre, n, 0.6 * float(np.linalg.norm(hi - lo)) + 1e-3))
         return out
 
+    def heightfield_floor(self) -> float | None:
+        """Lowest world z of the static heightfields (the level to put the ground grid at, so a
+        terrain rests on it), or None when there is none."""
+        from ..geometry import shapes as S
+
+        rows = [s for s in self.shape_meshes if int(self.model["shape_type"][s]) == S.HEIGHTFIELD and self.shape_body[s] < 0]
+        if not rows:
+            return None
+        poses = self.shape_poses(None)
+        return float(min(np.min(rotate_vectors(poses[s, 3:], self.shape_meshes[s][0])[:, 2] + poses[s, 2]) for s in rows))
+
     def hidden(self, count: int) -> np.ndarray | None:
         """(N,) bool: particles drawn as a surface, so not as spheres (None when there are none)."""
         if self.surface_triangles is None or self.surface_triangles.size == 0:
