@@ -59,8 +59,10 @@ def renderer_for(states, render: dict | None, colliders=()):
     floor = None if drawables is None else drawables.heightfield_floor()
     if floor is not None and render.get("ground", "auto") == "auto":
         renderer.ground = floor  # the terrain rests on the ground grid instead of floating above it
+    # bodies are never outliers: frame all of them (the particle-only robust trim cut a pile's top)
+    robust = 0.0 if extra is not None and states.particle_count == 0 else 0.001
     renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
-                 times=states.times)
+                 times=states.times, robust=robust)
     cam = renderer.camera
     if dim == 2 and camera.get("height") is not None:
         center = camera.get("target") or cam.target[:2]

@@ -223,15 +223,21 @@ class ModelDrawables:
 
     def bounds_points(self, body_q_frames=None) -> np.ndarray | None:
         """World points (M, 3) bounding the shapes over a run (``body_q_frames (F, B, 7)``), for
-        framing the camera: the tessellated vertices at a sample of frames."""
+        framing the camera: each shape's bounding-box corners at 12 frames spread over the run."""
         if self.local_vertices is None:
             return None
         if body_q_frames is None or len(body_q_frames) == 0:
-            return self.body_vertices(None)[0]
+            return self._shape_box_corners(self.body_vertices(None)[0])
         frames = np.asarray(body_q_frames)
         picks = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), 12)).astype(int))
-        stride = max(1, self.local_vertices.shape[0] // 4000)
-        return np.concatenate([self.body_vertices(frames[f])[0][::stride] for f in picks])
+        return np.concatenate([self._shape_box_corners(self.body_vertices(frames[f])[0]) for f in picks])
+
+    def _shape_box_corners(self, vertices: np.ndarray) -> np.ndarray:
+        """The two extreme corners of each shape's world bounding box (2 S', 3): every shape's reach,
+        however many vertices it has (a subsample of the vertices missed the top of a pile)."""
+        starts = np.flatnonzero(np.r_[True, self.vertex_shape[1:] != self.vertex_shape[:-1]])
+        return np.concatenate([np.minimum.reduceat(vertices, starts, axis=0),
+                               np.maximum.reduceat(vertices, starts, axis=0)])
 
 
 def subject_bounds(states, drawables: "ModelDrawables | None" = None) -> tuple[np.ndarray, np.ndarray] | None:
