@@ -671,6 +671,21 @@ class World:
                 out[key + "volume"] = float(np.count_nonzero(fluid.level_set() < 0.0) * h ** fluid.dim)
         return out
 
+    def vehicles(self) -> list:
+        """The scene's ray-cast vehicles (`inertia.rigid.vehicle.RaycastVehicle`), in scene order."""
+        return [c.vehicle for c in getattr(getattr(self, "rigid_scene", None), "controllers", None) or []]
+
+    def wheel_poses(self, vehicle) -> np.ndarray:
+        """(W, 7) world pose of each wheel's centre (position + the chassis's quaternion): the hardpoint
+        moved down the chassis's -z by the suspension's length, ``rest_length - compression``."""
+        q = self.rigid.state.body_q[vehicle.chassis]
+        local = np.array([np.asarray(wh.hardpoint, np.float64) - np.array([0.0, 0.0, wh.rest_length - c])
+                          for wh, c in zip(vehicle.wheels, vehicle.wheel_compression)])
+        out = np.empty((len(vehicle.wheels), 7))
+        out[:, :3] = rotate_vectors(q[3:], local) + q[:3]
+        out[:, 3:] = q[3:]
+        return out
+
     @property
     def has_emitters(self) -> bool:
         return any(getattr(g.system, "emitters", None) for g in self.groups)
@@ -1112,6 +1127,8 @@ class Run:
             fields["body_q"] = w.rigid.state.body_q
         for key, value in w.system_diagnostics().items():
             fields[f"diag/{key}"] = np.asarray(value, np.float64)
+        for k, vehicle in enumerate(w.vehicles()):
+            fields[f"vehicle/{k}/wheel_pose"] = w.wheel_poses(vehicle)
         for name, fluid in w.fluids.items():
             for key, value in fluid.frame_arrays().items():
                 fields[f"fluid/{name}/{key}"] = value
@@ -1281,6 +1298,8 @@ def model_file_arrays(world: World) -> dict[str, np.ndarray]:
       float32`` (sRGB in 0..1, NaN for the default colour) when the scene gives bodies a ``color``;
     - ``spring_pairs (P, 2) int64``: global particle indices of every Springs force's pairs;
     - ``surface_triangles (T, 3) int64``: global particle indices of the groups' ``triangles=``;
+    - ``vehicle/<k>/wheel_radius (W,)`` m of each ray-cast vehicle's wheels (their per-frame
+      ``vehicle/<k>/wheel_pose (W, 7)`` is recorded with the frames);
     - ``fluid/<name>/<key>``: each fluid's ``static_arrays()``.
     """
     from .geometry import shapes as S
@@ -1342,6 +1361,8 @@ def model_file_arrays(world: World) -> dict[str, np.ndarray]:
             surfaces.append(g.triangles + g.start)
     if pairs:
         out["spring_pairs"] = np.concatenate(pairs).reshape(-1, 2)
+    for k, vehicle in enumerate(world.vehicles()):
+        out[f"vehicle/{k}/wheel_radius"] = np.array([wh.radius for wh in vehicle.wheels], np.float64)
     if surfaces:
         out["surface_triangles"] = np.concatenate(surfaces).reshape(-1, 3)
     for name, fluid in world.fluids.items():

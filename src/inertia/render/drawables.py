@@ -15,7 +15,9 @@
   positions of each frame (smooth normals per frame); its particles are not also drawn as
   spheres (`hidden`);
 - ``spring_pairs (P, 2)`` global particle indices -> lines (except springs between two particles of a
-  surface, which the surface shows).
+  surface, which the surface shows);
+- ``vehicle/<k>/wheel_radius (W,)`` with the frames' ``vehicle/<k>/wheel_pose (F, W, 7)`` -> each
+  ray-cast vehicle's wheels as dark cylinders (`wheels`).
 
 `frame(positions, body_q)` returns the ``meshes=`` and ``lines=`` of `Renderer.frame` for one
 frame: the shapes moved by ``body_q (B, 7)`` (the body frame's position and orientation;
@@ -35,6 +37,35 @@ from .colormaps import GROUP_PALETTE
 from .meshes import LineSet, TriangleMesh, tessellate_shape
 
 __all__ = ["ModelDrawables", "PlanePatch", "subject_bounds", "frame_options", "trail_lines"]
+
+#: Colour of ray-cast vehicles' wheels (sRGB).
+WHEEL_COLOR = (0.12, 0.12, 0.13)
+
+
+def _wheel_mesh(radius: float, width: float, segments: int = 20):
+    """A closed cylinder about the y axis (vertices (V, 3), normals (V, 3), triangles (T, 3)): flat
+    shading, a ring of side quads and two caps."""
+    a = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    c, s = np.cos(a), np.sin(a)
+    half = 0.5 * width
+    side_v = np.concatenate([np.stack([radius * c, np.full(segments, -half), radius * s], 1),
+                             np.stack([radius * c, np.full(segments, half), radius * s], 1)])
+    side_n = np.concatenate([np.stack([c, np.zeros(segments), s], 1)] * 2)
+    i = np.arange(segments)
+    j = (i + 1) % segments
+    side_t = np.concatenate([np.stack([i, j, j + segments], 1), np.stack([i, j + segments, i + segments], 1)])
+    verts, norms, tris = [side_v], [side_n], [side_t]
+    base = 2 * segments
+    for sign in (-1.0, 1.0):
+        ring = np.stack([radius * c, np.full(segments, sign * half), radius * s], 1)
+        verts.append(np.vstack([[0.0, sign * half, 0.0], ring]))
+        norms.append(np.tile([0.0, sign, 0.0], (segments + 1, 1)))
+        fan = np.stack([np.zeros(segments, int), i + 1, j + 1], 1)
+        tris.append(base + (fan if sign > 0 else fan[:, [0, 2, 1]]))
+        base += segments + 1
+    tris = np.concatenate(tris).astype(np.int64)[:, [0, 2, 1]]  # wound counter-clockwise seen from outside
+    return np.concatenate(verts), np.concatenate(norms), tris
+
 
 #: Colours of cloth surfaces and spring lines when the model gives none (sRGB).
 CLOTH_COLOR = (0.86, 0.42, 0.32)
@@ -132,6 +163,9 @@ class ModelDrawables:
                 keep = ~(covered[self.spring_pairs[:, 0]] & covered[self.spring_pairs[:, 1]])
                 self.spring_pairs = np.ascontiguousarray(self.spring_pairs[keep])
         self.particle_colors = None if particle_colors is None else np.asarray(particle_colors, np.float32)
+        #: Ray-cast vehicles: vehicle index -> wheel radii (W,) m (drawn at ``vehicle/<k>/wheel_pose``).
+        self.wheel_radii = {int(key.split("/")[1]): np.asarray(value, np.float64).ravel()
+                            for key, value in model.items() if key.startswith("vehicle/") and key.endswith("/wheel_radius")}
 
     @classmethod
     def from_states(cls, states, *, particle_colors=None, include_collider_rows: bool = False) -> "ModelDrawables | None":
@@ -144,7 +178,26 @@ class ModelDrawables:
 
     @property
     def empty(self) -> bool:
-        return self.local_vertices is None and self.surface_triangles is None and self.spring_pairs is None and not self.planes
+        return (self.local_vertices is None and self.surface_triangles is None and self.spring_pairs is None
+                and not self.planes and not self.wheel_radii)
+
+    def wheels(self, fields: dict, f: int) -> list:
+        """The vehicles' wheels at frame ``f`` as one dark `TriangleMesh` of cylinders (axle along the
+        chassis's y, width 0.6 x radius), from the recorded ``vehicle/<k>/wheel_pose (F, W, 7)``."""
+        verts, norms, tris, base = [], [], [], 0
+        for k, radii in self.wheel_radii.items():
+            poses = fields.get(f"vehicle/{k}/wheel_pose")
+            if poses is None:
+                continue
+            for pose, r in zip(np.asarray(poses[f], np.float64), radii):
+                v, n, t = _wheel_mesh(r, 0.6 * r)
+                verts.append(rotate_vectors(pose[3:], v) + pose[:3])
+                norms.append(rotate_vectors(pose[3:], n))
+                tris.append(t + base)
+                base += v.shape[0]
+        if not verts:
+            return []
+        return [TriangleMesh(np.concatenate(verts), np.concatenate(norms), np.concatenate(tris), np.array(WHEEL_COLOR, np.float32))]
 
     def plane_colliders(self, bounds=None) -> list:
         """Static planes to draw: a plane facing up (+z) as `inertia.colliders.Plane` (the
@@ -324,6 +377,7 @@ def frame_options(drawables: "ModelDrawables | None", states, f: int, active=Non
     if drawables is not None:
         body_q = states.fields.get("body_q")
         options = drawables.frame(states.positions[f], None if body_q is None else body_q[f])
+        options["meshes"] = options["meshes"] + drawables.wheels(states.fields, f)
         hidden = drawables.hidden(states.particle_count)
         if hidden is not None:
             active = ~hidden if active is None else (np.asarray(active, bool) & ~hidden)
