@@ -78,8 +78,10 @@ Arrays (N = total particles over the groups in order, D = dim): ``World.position
 (N,) bool; group ``g`` owns rows ``group.start : group.stop``.
 
 ``Run`` also writes ``model.npz`` (``States.model``, see `model_file_arrays`) and, per frame,
-``body_q`` (B, 7) when the world has bodies and ``fluid/<name>/<key>`` for each fluid's
-``frame_arrays()``; checkpoints hold the rigid state and contact cache and each fluid's
+``body_q`` (B, 7) when the world has bodies, ``fluid/<name>/<key>`` for each fluid's
+``frame_arrays()``, ``diag/<system>/<quantity>`` (`World.system_diagnostics`: the bodies' and each
+fluid's energies and conservation errors, for the energy plot) and ``vehicle/<k>/wheel_pose``
+(W, 7) for each ray-cast vehicle; checkpoints hold the rigid state and contact cache and each fluid's
 ``save_state()``.
 
 Limitations: all groups share dim and dt; groups do not interact with each other (springs,
