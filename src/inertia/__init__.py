@@ -14,7 +14,7 @@ The user's loop::
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 from . import forces, integrators
 from .errors import SimulationDiverged

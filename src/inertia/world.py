@@ -85,8 +85,10 @@ Arrays (N = total particles over the groups in order, D = dim): ``World.position
 (N,) bool; group ``g`` owns rows ``group.start : group.stop``.
 
 ``Run`` also writes ``model.npz`` (``States.model``, see `model_file_arrays`) and, per frame,
-``body_q`` (B, 7) when the world has bodies and ``fluid/<name>/<key>`` for each fluid's
-``frame_arrays()``; checkpoints hold the rigid state and contact cache and each fluid's
+``body_q`` (B, 7) when the world has bodies, ``fluid/<name>/<key>`` for each fluid's
+``frame_arrays()``, ``diag/<system>/<quantity>`` (`World.system_diagnostics`: the bodies' and each
+fluid's energies and conservation errors, for the energy plot) and ``vehicle/<k>/wheel_pose``
+(W, 7) for each ray-cast vehicle; checkpoints hold the rigid state and contact cache and each fluid's
 ``save_state()``.
 
 Limitations: all groups share dim and dt; groups do not interact with each other (springs,
@@ -127,7 +129,7 @@ from .errors import SimulationDiverged
 from .collision.particle_kernels import NEAR_ALWAYS as _NEAR_ALWAYS
 from .collision.particle_kernels import NEAR_BALL as _NEAR_BALL
 from .geometry import shapes as _S
-from .math import quat_to_mat3_entries
+from .math import quat_to_mat3_entries, rotate_vectors
 from .simulation import Simulation, SimulationState
 
 __all__ = ["World", "Group", "WorldState", "Run", "RunResult", "save_checkpoint", "load_checkpoint",
@@ -648,14 +650,65 @@ class World:
         q, qd = st.body_q[dynamic], st.body_qd[dynamic]
         w, v = qd[:, :3], qd[:, 3:]
         # angular velocity in the body's principal axes: rotate by the conjugate quaternion
-        qw, qv = q[:, 3:4], -q[:, 4:7]
-        t = 2.0 * np.cross(qv, w)
-        w_body = w + qw * t + np.cross(qv, t)
+        w_body = rotate_vectors(q[:, 3:] * np.array([1.0, -1.0, -1.0, -1.0]), w)
         kinetic = 0.5 * float(np.sum(mass * np.einsum("ij,ij->i", v, v)))
         kinetic += 0.5 * float(np.sum(np.asarray(m.body_inertia)[dynamic] * w_body * w_body))
         gravity = np.asarray(m.gravity, dtype=np.float64).reshape(3)
         potential = -float(np.sum(mass * (q[:, :3] @ gravity)))
         return kinetic, potential, (mass[:, None] * v).sum(axis=0)
+
+    def system_diagnostics(self) -> dict[str, float | np.ndarray]:
+        """Per-frame diagnostics of the bodies and fluids (recorded by `Run` as ``diag/<system>/<quantity>``):
+
+        - ``bodies``: ``kinetic_energy`` J (translation + rotation of the dynamic bodies,
+          sum m |v|^2 / 2 + w_b . I w_b / 2 in the principal frame), ``potential_energy`` J
+          (-sum m g . c, relative to the origin), ``momentum`` (3,) kg m/s;
+        - an SPH fluid: ``kinetic_energy`` J, ``mass`` kg, ``density_error`` (mean relative
+          compression of the last step) and ``divergence_error`` (1/s, DFSPH's divergence pass);
+        - a grid smoke: ``kinetic_energy`` J (``fluid_density`` times the face velocities' energy),
+          ``divergence`` 1/s (largest |div u| after the projection);
+        - a grid liquid: ``kinetic_energy`` J (``density`` h^D / particles-per-cell per particle),
+          ``volume`` m^3 (cells inside the particle level set).
+        One call per recorded frame (it may allocate; never called inside a step)."""
+        out: dict[str, float | np.ndarray] = {}
+        m, rigid = self.model, self.rigid
+        if rigid is not None and m is not None and np.any(m.body_type == 0):
+            kinetic, potential, momentum = self.body_energies()
+            out["bodies/kinetic_energy"] = kinetic
+            out["bodies/potential_energy"] = potential
+            out["bodies/momentum"] = momentum
+        for name, fluid in self.fluids.items():
+            key = f"{name}/"
+            if hasattr(fluid, "rest_density") and hasattr(fluid, "stats"):      # SPH
+                n, v = fluid.particle_count, fluid.v
+                out[key + "kinetic_energy"] = float(0.5 * fluid.mass * np.sum(v * v))
+                out[key + "mass"] = float(fluid.mass * n)
+                out[key + "density_error"] = float(fluid.stats.get("density_error", np.nan))
+                out[key + "divergence_error"] = float(fluid.stats.get("divergence_error", np.nan))
+            elif hasattr(fluid, "fluid_density") and hasattr(fluid, "measure_divergence"):  # grid smoke
+                out[key + "kinetic_energy"] = float(fluid.fluid_density * fluid.kinetic_energy())
+                out[key + "divergence"] = float(np.max(np.abs(fluid.measure_divergence()), initial=0.0))
+            elif hasattr(fluid, "particles_per_cell") and hasattr(fluid, "level_set"):  # grid liquid
+                h = float(fluid.cell_size)
+                out[key + "kinetic_energy"] = float(fluid.density * h ** fluid.dim / fluid.particles_per_cell
+                                                    * fluid.kinetic_energy())
+                out[key + "volume"] = float(np.count_nonzero(fluid.level_set() < 0.0) * h ** fluid.dim)
+        return out
+
+    def vehicles(self) -> list:
+        """The scene's ray-cast vehicles (`inertia.rigid.vehicle.RaycastVehicle`), in scene order."""
+        return [c.vehicle for c in getattr(getattr(self, "rigid_scene", None), "controllers", None) or []]
+
+    def wheel_poses(self, vehicle) -> np.ndarray:
+        """(W, 7) world pose of each wheel's centre (position + the chassis's quaternion): the hardpoint
+        moved down the chassis's -z by the suspension's length, ``rest_length - compression``."""
+        q = self.rigid.state.body_q[vehicle.chassis]
+        local = np.array([np.asarray(wh.hardpoint, np.float64) - np.array([0.0, 0.0, wh.rest_length - c])
+                          for wh, c in zip(vehicle.wheels, vehicle.wheel_compression)])
+        out = np.empty((len(vehicle.wheels), 7))
+        out[:, :3] = rotate_vectors(q[3:], local) + q[:3]
+        out[:, 3:] = q[3:]
+        return out
 
     @property
     def has_emitters(self) -> bool:
@@ -1322,6 +1375,10 @@ class Run:
             fields["active"] = w.active(self._active)
         if w.rigid is not None:
             fields["body_q"] = w.rigid.state.body_q
+        for key, value in w.system_diagnostics().items():
+            fields[f"diag/{key}"] = np.asarray(value, np.float64)
+        for k, vehicle in enumerate(w.vehicles()):
+            fields[f"vehicle/{k}/wheel_pose"] = w.wheel_poses(vehicle)
         for name, fluid in w.fluids.items():
             for key, value in fluid.frame_arrays().items():
                 fields[f"fluid/{name}/{key}"] = value
@@ -1506,6 +1563,8 @@ def model_file_arrays(world: World) -> dict[str, np.ndarray]:
       float32`` (sRGB in 0..1, NaN for the default colour) when the scene gives bodies a ``color``;
     - ``spring_pairs (P, 2) int64``: global particle indices of every Springs force's pairs;
     - ``surface_triangles (T, 3) int64``: global particle indices of the groups' ``triangles=``;
+    - ``vehicle/<k>/wheel_radius (W,)`` m of each ray-cast vehicle's wheels (their per-frame
+      ``vehicle/<k>/wheel_pose (W, 7)`` is recorded with the frames);
     - ``fluid/<name>/<key>``: each fluid's ``static_arrays()``.
     """
     from .geometry import shapes as S
@@ -1567,6 +1626,8 @@ def model_file_arrays(world: World) -> dict[str, np.ndarray]:
             surfaces.append(g.triangles + g.start)
     if pairs:
         out["spring_pairs"] = np.concatenate(pairs).reshape(-1, 2)
+    for k, vehicle in enumerate(world.vehicles()):
+        out[f"vehicle/{k}/wheel_radius"] = np.array([wh.radius for wh in vehicle.wheels], np.float64)
     if surfaces:
         out["surface_triangles"] = np.concatenate(surfaces).reshape(-1, 3)
     for name, fluid in world.fluids.items():

@@ -106,3 +106,49 @@ def test_trails_follow_each_particle_back_in_time_and_fade():
     assert trail_lines(states, 0, 4) is None
     with pytest.raises(ValueError, match="trails"):
         list(render_states(states, None, trails=-1))
+
+
+def test_scene_collider_rows_are_left_to_the_colliders_and_a_terrain_sets_the_ground_level():
+    """Rows a scene collider added (shape_source >= 0: a container's walls) are not drawn as planes
+    (the collider draws itself, cut away); a static heightfield puts the ground grid at its lowest
+    point, so the terrain rests on it."""
+    from inertia.model import ModelBuilder
+    from inertia.world import World, model_file_arrays
+    import inertia.colliders as C
+
+    b = ModelBuilder()
+    heights = np.array([[0.3, 0.5, 0.4], [0.2, 0.6, 0.35], [0.45, 0.25, 0.5]])
+    b.add_heightfield(heights, (1.0, 1.0), position=(0.0, 0.0, 1.0))
+    world = World(dt=0.01, model=b.finalize(), colliders=[C.Container(center=(0, 0, 1), half_extents=(2, 2, 2))])
+    model = model_file_arrays(world)
+    assert np.count_nonzero(model["shape_source"] >= 0) == 6  # the container's six wall rows
+    drawables = ModelDrawables(model)
+    assert drawables.planes == []                                   # walls left to the container
+    assert drawables.heightfield_floor() == pytest.approx(1.0 + heights.min())
+    assert len(ModelDrawables(model, include_collider_rows=True).planes) == 6
+
+
+def test_vehicle_wheels_are_closed_cylinders_at_the_recorded_wheel_poses():
+    """Each recorded wheel is a closed cylinder (every edge shared by two triangles, outward normals)
+    of the wheel's radius, centred on its recorded pose with its axle along the chassis's y."""
+    turn = [math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4)]  # chassis turned 90 deg about z
+    pose = np.array([[[1.0, 2.0, 0.4, *turn], [-1.0, 2.0, 0.4, *turn]]])
+    drawables = ModelDrawables({"vehicle/0/wheel_radius": np.array([0.4, 0.4])})
+    [mesh] = drawables.wheels({"vehicle/0/wheel_pose": pose}, 0)
+    v, n, t = mesh.vertices, mesh.normals, mesh.triangles
+    half = v.shape[0] // 2
+    for wheel, centre in ((slice(0, half), pose[0, 0, :3]), (slice(half, None), pose[0, 1, :3])):
+        rel = v[wheel] - centre
+        # axle along the turned chassis's y = world -x: the rim is a circle of radius 0.4 in the y-z plane
+        assert np.abs(rel[:, 0]).max() == pytest.approx(0.12, abs=1e-9)       # half of 0.6 x radius
+        assert np.hypot(rel[:, 1], rel[:, 2]).max() == pytest.approx(0.4, abs=1e-9)
+    # caps and sides have their own vertices (flat shading): weld them by position before counting edges
+    _, weld = np.unique(np.round(v, 9), axis=0, return_inverse=True)
+    tw = weld.ravel()[t]
+    edges = np.sort(np.concatenate([tw[:, [0, 1]], tw[:, [1, 2]], tw[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)
+    centroid = v[t].mean(axis=1)
+    normal = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
+    wheel_centre = np.where((t[:, 0] < half)[:, None], pose[0, 0, :3], pose[0, 1, :3])
+    assert np.all(np.einsum("ij,ij->i", normal, centroid - wheel_centre) > 0)  # wound outward

@@ -34,7 +34,8 @@ def test_fluid_particles_follow_the_groups():
 
 def test_frames_colour_the_fluid_by_speed_and_carry_a_colour_bar():
     s = _states()
-    render = {"width": 320, "height": 160, "camera": {"target": [0.0, 0.5], "height": 3.0}}
+    # particles, not the liquid surface (the default where scikit-image is installed)
+    render = {"width": 320, "height": 160, "camera": {"target": [0.0, 0.5], "height": 3.0}, "fluid_surface": False}
     (_, image), = list(render_frames(s, render, frames=[0]))
     merged = with_fluid_particles(s)
     from inertia.cli.outputs import renderer_for
@@ -275,11 +276,13 @@ def test_sph_surface_option_round_trips_from_a_scene_file(tmp_path):
 
 
 def test_2d_sph_fluid_is_filled_as_its_smoothed_surface_when_asked():
+    """fluid_surface = false draws the particles; true fills the liquid; unset is the surface when
+    scikit-image is installed (the default a user sees)."""
     from inertia.render.fluid_particles import LIQUID_COLOR
 
     s = _sph_block_states(2)
     render = {"width": 200, "height": 200, "color_by": "uniform", "camera": {"target": [0.2, 0.2], "height": 0.4}}
-    (_, plain), = list(render_frames(s, render, frames=[0]))
+    (_, plain), = list(render_frames(s, dict(render, fluid_surface=False), frames=[0]))
     (_, filled), = list(render_frames(s, dict(render, fluid_surface=True), frames=[0]))
     r = renderer_for(with_fluid_particles(s), render)
     fill = np.round(np.array(LIQUID_COLOR) * 255)

@@ -72,6 +72,114 @@ def _chromium():
     return browser, driver
 
 
+def _sph_run(frames=4):
+    """A 2-D SPH fluid as a run records it (fluid/<name>/x, v, active; the fluid's spacing), and no
+    particle group: worlds without groups record 3-D positions of zero particles."""
+    g = np.arange(0.0, 0.5, 0.02)
+    x, y = np.meshgrid(g, g, indexing="ij")
+    block = np.column_stack([x.ravel(), y.ravel()]).astype(np.float32)
+    fx = np.stack([block + np.float32(0.01 * f) for f in range(frames)])
+    fields = {"fluid/water/x": fx, "fluid/water/v": np.ones_like(fx),
+              "fluid/water/active": np.ones(fx.shape[:2], bool)}
+    return States(times=np.arange(frames) / 10.0, positions=np.zeros((frames, 0, 3)), fields=fields,
+                  metadata={"fps": 10.0, "fluids": ["water"]}, model={"fluid/water/spacing": np.array([0.02])})
+
+
+def _smoke_run(frames=3, n=16):
+    """A 3-D smoke grid as a run records it: fluid/<name>/density and speed (F, nx, ny, nz), origin
+    and cell size in the model; a ball of density in the middle."""
+    c = (np.arange(n) + 0.5) / n - 0.5
+    r2 = c[:, None, None] ** 2 + c[None, :, None] ** 2 + c[None, None, :] ** 2
+    density = np.stack([np.clip(1.0 - r2 / 0.12, 0.0, None) * (1 + 0.1 * f) for f in range(frames)]).astype(np.float32)
+    fields = {"fluid/smoke/density": density, "fluid/smoke/speed": density * 0.5}
+    return States(times=np.arange(frames) / 10.0, positions=np.zeros((frames, 0, 3)), fields=fields,
+                  metadata={"fps": 10.0, "fluids": ["smoke"]},
+                  model={"fluid/smoke/origin": np.zeros(3), "fluid/smoke/cell_size": np.array(1.0 / n)})
+
+
+def test_fluids_are_shown():
+    """SPH particles become the viewer's particles in the fluid's own (2-D) plane; a 3-D smoke grid
+    a cloud of its dense cells, updated with the frame."""
+    viewer = view(_sph_run(), port=0, block=False, autoplay=False)
+    try:
+        assert viewer.dim == 2 and viewer._particle_count == 625
+    finally:
+        viewer.close()
+    viewer = view(_smoke_run(), port=0, block=False, autoplay=False)
+    try:
+        cloud = viewer._grids.handles["smoke"]
+        first = np.asarray(cloud.points).shape[0]
+        assert viewer.dim == 3 and first > 500  # a ball of radius ~0.35 of 16^3 cells above 5 % density
+        viewer.set_frame(2)
+        assert viewer._grids.handles["smoke"] is not cloud
+    finally:
+        viewer.close()
+
+
+def _chromium_screenshots(viewer, count_pixels, needed: int, seconds: float = 90.0):
+    """Open the viewer in headless Chromium; return (driver, profile, pixels) once a screenshot has
+    ``needed`` pixels that ``count_pixels(rgb)`` counts (or the deadline passed)."""
+    webdriver = pytest.importorskip("selenium.webdriver")
+    from selenium.webdriver.chrome.service import Service
+
+    from inertia.render import read_png
+
+    browser, driver_path = _chromium()
+    options = webdriver.ChromeOptions()
+    options.binary_location = browser
+    profile = tempfile.mkdtemp(prefix="inertia-chromium-")
+    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                 "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--window-size=1200,800",
+                 f"--user-data-dir={profile}"):
+        options.add_argument(flag)
+    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    driver.set_page_load_timeout(60)
+    driver.get(viewer.url)
+    shot = tempfile.mktemp(suffix=".png")
+    found = 0
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        time.sleep(2.0)
+        try:
+            driver.save_screenshot(shot)
+        except Exception:  # noqa: BLE001 - the renderer may be busy; try again
+            continue
+        found = count_pixels(read_png(shot)[..., :3].astype(int))
+        if found > needed:
+            break
+    return driver, profile, found
+
+
+def _magenta(p):
+    return int(((p[..., 0] > 120) & (p[..., 2] > 120) & (p[..., 1] < 90)).sum())
+
+
+def _warm(p):  # the inferno map's orange-to-yellow half (dense smoke), not the page's greys
+    return int(((p[..., 0] > 150) & (p[..., 0] - p[..., 2] > 90)).sum())
+
+
+@pytest.mark.skipif(None in _chromium(), reason="needs Chromium and ChromeDriver (apt-get install chromium chromium-driver)")
+@pytest.mark.parametrize("kind", ["sph", "smoke"])
+def test_headless_chromium_shows_the_fluids(kind):
+    if kind == "sph":
+        viewer = view(_sph_run(), port=0, block=False, autoplay=False, color_by="uniform", color=(1.0, 0.0, 1.0))
+        count = _magenta
+    else:
+        viewer = view(_smoke_run(), port=0, block=False, autoplay=False)
+        count = _warm
+    driver = profile = None
+    try:
+        driver, profile, found = _chromium_screenshots(viewer, count, 2000)
+        assert found > 2000, f"the screenshot shows no {kind} ({found} pixels)"
+    finally:
+        if driver is not None:
+            driver.quit()
+        viewer.close()
+        if profile is not None:
+            shutil.rmtree(profile, ignore_errors=True)
+
+
 @pytest.mark.skipif(None in _chromium(), reason="needs Chromium and ChromeDriver (apt-get install chromium chromium-driver)")
 def test_headless_chromium_shows_the_particles_and_steps():
     webdriver = pytest.importorskip("selenium.webdriver")

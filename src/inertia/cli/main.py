@@ -1,6 +1,7 @@
 """The `inertia` command (typer + rich).
 
     inertia run SCENE [--out DIR] [--duration S] [--fps N] [--seed N] [--resume] [--overwrite] [--force]
+                      [--camera PRESET] [--eye X,Y,Z] [--target X,Y,Z] [--resolution WxH]
     inertia validate SCENE
     inertia render STATES [--out DIR] [--video mp4,gif] [--frames]
     inertia view SCENE|STATES
@@ -290,22 +291,92 @@ def _prepare_out_dir(out: Path, *, resume: bool, overwrite: bool, scene_path: Pa
 # ------------------------------------------------------------------------------------------------
 # progress display
 # ------------------------------------------------------------------------------------------------
+# One line that fits 80 columns: "simulating ━━━━━━━━━━━━  42% t 2.52/6 s frame 63/151 1.2k st/s 0:00:12"; its label never changes while it runs (a cold Numba cache
+# is said once, on a line of its own, by `warm.compile_notice_on` through `_SteadyLabel`).
 class _RateColumn(ProgressColumn):
     def render(self, task):
         rate = task.fields.get("rate")
-        return Text("" if not rate else f"{rate:,.0f} steps/s", style="cyan")
+        if not rate:
+            return Text("")
+        text = f"{rate / 1000:.1f}k" if rate >= 1000 else f"{rate:.0f}"
+        return Text(f"{text} st/s", style="cyan")
 
 
 class _SimColumn(ProgressColumn):
     def render(self, task):
         f = task.fields
-        return Text(f"t {task.completed:6.2f}/{task.total:g} s  frame {f.get('frame', 0)}/{f.get('frames', 0)}")
+        return Text(f"t {task.completed:.2f}/{task.total:g} s frame {f.get('frame', 0)}/{f.get('frames', 0)}",
+                    no_wrap=True, overflow="ellipsis")
 
 
-def _progress(quiet: bool) -> Progress:
-    return Progress(TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
-                    _SimColumn(), _RateColumn(), TimeRemainingColumn(), console=console,
-                    disable=quiet, transient=False)
+def _progress(quiet: bool, to: Console | None = None) -> Progress:
+    return Progress(TextColumn("[bold]{task.description}"), BarColumn(bar_width=12), TaskProgressColumn(),
+                    _SimColumn(), _RateColumn(), TimeRemainingColumn(compact=True), console=to or console,
+                    disable=quiet, transient=False, expand=False)
+
+
+class _SteadyLabel:
+    """The progress bar as `warm.compile_notice_on` sees it: the once-printed compile notice goes
+    through, changes of the task's label are dropped, so the line does not flip between labels."""
+
+    def __init__(self, bar):
+        self._bar = bar
+        self.console = bar.console
+        self.disable = getattr(bar, "disable", False)
+
+    def update(self, task, **fields):
+        fields.pop("description", None)
+        if fields:
+            self._bar.update(task, **fields)
+
+
+#: `inertia run --camera` presets: (azimuth, elevation) in degrees about the framed subject.
+CAMERA_PRESETS = {"front": (-90.0, 12.0), "side": (0.0, 12.0), "top": (-90.0, 89.0), "iso": (-45.0, 30.0),
+                  "low": (-60.0, 5.0)}
+
+
+def _vector_option(text: str, name: str) -> list[float]:
+    """'X,Y,Z' -> three finite floats, or an InputError naming the option."""
+    import math as _math
+
+    parts = [p for p in text.replace(" ", "").split(",") if p]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(_math.isfinite(v) for v in values):
+        raise InputError(f"{name} must be three finite numbers X,Y,Z (got {text!r})")
+    return values
+
+
+def _render_overrides(render: dict, *, camera: str | None, eye: str | None, target: str | None,
+                      resolution: str | None) -> dict:
+    """The scene's [render] table with the command line's camera and resolution options applied."""
+    render = dict(render)
+    cam = dict(render.get("camera") or {})
+    if camera is not None:
+        if camera not in CAMERA_PRESETS:
+            raise InputError(f"--camera must be one of {', '.join(CAMERA_PRESETS)} (got {camera!r}); "
+                             "or give --eye X,Y,Z and --target X,Y,Z")
+        cam.update(azimuth=CAMERA_PRESETS[camera][0], elevation=CAMERA_PRESETS[camera][1], position=None,
+                   target=None, distance=None, orbit=0.0)
+    if eye is not None:
+        cam["position"] = _vector_option(eye, "--eye")
+    if target is not None:
+        cam["target"] = _vector_option(target, "--target")
+    if cam.get("position") is not None and cam.get("target") is not None and cam["position"] == cam["target"]:
+        raise InputError("--eye and --target must be different points")
+    render["camera"] = cam
+    if resolution is not None:
+        try:
+            w, h = (int(v) for v in resolution.lower().split("x"))
+        except ValueError:
+            w = h = 0
+        if not (16 <= w <= 7680 and 16 <= h <= 4320):
+            raise InputError(f"--resolution must be WIDTHxHEIGHT with 16 <= width <= 7680 and 16 <= height <= 4320 "
+                             f"(got {resolution!r}, e.g. 1280x720)")
+        render["width"], render["height"] = w, h
+    return render
 
 
 # ------------------------------------------------------------------------------------------------
@@ -327,6 +398,10 @@ def run(
     stop_after: Annotated[Optional[int], typer.Option(hidden=True, help="Stop as if interrupted after N frames (tests).")] = None,
     force: Annotated[bool, typer.Option("--force", help="Run even if the run-time or memory estimate says it will not finish or fit.")] = False,
     report_frames: Annotated[bool, typer.Option("--report-frames", hidden=True, help="Print 'frame K' on stdout as frames are recorded (tests, scripts).")] = False,
+    camera: Annotated[Optional[str], typer.Option("--camera", help=f"Camera preset: {', '.join(CAMERA_PRESETS)} (framed on the subject).")] = None,
+    eye: Annotated[Optional[str], typer.Option("--eye", metavar="X,Y,Z", help="Camera position in metres (with --target, or looking at the framed centre).")] = None,
+    target: Annotated[Optional[str], typer.Option("--target", metavar="X,Y,Z", help="Point the camera looks at, in metres.")] = None,
+    resolution: Annotated[Optional[str], typer.Option("--resolution", metavar="WxH", help="Image size in pixels, e.g. 1280x720.")] = None,
 ):
     """Run a scene: simulate, record the state file, then write video, plot and exports."""
     from inertia.io import write_manifest
@@ -345,6 +420,8 @@ def run(
         duration, fps, seed = _resume_settings(out, duration, fps, seed)
     loaded = with_overrides(loaded, duration=duration, fps=fps, seed=seed)
     model = loaded.model
+    render_table = _render_overrides(model.render.model_dump(mode="json"), camera=camera, eye=eye, target=target,
+                                     resolution=resolution)
     _check_resources(loaded, force=force)
     _check_frames(loaded, render)
     _prepare_out_dir(out, resume=resume, overwrite=overwrite, scene_path=path)
@@ -353,14 +430,13 @@ def run(
     t_loaded = time.perf_counter()
     metadata = {
         "scene": loaded.text, "scene_format": loaded.format, "scene_path": str(path.resolve()),
-        "scene_name": loaded.name, "seed": sim.seed, "render": model.render.model_dump(mode="json"),
+        "scene_name": loaded.name, "seed": sim.seed, "render": render_table,
     }
     runner = Run(world, out, duration=sim.duration, fps=sim.fps, resume=resume, fingerprint=world.fingerprint,
                  metadata=metadata, checkpoint_interval=model.output.checkpoint_interval,
                  stop_after_frames=stop_after)
     if not quiet:
-        groups = ", ".join(f"{g.name} ({g.particle_count} {g.kind}, {g.integrator})" for g in world.groups)
-        console.print(f"[bold]{loaded.name}[/]: {groups}; dt = {sim.dt:g} s x {sim.substeps} substeps, "
+        console.print(f"[bold]{loaded.name}[/]: {_world_summary(world)}; dt = {sim.dt:g} s x {sim.substeps} substeps, "
                       f"{sim.duration:g} s at {sim.fps:g} fps -> {out}")
     dropped: dict = {}
     outputs: dict = {}
@@ -386,7 +462,7 @@ def run(
 
         runner.progress = report
         try:
-            with compile_notice_on(bar, task, "simulating"):  # a cold Numba cache says so
+            with compile_notice_on(_SteadyLabel(bar), task, "simulating"):  # a cold Numba cache says so
                 result = runner.execute()
         except CheckpointError as exc:       # a checkpoint that does not fit this scene, or damaged
             raise InputError(str(exc)) from None
@@ -395,9 +471,14 @@ def run(
                 raise InputError(f"cannot resume from {out}: {exc}") from None
             raise
         bar.update(task, completed=min(world.t, sim.duration), frame=result.frame_count)
-        timings.update({"load": t_loaded - t_start, **result.timings})
+        # every figure is wall time; first_frame and total count from the command's start (imports
+        # included), so first_frame <= total; "run" is the simulation loop's own total
+        run_timings = dict(result.timings)
+        timings.update({"load": t_loaded - t_start, **run_timings})
+        timings["run"] = timings.pop("total", sum(run_timings.values()))
         if result.first_frame_seconds is not None:
             timings["first_frame"] = (t_loaded - _STARTED) + result.first_frame_seconds
+        timings["total"] = time.perf_counter() - _STARTED
         outputs["states"] = result.states_path
         if result.checkpoint_path is not None:
             outputs["checkpoint"] = result.checkpoint_path
@@ -425,9 +506,10 @@ def run(
         _interrupt_note[0] = (f"the run itself is complete in {out}; write its outputs with: "
                               f"inertia render {result.states_path}")
         t0 = time.perf_counter()
-        outputs.update(_write_outputs(result.states_path, out, model.output.model_dump(), model.render.model_dump(mode="json"),
+        outputs.update(_write_outputs(result.states_path, out, model.output.model_dump(), render_table,
                                       world.colliders, quiet))
         timings["outputs"] = time.perf_counter() - t0
+        timings["total"] = time.perf_counter() - _STARTED
         manifest()
     outputs["manifest"] = out / "manifest.json"
     if not quiet:
@@ -521,11 +603,11 @@ def _write_outputs(states_path, out, output, render, colliders, quiet) -> dict:
     from .warm import compile_notice_on
 
     states = load_states(states_path)
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), TaskProgressColumn(),
-                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(),
-                  console=console, disable=quiet) as bar:
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(bar_width=20), TaskProgressColumn(),
+                  TextColumn("{task.completed}/{task.total} frames"), TimeRemainingColumn(compact=True),
+                  console=console, disable=quiet, expand=False) as bar:
         task = bar.add_task("writing outputs", total=states.frame_count)
-        with compile_notice_on(bar, task, "writing outputs"):
+        with compile_notice_on(_SteadyLabel(bar), task, "writing outputs"):
             return write_outputs(states, out, output, render, colliders,
                                  progress=lambda stage, done, total: bar.update(task, completed=done))
 
@@ -541,8 +623,31 @@ def _summary(outputs: dict, result, timings: dict) -> None:
         size = sum(f.stat().st_size for f in p.rglob("*") if f.is_file()) if p.is_dir() else (p.stat().st_size if p.exists() else 0)
         table.add_row(kind, str(p), _human(size))
     console.print(table)
-    shown = ", ".join(f"{k} {v:.2f} s" for k, v in timings.items())
-    console.print(f"[dim]timings: {shown}[/]")
+    console.print(f"[dim]{_timings_line(timings)}[/]")
+
+
+def _timings_line(timings: dict) -> str:
+    """'timings: first frame 3.1 s, total 9.8 s (load 0.4 s, simulate 5.2 s, ...)': the two figures a
+    user waits for, counted from the command's start, then the stages."""
+    head = [f"{label} {timings[key]:.2f} s" for key, label in (("first_frame", "first frame"), ("total", "total"))
+            if key in timings]
+    parts = [f"{k} {v:.2f} s" for k, v in timings.items() if k not in ("first_frame", "total")]
+    return "timings: " + ", ".join(head) + (f" ({', '.join(parts)})" if parts else "")
+
+
+def _world_summary(world) -> str:
+    """What a world holds, for the run's first line: particle groups, rigid bodies, fluids."""
+    parts = [f"{g.name} ({g.particle_count} {g.kind}, {g.integrator})" for g in world.groups]
+    model = getattr(world, "model", None)
+    if model is not None and getattr(model, "body_count", 0):
+        import numpy as np
+
+        dynamic = int(np.count_nonzero(np.asarray(model.body_type) == 0))
+        bodies = "1 rigid body" if model.body_count == 1 else f"{model.body_count} rigid bodies"
+        parts.append(f"{bodies} ({dynamic} dynamic), {model.shape_count} shape{'s' if model.shape_count != 1 else ''}")
+    for name, fluid in getattr(world, "fluids", {}).items():
+        parts.append(f"{name} ({type(fluid).__name__})")
+    return ", ".join(parts) or "an empty world"
 
 
 def _human(size: int) -> str:

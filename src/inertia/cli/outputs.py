@@ -5,7 +5,7 @@ while writing leaves no truncated file. Frames are rendered once and handed to e
 output (MP4, GIF, PNG): frames come from `inertia.render.Renderer` (camera from the scene's
 [render] table, group colours from the scene), videos are encoded by
 `inertia.render.VideoWriter` (ffmpeg from imageio-ffmpeg) and the plot drawn by
-`inertia.render.plot_energy` from the energies the run recorded.
+`inertia.render.plots.plot_systems` from what the run recorded per system (particles, bodies, fluids).
 
 Limitations: GIFs are written at half resolution above 640 pixels wide (file size).
 """
@@ -56,8 +56,13 @@ def renderer_for(states, render: dict | None, colliders=()):
 
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     extra = None if drawables is None else drawables.bounds_points(states.fields.get("body_q"))
+    floor = None if drawables is None else drawables.heightfield_floor()
+    if floor is not None and render.get("ground", "auto") == "auto":
+        renderer.ground = floor  # the terrain rests on the ground grid instead of floating above it
+    # bodies are never outliers: frame all of them (the particle-only robust trim cut a pile's top)
+    robust = 0.0 if extra is not None and states.particle_count == 0 else 0.001
     renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
-                 times=states.times)
+                 times=states.times, robust=robust)
     cam = renderer.camera
     if dim == 2 and camera.get("height") is not None:
         center = camera.get("target") or cam.target[:2]
@@ -94,10 +99,10 @@ def _group_colors(states, renderer):
 
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
-    from inertia.render.drawables import ModelDrawables, frame_options
+    from inertia.render.drawables import ModelDrawables, frame_options, subject_bounds
     from inertia.render.fluid_particles import (LiquidSurfaces, fluid_legend, frame_grids, frame_volumes, grid_scales,
                                                 grid_streaks, grid_fluids, paint_grids, paint_volumes, smoke_styles,
-                                                with_fluid_particles)
+                                                sph_surface_wanted, with_fluid_particles)
 
     states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
     renderer = renderer_for(states, render, colliders)
@@ -106,19 +111,25 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
     smoke = smoke_styles(states)
     scales = grid_scales(states)  # 2-D grids: one colour scale for the run, tracer streaks ([render] streaks)
     streaks = grid_streaks(states, render)
-    # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D); SPH too with [render] fluid_surface
-    liquids = LiquidSurfaces(states, sph=bool((render or {}).get("fluid_surface")))
+    # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D); SPH too unless [render]
+    # fluid_surface = false (by default wherever scikit-image, the surface extra, is installed)
+    liquids = LiquidSurfaces(states, sph=sph_surface_wanted(render))
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
+    draw = list(draw) + attractor_markers(states)  # where the attractors pull (wind)
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:
-        draw = list(draw) + drawables.plane_colliders()
+        draw = list(draw) + drawables.plane_colliders(subject_bounds(states, drawables))
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
     legend = _legend(states, renderer, render)
     legend = fluid_legend(states, renderer, render) if legend is None else legend
+    hidden = None if drawables is None else drawables.hidden(states.particle_count)
+    shown = states.particle_count - (0 if hidden is None else int(np.count_nonzero(hidden)))
+    legend = _quantity_legend(states, renderer, render, scales, shown) if legend is None else legend
     indices = range(states.frame_count) if frames is None else frames
     grids = bool(grid_fluids(states)) and renderer.dim == 2
+    axes = _axes_layer(renderer, render) if grids else None  # 2-D fluid maps carry a scale in metres
     for f in indices:
         options = frame_options(drawables, states, f, states.active(f), trails=int((render or {}).get("trails", 0)))
         underlay = (lambda img, f=f: paint_grids(img, states, f, renderer, scales, streaks)) if grids else None
@@ -129,10 +140,14 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
             **liquids.apply(options, f))
         liquids.paint(image, f, renderer)
         paint_volumes(image, states, f, renderer, smoke, colliders)
+        if axes is not None:
+            from inertia.render.legend import blend
+
+            blend(image, axes)
         if legend is not None:
             from inertia.render.legend import overlay
 
-            overlay(image, legend)
+            overlay(image, legend, corner="right" if axes is not None else "left")  # clear of the y axis
         yield f, image
 
 
@@ -154,18 +169,102 @@ def _legend(states, renderer, render: dict | None):
     return legend_image(names, palette, frame_height=renderer.height, theme=(render or {}).get("theme", "dark"))
 
 
-def plot_energy(states, path) -> Path:
-    """Energy (kinetic, potential, total) and momentum over time (PNG), from the recorded fields."""
-    from inertia.render import plot_energy as _plot, plot_states_energy
+class AttractorMarker:
+    """An attractor's centre drawn as a small sphere (``radius`` m): its softening length, at least
+    1 % of the scene; it collides with nothing, it only shows where the particles are pulled."""
 
-    fields = states.fields
-    title = f"{states.metadata.get('scene_name', 'run')}: energy and momentum"
-    kinetic = fields.get("kinetic_energy")
-    if kinetic is None or not np.any(np.isfinite(kinetic)):
-        if states.velocities is None:
-            raise ValueError("the run recorded no energies and no velocities")
-        return plot_states_energy(states, path, title=title)
-    return _plot(states.times, kinetic, fields.get("potential_energy"), fields.get("momentum"), path, title=title)
+    def __init__(self, center, radius: float):
+        self.center = np.asarray(center, np.float64)
+        self.radius = float(radius)
+
+    def render_primitive(self, t: float = 0.0):
+        return "sphere", {"center": self.center, "radius": self.radius}
+
+
+def attractor_markers(states) -> list:
+    """`AttractorMarker`s of the ``attractor`` forces in a run's scene text (recorded in its header)."""
+    text = states.metadata.get("scene")
+    if not text or "attractor" not in text:
+        return []
+    try:
+        if states.metadata.get("scene_format", "toml") == "json":
+            import json
+
+            data = json.loads(text)
+        else:
+            import tomllib
+
+            data = tomllib.loads(text)
+    except ValueError:
+        return []
+    forces = list(data.get("forces") or [])
+    for group in data.get("particles") or []:
+        forces += list(group.get("forces") or [])
+    size = 1.0
+    if states.particle_count and states.frame_count:
+        x = np.asarray(states.positions[0], np.float64)
+        x = x[np.all(np.isfinite(x), axis=1)]
+        size = float(np.max(np.ptp(x, axis=0))) if x.shape[0] > 1 else 1.0
+    out = []
+    for force in forces:
+        if isinstance(force, dict) and force.get("type") == "attractor" and force.get("center") is not None:
+            center = np.asarray(force["center"], np.float64)
+            if center.shape[0] == states.dim:
+                radius = max(0.5 * float(force.get("softening") or 0.0), 0.01 * size)
+                out.append(AttractorMarker(center, min(radius, 0.05 * size)))
+    return out
+
+
+def _axes_layer(renderer, render: dict | None) -> np.ndarray | None:
+    """The x/y axes in metres of a 2-D orthographic view as a full-frame RGBA layer, or None."""
+    camera = renderer.camera
+    if (renderer.dim != 2 or camera is None or camera.projection != "orthographic" or getattr(renderer, "orbit", 0)
+            or getattr(renderer, "follow", False)):
+        return None
+    try:
+        from inertia.render.legend import axes_image
+
+        return axes_image(camera, renderer.width, renderer.height, theme=(render or {}).get("theme", "dark"))
+    except ImportError:  # pragma: no cover - matplotlib is in the [cli] extra
+        return None
+
+
+def _quantity_legend(states, renderer, render: dict | None, scales: dict, shown: int) -> np.ndarray | None:
+    """A colour bar with the quantity's unit wherever colour means a quantity and no other legend
+    explains it: particles coloured by speed (m/s; ``shown``: how many are drawn as spheres, not as
+    a cloth surface), a 2-D grid's colour map (smoke density, or speed in m/s); None otherwise (3-D
+    smoke is shaded, not colour-mapped)."""
+    from inertia.render.colormaps import resolve_color_mode
+    from inertia.render.fluid_particles import grid_fluids, speed_colorbar
+
+    theme = (render or {}).get("theme", "dark")
+    try:
+        grids = grid_fluids(states) if renderer.dim == 2 else []
+        if grids:
+            name, quantity = grids[0]
+            vmax = float(scales.get(name, 1.0))
+            label = "smoke density (per unit volume)" if quantity == "density" else "flow speed (m/s)"
+            return speed_colorbar(vmax, frame_height=renderer.height, theme=theme,
+                                  cmap="magma" if quantity == "density" else "speed", label=label)
+        if shown > 0 and states.velocities is not None and renderer.speed_max:
+            if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) == "speed":
+                return speed_colorbar(float(renderer.speed_max), frame_height=renderer.height, theme=theme,
+                                      cmap=renderer.colormap)
+    except (ImportError, ValueError):  # matplotlib is in the [cli] extra; a zero scale has no bar
+        return None
+    return None
+
+
+def plot_energy(states, path) -> Path:
+    """Energy and momentum over time (PNG), one row per system the run recorded: particles,
+    rigid bodies, each fluid (`inertia.render.plots.system_series`), with units."""
+    from inertia.render.plots import plot_systems, system_series
+
+    systems = system_series(states)
+    if not systems:
+        raise ValueError("the run recorded no energies and no velocities")
+    title = f"{states.metadata.get('scene_name', 'run')}: energy and momentum per system"
+    return plot_systems(states.times, systems, path, title=title)
 
 
 def write_outputs(states, out_dir, output: dict, render: dict | None = None, colliders=(),
@@ -205,7 +304,10 @@ def write_outputs(states, out_dir, output: dict, render: dict | None = None, col
                 if progress is not None:
                     progress("render", f + 1, total)
     if output.get("plot"):
-        written["plot"] = plot_energy(states, out / OUTPUT_NAMES["plot"])
+        from inertia.render.plots import system_series
+
+        if system_series(states):  # a run with nothing recorded to plot writes no plot
+            written["plot"] = plot_energy(states, out / OUTPUT_NAMES["plot"])
     if output.get("ply"):
         directory = out / OUTPUT_NAMES["ply"]
         write_ply_sequence(states, directory)

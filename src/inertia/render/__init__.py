@@ -16,6 +16,7 @@ Public API::
     write_png(path, image), read_png(path), encode_png(image)
     plot_energy(times, kinetic, potential=None, momentum=None, path="energy.png")
     plot_states_energy(states, path, *, masses=None, gravity=None), energy_from_states(states, ...)
+    system_series(states) -> [SystemSeries] (particles, bodies, fluids), plot_systems(times, systems, path)
     colormap(name, values, vmin=None, vmax=None), COLORMAPS, GROUP_PALETTE
 
 Why a Numba rasterizer and not a rendering library: docs/rendering.md.
@@ -23,7 +24,7 @@ Why a Numba rasterizer and not a rendering library: docs/rendering.md.
 
 from .camera import Camera
 from .colormaps import COLORMAPS, GROUP_PALETTE, colormap, group_colors, parse_color, speed_colors
-from .plots import energy_from_states, plot_energy, plot_states_energy
+from .plots import SystemSeries, energy_from_states, plot_energy, plot_states_energy, plot_systems, system_series
 from .png import encode_png, read_png, write_png
 from .renderer import THEMES, Renderer, scene_bounds
 from .video import VIDEO_SUFFIXES, VideoWriter, render_states, write_video
@@ -40,6 +41,9 @@ __all__ = [
     "encode_png",
     "plot_energy",
     "plot_states_energy",
+    "plot_systems",
+    "system_series",
+    "SystemSeries",
     "energy_from_states",
     "colormap",
     "speed_colors",

@@ -6,13 +6,18 @@
 - the shape table (``shape_type``, ``shape_body``, ``shape_local_pose (S, 7)`` position +
   quaternion (w, x, y, z) in the body frame, ``shape_params``, ``geom_vertices``...,
   ``shape_color (S, 3)`` optional) -> every shape tessellated once in its own frame
-  (`inertia.render.meshes.tessellate_shape`); static planes become the renderer's analytic
-  ground (`planes`);
+  (`inertia.render.meshes.tessellate_shape`); a static plane facing up becomes the renderer's
+  analytic ground, any other static plane a finite patch under the subject (`plane_colliders`);
+  rows a scene collider added (``shape_source >= 0``: a container's walls, a kinematic paddle) are
+  left to the colliders' own drawing (`inertia.render.colliders`: a container as a box cut away
+  toward the camera), unless ``include_collider_rows=True``;
 - ``surface_triangles (T, 3)`` global particle indices -> a cloth surface over the particle
   positions of each frame (smooth normals per frame); its particles are not also drawn as
   spheres (`hidden`);
 - ``spring_pairs (P, 2)`` global particle indices -> lines (except springs between two particles of a
-  surface, which the surface shows).
+  surface, which the surface shows);
+- ``vehicle/<k>/wheel_radius (W,)`` with the frames' ``vehicle/<k>/wheel_pose (F, W, 7)`` -> each
+  ray-cast vehicle's wheels as dark cylinders (`wheels`).
 
 `frame(positions, body_q)` returns the ``meshes=`` and ``lines=`` of `Renderer.frame` for one
 frame: the shapes moved by ``body_q (B, 7)`` (the body frame's position and orientation;
@@ -31,7 +36,36 @@ from ..math import compose_poses, rotate_vectors
 from .colormaps import GROUP_PALETTE
 from .meshes import LineSet, TriangleMesh, tessellate_shape
 
-__all__ = ["ModelDrawables", "frame_options", "trail_lines"]
+__all__ = ["ModelDrawables", "PlanePatch", "subject_bounds", "frame_options", "trail_lines"]
+
+#: Colour of ray-cast vehicles' wheels (sRGB).
+WHEEL_COLOR = (0.12, 0.12, 0.13)
+
+
+def _wheel_mesh(radius: float, width: float, segments: int = 20):
+    """A closed cylinder about the y axis (vertices (V, 3), normals (V, 3), triangles (T, 3)): flat
+    shading, a ring of side quads and two caps."""
+    a = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)
+    c, s = np.cos(a), np.sin(a)
+    half = 0.5 * width
+    side_v = np.concatenate([np.stack([radius * c, np.full(segments, -half), radius * s], 1),
+                             np.stack([radius * c, np.full(segments, half), radius * s], 1)])
+    side_n = np.concatenate([np.stack([c, np.zeros(segments), s], 1)] * 2)
+    i = np.arange(segments)
+    j = (i + 1) % segments
+    side_t = np.concatenate([np.stack([i, j, j + segments], 1), np.stack([i, j + segments, i + segments], 1)])
+    verts, norms, tris = [side_v], [side_n], [side_t]
+    base = 2 * segments
+    for sign in (-1.0, 1.0):
+        ring = np.stack([radius * c, np.full(segments, sign * half), radius * s], 1)
+        verts.append(np.vstack([[0.0, sign * half, 0.0], ring]))
+        norms.append(np.tile([0.0, sign, 0.0], (segments + 1, 1)))
+        fan = np.stack([np.zeros(segments, int), i + 1, j + 1], 1)
+        tris.append(base + (fan if sign > 0 else fan[:, [0, 2, 1]]))
+        base += segments + 1
+    tris = np.concatenate(tris).astype(np.int64)[:, [0, 2, 1]]  # wound counter-clockwise seen from outside
+    return np.concatenate(verts), np.concatenate(norms), tris
+
 
 #: Colours of cloth surfaces and spring lines when the model gives none (sRGB).
 CLOTH_COLOR = (0.86, 0.42, 0.32)
@@ -65,7 +99,7 @@ class ModelDrawables:
     """Meshes and lines of a model (see the module docstring); ``group_colors`` (N, 3) sRGB per
     particle, optional, colours cloth surfaces by their first vertex's group."""
 
-    def __init__(self, model: dict, *, particle_colors=None):
+    def __init__(self, model: dict, *, particle_colors=None, include_collider_rows: bool = False):
         model = dict(model or {})
         self.model = model
         from ..geometry import shapes as S
@@ -79,7 +113,10 @@ class ModelDrawables:
         shape_body = np.asarray(model.get("shape_body", np.full(shape_type.shape, -1)), np.int64)
         pose = np.asarray(model.get("shape_local_pose", np.tile([0, 0, 0, 1.0, 0, 0, 0], (len(shape_type), 1))), np.float64)
         colors = model.get("shape_color")
+        source = np.asarray(model.get("shape_source", np.full(shape_type.shape, -1)), np.int64)
         for s in range(len(shape_type)):
+            if source[s] >= 0 and not include_collider_rows:
+                continue  # a scene collider's row: drawn from the collider (walls cut away, motion)
             if shape_type[s] == S.PLANE:
                 if shape_body[s] < 0:
                     normal = rotate_vectors(pose[s, 3:], np.array([0.0, 0.0, 1.0]))
@@ -126,25 +163,70 @@ class ModelDrawables:
                 keep = ~(covered[self.spring_pairs[:, 0]] & covered[self.spring_pairs[:, 1]])
                 self.spring_pairs = np.ascontiguousarray(self.spring_pairs[keep])
         self.particle_colors = None if particle_colors is None else np.asarray(particle_colors, np.float32)
+        #: Ray-cast vehicles: vehicle index -> wheel radii (W,) m (drawn at ``vehicle/<k>/wheel_pose``).
+        self.wheel_radii = {int(key.split("/")[1]): np.asarray(value, np.float64).ravel()
+                            for key, value in model.items() if key.startswith("vehicle/") and key.endswith("/wheel_radius")}
 
     @classmethod
-    def from_states(cls, states, *, particle_colors=None) -> "ModelDrawables | None":
+    def from_states(cls, states, *, particle_colors=None, include_collider_rows: bool = False) -> "ModelDrawables | None":
         """Drawables of a `States` (its ``model`` dict), or None when it has nothing to draw."""
         model = getattr(states, "model", None)
         if not model or states.dim != 3:
             return None
-        drawables = cls(model, particle_colors=particle_colors)
+        drawables = cls(model, particle_colors=particle_colors, include_collider_rows=include_collider_rows)
         return drawables if not drawables.empty else None
 
     @property
     def empty(self) -> bool:
-        return self.local_vertices is None and self.surface_triangles is None and self.spring_pairs is None and not self.planes
+        return (self.local_vertices is None and self.surface_triangles is None and self.spring_pairs is None
+                and not self.planes and not self.wheel_radii)
 
-    def plane_colliders(self) -> list:
-        """Static planes as `inertia.colliders.Plane` (drawn as the renderer's ground)."""
+    def wheels(self, fields: dict, f: int) -> list:
+        """The vehicles' wheels at frame ``f`` as one dark `TriangleMesh` of cylinders (axle along the
+        chassis's y, width 0.6 x radius), from the recorded ``vehicle/<k>/wheel_pose (F, W, 7)``."""
+        verts, norms, tris, base = [], [], [], 0
+        for k, radii in self.wheel_radii.items():
+            poses = fields.get(f"vehicle/{k}/wheel_pose")
+            if poses is None:
+                continue
+            for pose, r in zip(np.asarray(poses[f], np.float64), radii):
+                v, n, t = _wheel_mesh(r, 0.6 * r)
+                verts.append(rotate_vectors(pose[3:], v) + pose[:3])
+                norms.append(rotate_vectors(pose[3:], n))
+                tris.append(t + base)
+                base += v.shape[0]
+        if not verts:
+            return []
+        return [TriangleMesh(np.concatenate(verts), np.concatenate(norms), np.concatenate(tris), np.array(WHEEL_COLOR, np.float32))]
+
+    def plane_colliders(self, bounds=None) -> list:
+        """Static planes to draw: a plane facing up (+z) as `inertia.colliders.Plane` (the
+        renderer's ground, under the subject); any other plane as a finite square patch
+        (`PlanePatch`) around the projection of the subject's bounds ``(lower (3,), upper (3,))``
+        onto it, 1.2 times the bounds' diagonal wide (without bounds: an infinite plane)."""
         from ..colliders import Plane
 
-        return [Plane(point=tuple(p), normal=tuple(n)) for p, n in self.planes]
+        out = []
+        for p, n in self.planes:
+            if bounds is None or n[2] > 0.95:
+                out.append(Plane(point=tuple(p), normal=tuple(n)))
+                continue
+            lo, hi = (np.asarray(b, np.float64) for b in bounds)
+            centre = 0.5 * (lo + hi)
+            centre = centre - np.dot(centre - p, n) * n  # the subject's centre projected onto the plane
+            out.append(PlanePatch(centre, n, 0.6 * float(np.linalg.norm(hi - lo)) + 1e-3))
+        return out
+
+    def heightfield_floor(self) -> float | None:
+        """Lowest world z of the static heightfields (the level to put the ground grid at, so a
+        terrain rests on it), or None when there is none."""
+        from ..geometry import shapes as S
+
+        rows = [s for s in self.shape_meshes if int(self.model["shape_type"][s]) == S.HEIGHTFIELD and self.shape_body[s] < 0]
+        if not rows:
+            return None
+        poses = self.shape_poses(None)
+        return float(min(np.min(rotate_vectors(poses[s, 3:], self.shape_meshes[s][0])[:, 2] + poses[s, 2]) for s in rows))
 
     def hidden(self, count: int) -> np.ndarray | None:
         """(N,) bool: particles drawn as a surface, so not as spheres (None when there are none)."""
@@ -194,15 +276,59 @@ class ModelDrawables:
 
     def bounds_points(self, body_q_frames=None) -> np.ndarray | None:
         """World points (M, 3) bounding the shapes over a run (``body_q_frames (F, B, 7)``), for
-        framing the camera: the tessellated vertices at a sample of frames."""
+        framing the camera: each shape's bounding-box corners at 12 frames spread over the run."""
         if self.local_vertices is None:
             return None
         if body_q_frames is None or len(body_q_frames) == 0:
-            return self.body_vertices(None)[0]
+            return self._shape_box_corners(self.body_vertices(None)[0])
         frames = np.asarray(body_q_frames)
         picks = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), 12)).astype(int))
-        stride = max(1, self.local_vertices.shape[0] // 4000)
-        return np.concatenate([self.body_vertices(frames[f])[0][::stride] for f in picks])
+        return np.concatenate([self._shape_box_corners(self.body_vertices(frames[f])[0]) for f in picks])
+
+    def _shape_box_corners(self, vertices: np.ndarray) -> np.ndarray:
+        """The two extreme corners of each shape's world bounding box (2 S', 3): every shape's reach,
+        however many vertices it has (a subsample of the vertices missed the top of a pile)."""
+        starts = np.flatnonzero(np.r_[True, self.vertex_shape[1:] != self.vertex_shape[:-1]])
+        return np.concatenate([np.minimum.reduceat(vertices, starts, axis=0),
+                               np.maximum.reduceat(vertices, starts, axis=0)])
+
+
+def subject_bounds(states, drawables: "ModelDrawables | None" = None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(lower (3,), upper (3,)) of what a run shows: the particles of its first and last frames
+    and the shapes' vertices over the run; None when there is nothing finite."""
+    points = []
+    if states.frame_count and states.particle_count:
+        for f in {0, states.frame_count - 1}:
+            x = np.asarray(states.positions[f], np.float64).reshape(-1, states.dim)
+            points.append(x[np.all(np.isfinite(x), axis=1)])
+    if drawables is not None:
+        extra = drawables.bounds_points(states.fields.get("body_q"))
+        if extra is not None:
+            points.append(extra)
+    points = [p for p in points if p.size]
+    if not points or states.dim != 3:
+        return None
+    allp = np.concatenate(points)
+    return allp.min(axis=0), allp.max(axis=0)
+
+
+class PlanePatch:
+    """A finite square patch of a plane, drawn as a thin box (its back face on the plane):
+    ``centre (3,)`` on the plane, unit ``normal (3,)``, ``half_size`` m (half the side)."""
+
+    def __init__(self, centre, normal, half_size: float):
+        self.normal = np.asarray(normal, np.float64) / np.linalg.norm(normal)
+        helper = np.array([0.0, 0.0, 1.0]) if abs(self.normal[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+        a = np.cross(helper, self.normal)
+        a /= np.linalg.norm(a)
+        b = np.cross(self.normal, a)
+        self.rotation = np.stack([a, b, self.normal], axis=1)  # world from local: columns a, b, n
+        self.thickness = 0.01 * float(half_size)
+        self.center = np.asarray(centre, np.float64) - 0.5 * self.thickness * self.normal
+        self.half_extents = np.array([half_size, half_size, 0.5 * self.thickness])
+
+    def render_primitive(self, t: float = 0.0):
+        return "box", {"center": self.center, "half_extents": self.half_extents, "rotation": self.rotation}
 
 
 #: Colour of motion trails (sRGB) and the opacity of their newest segment.
@@ -251,6 +377,7 @@ def frame_options(drawables: "ModelDrawables | None", states, f: int, active=Non
     if drawables is not None:
         body_q = states.fields.get("body_q")
         options = drawables.frame(states.positions[f], None if body_q is None else body_q[f])
+        options["meshes"] = options["meshes"] + drawables.wheels(states.fields, f)
         hidden = drawables.hidden(states.particle_count)
         if hidden is not None:
             active = ~hidden if active is None else (np.asarray(active, bool) & ~hidden)

@@ -120,9 +120,11 @@ def with_fluid_particles(states) -> States:
                   states.model)
 
 
-def speed_colorbar(vmax: float, *, frame_height: int = 540, theme: str = "dark", cmap: str | None = None) -> np.ndarray:
-    """RGBA image (h, w, 4) uint8 of a horizontal colour bar from 0 to ``vmax`` [m/s] in the
-    renderer's speed colour map, labelled "speed (m/s)", to lay over frames."""
+def speed_colorbar(vmax: float, *, frame_height: int = 540, theme: str = "dark", cmap: str | None = None,
+                   label: str = "speed (m/s)") -> np.ndarray:
+    """RGBA image (h, w, 4) uint8 of a horizontal colour bar from 0 to ``vmax`` in the colour map
+    ``cmap`` (default the renderer's speed map), titled ``label`` (the quantity and its unit), to lay
+    over frames."""
     import matplotlib
 
     matplotlib.use("Agg", force=False)
@@ -133,7 +135,7 @@ def speed_colorbar(vmax: float, *, frame_height: int = 540, theme: str = "dark",
     from .colormaps import DEFAULT_SPEED_MAP, colormap
 
     if not np.isfinite(vmax) or vmax <= 0:
-        raise ValueError(f"speed_colorbar: vmax must be a finite speed > 0 (m/s); got {vmax!r}")
+        raise ValueError(f"speed_colorbar: vmax must be a finite value > 0 ({label}); got {vmax!r}")
     table = colormap(cmap or DEFAULT_SPEED_MAP, np.linspace(0.0, 1.0, 256), vmin=0.0, vmax=1.0)
     dpi = 100.0 * max(frame_height, 120) / 540.0
     text = "#e6e8ec" if theme == "dark" else "#24262b"
@@ -149,7 +151,7 @@ def speed_colorbar(vmax: float, *, frame_height: int = 540, theme: str = "dark",
     ax.tick_params(colors=text, length=2, pad=1)
     for spine in ax.spines.values():
         spine.set_visible(False)
-    ax.set_title("speed (m/s)", color=text, fontsize=8, pad=2)
+    ax.set_title(label, color=text, fontsize=8, pad=2)
     from .legend import cropped_canvas
 
     return cropped_canvas(canvas)
@@ -161,7 +163,7 @@ def fluid_legend(states, renderer, render: dict | None = None) -> np.ndarray | N
 
     if not particle_fluids(states) or states.velocities is None or renderer.speed_max is None:
         return None
-    surfaces = LiquidSurfaces(states, sph=bool((render or {}).get("fluid_surface")))
+    surfaces = LiquidSurfaces(states, sph=sph_surface_wanted(render))
     if set(particle_fluids(states)) <= set(surfaces.names) and surfaces.draws_surfaces:
         return None  # every fluid is drawn as a surface: no speed colours to explain
     if resolve_color_mode(renderer.color_by, None, states.velocities, states.groups()) != "speed":
@@ -436,6 +438,19 @@ def _surface_mesh_3d(phi, origin, h):
         return None
     verts, faces, _, _ = measure.marching_cubes(padded, 0.0, spacing=(h, h, h))
     return verts + (np.asarray(origin, np.float64)[:3] - 0.5 * h), faces.astype(np.int64)
+
+
+def sph_surface_wanted(render: dict | None) -> bool:
+    """``[render] fluid_surface``: True or False as given; unset (None), True when the ``surface``
+    extra (scikit-image) is installed, so SPH reads as a liquid wherever it can be drawn as one."""
+    value = (render or {}).get("fluid_surface")
+    if value is not None:
+        return bool(value)
+    try:
+        import skimage  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 def sph_surface_fluids(states) -> list[str]:

@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-__all__ = ["legend_image", "overlay"]
+__all__ = ["axes_image", "blend", "legend_image", "overlay"]
 
 
 def legend_image(labels: Sequence[str], colors, *, frame_height: int = 540, theme: str = "dark") -> np.ndarray:
@@ -61,17 +61,76 @@ def cropped_canvas(canvas) -> np.ndarray:
     return np.ascontiguousarray(image)
 
 
-def overlay(frame: np.ndarray, legend: np.ndarray, *, margin: int = 12) -> np.ndarray:
-    """Alpha-blend ``legend`` (h, w, 4) into the top-left corner of ``frame`` (H, W, 3) uint8, in
-    place (cropped if the frame is smaller); returns the frame."""
+def overlay(frame: np.ndarray, legend: np.ndarray, *, margin: int = 12, corner: str = "left") -> np.ndarray:
+    """Alpha-blend ``legend`` (h, w, 4) into the top-left (``corner="left"``) or top-right
+    (``"right"``) corner of ``frame`` (H, W, 3) uint8, in place (cropped if the frame is smaller);
+    returns the frame."""
+    if corner not in ("left", "right"):
+        raise ValueError(f"overlay: corner must be 'left' or 'right', got {corner!r}")
     h = min(legend.shape[0], frame.shape[0] - margin)
     w = min(legend.shape[1], frame.shape[1] - margin)
     if h <= 0 or w <= 0:
         return frame
-    region = frame[margin:margin + h, margin:margin + w].astype(np.float32)
+    x0 = margin if corner == "left" else frame.shape[1] - margin - w
+    region = frame[margin:margin + h, x0:x0 + w].astype(np.float32)
     rgba = legend[:h, :w].astype(np.float32)
     alpha = rgba[..., 3:4] / 255.0
     # Agg writes premultiplied-looking edges only at the box's rim; straight alpha blend.
-    frame[margin:margin + h, margin:margin + w] = np.clip(
+    frame[margin:margin + h, x0:x0 + w] = np.clip(
         np.round(region * (1.0 - alpha) + rgba[..., :3] * alpha), 0, 255).astype(np.uint8)
+    return frame
+
+
+def axes_image(camera, width: int, height: int, *, theme: str = "dark", unit: str = "m") -> np.ndarray:
+    """RGBA image (height, width, 4) uint8 of axes with ticks in world units along the bottom and left
+    edges of a 2-D orthographic view (``camera``: `Camera.plane_2d`), the last tick of each axis
+    carrying the unit ("2.5 m"), transparent elsewhere: ``blend(frame, axes_image(...))`` puts a scale on a 2-D map."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    dpi = 100.0
+    fig = Figure(figsize=(width / dpi, height / dpi), dpi=dpi)
+    fig.patch.set_alpha(0.0)
+    canvas = FigureCanvasAgg(fig)
+    ax = fig.add_axes((0.0, 0.0, 1.0, 1.0))
+    ax.patch.set_alpha(0.0)
+    half_h = 0.5 * float(camera.ortho_height)
+    half_w = half_h * width / height
+    cx, cy = float(camera.target[0]), float(camera.target[1])
+    ax.set_xlim(cx - half_w, cx + half_w)
+    ax.set_ylim(cy - half_h, cy + half_h)
+    text = "#e6e8ec" if theme == "dark" else "#24262b"
+    size = max(7.0, 9.0 * height / 540.0)
+    # ticks inside the frame; none near the lower-left corner where the two axes meet; the last
+    # tick of each axis carries the unit ("2.5 m")
+    for axis, lo, hi, pixels in ((ax.xaxis, cx - half_w, cx + half_w, width), (ax.yaxis, cy - half_h, cy + half_h, height)):
+        span = hi - lo
+        ticks = [t for t in axis.get_major_locator().tick_values(lo, hi)
+                 if lo + 0.08 * span * 540.0 / max(pixels, 1) * 2 <= t <= hi - 0.02 * span]
+        axis.set_ticks(ticks)
+        axis.set_ticklabels([f"{t:g}" + (f" {unit}" if i == len(ticks) - 1 else "") for i, t in enumerate(ticks)])
+    ax.set_xlim(cx - half_w, cx + half_w)
+    ax.set_ylim(cy - half_h, cy + half_h)
+    ax.tick_params(direction="in", colors=text, labelsize=size, length=0.8 * size, width=1.0)
+    ax.tick_params(axis="x", pad=-2.4 * size)
+    ax.tick_params(axis="y", pad=-1.2 * size)
+    for label in ax.get_yticklabels():
+        label.set_horizontalalignment("left")
+    for spine in ("top", "right"):
+        ax.spines[spine].set_visible(False)
+    for spine in ("bottom", "left"):
+        ax.spines[spine].set_color(text)
+        ax.spines[spine].set_linewidth(2.0)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba(), dtype=np.uint8).copy()
+
+
+def blend(frame: np.ndarray, layer: np.ndarray) -> np.ndarray:
+    """Alpha-blend a full-frame RGBA ``layer`` (H, W, 4) into ``frame`` (H, W, 3) uint8 in place."""
+    h, w = min(frame.shape[0], layer.shape[0]), min(frame.shape[1], layer.shape[1])
+    alpha = layer[:h, :w, 3:4].astype(np.float32) / 255.0
+    frame[:h, :w] = np.clip(np.round(frame[:h, :w] * (1.0 - alpha) + layer[:h, :w, :3] * alpha), 0, 255).astype(np.uint8)
     return frame

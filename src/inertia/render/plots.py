@@ -11,6 +11,13 @@ gravity g, U = -sum_i m_i g . x_i, over the active particles of each frame, when
 not record them (a recorder may store the per-frame fields ``kinetic_energy``,
 ``potential_energy`` and ``momentum``, which take precedence).
 
+`system_series` reads what a run recorded per system (the particle groups, the rigid bodies'
+``diag/bodies/*`` and each fluid's ``diag/<name>/*`` fields, written by `inertia.world.Run` from
+`World.system_diagnostics`) into `SystemSeries`, and `plot_systems` draws one row per system: its
+energies on the left, and on the right its momentum (particles, bodies) or what a fluid must keep
+(mass or volume) with its incompressibility error. Energy a scene removes on purpose (inelastic
+contacts, friction, damping, viscosity) is labelled as dissipated, a gain as gained.
+
 Requires matplotlib (``pip install inertia[cli]``). Written atomically.
 
 Limitations: potential energy of springs and other forces is known only when recorded.
@@ -19,13 +26,14 @@ Limitations: potential energy of springs and other forces is known only when rec
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..io.atomic import atomic_path
 
-__all__ = ["plot_energy", "energy_from_states", "plot_states_energy"]
+__all__ = ["plot_energy", "energy_from_states", "plot_states_energy", "SystemSeries", "system_series", "plot_systems"]
 
 
 def _pyplot():
@@ -152,3 +160,158 @@ def plot_states_energy(states, path: str | os.PathLike, *, masses=None, gravity=
     if "kinetic" not in series:
         raise ValueError("plot_states_energy: the states have no velocities and no recorded kinetic_energy")
     return plot_energy(states.times, series["kinetic"], series.get("potential"), series.get("momentum"), path, title=title)
+
+
+@dataclass
+class SystemSeries:
+    """The curves of one system over a run: ``name`` (``"particles"``, ``"bodies"`` or a fluid's
+    name), ``kind`` (``"particles"``, ``"tracers"``, ``"bodies"``, ``"sph"``, ``"smoke"``, ``"liquid"``),
+    ``energy`` {label: (F,) J}, ``right`` {label: (F,) values} drawn on the right panel with
+    ``right_unit`` (its y label; tracers: their mean and largest speed), ``secondary`` {label: (F,)} on a second axis with
+    ``secondary_unit``, and ``dissipation``: what removes energy on purpose in this system."""
+
+    name: str
+    kind: str
+    energy: dict = field(default_factory=dict)
+    right: dict = field(default_factory=dict)
+    right_unit: str = ""
+    secondary: dict = field(default_factory=dict)
+    secondary_unit: str = ""
+    dissipation: str = ""
+
+    @property
+    def empty(self) -> bool:
+        """True when no curve holds a finite value."""
+        return not any(np.isfinite(np.asarray(v, np.float64)).any() for v in
+                       (*self.energy.values(), *self.right.values(), *self.secondary.values()))
+
+
+def _momentum_curves(p) -> dict:
+    p = np.asarray(p, np.float64)
+    if p.ndim == 1:
+        return {"|p|": p}
+    out = {f"p{'xyz'[c]}": p[:, c] for c in range(p.shape[1])}
+    out["|p|"] = np.linalg.norm(p, axis=1)
+    return out
+
+
+def system_series(states) -> list[SystemSeries]:
+    """One `SystemSeries` per system a run recorded (see the module docstring); systems with no
+    finite value are left out."""
+    fields = states.fields
+    out: list[SystemSeries] = []
+    kinds = list(states.metadata.get("group_kinds") or [])
+    has_particles = states.particle_count > 0 and (not kinds or "particles" in kinds)
+    if has_particles:
+        kinetic = fields.get("kinetic_energy")
+        if kinetic is not None and np.isfinite(kinetic).any():
+            series = {"kinetic": np.asarray(kinetic, np.float64), "momentum": fields.get("momentum"),
+                      "potential": fields.get("potential_energy")}
+        elif states.velocities is not None:
+            series = energy_from_states(states)
+        else:
+            series = {}
+        if series.get("kinetic") is not None:
+            energy = {"kinetic K": series["kinetic"]}
+            if series.get("potential") is not None and np.isfinite(series["potential"]).any():
+                energy["potential U"] = np.asarray(series["potential"], np.float64)
+                energy["total E = K + U"] = energy["kinetic K"] + energy["potential U"]
+            right = {} if series.get("momentum") is None else _momentum_curves(series["momentum"])
+            out.append(SystemSeries("particles", "particles", energy, right, "momentum [kg m/s]",
+                                    dissipation="restitution < 1, friction and damping"))
+    if states.particle_count > 0 and "tracers" in kinds and states.velocities is not None:
+        groups = states.groups()
+        pick = np.isin(groups, [i for i, k in enumerate(kinds) if k == "tracers"]) if groups is not None else slice(None)
+        speed = np.linalg.norm(np.asarray(states.velocities, np.float64)[:, pick], axis=2)  # (F, M)
+        out.append(SystemSeries("tracers", "tracers", {}, {"mean speed": np.nanmean(speed, axis=1),
+                                                          "max speed": np.nanmax(speed, axis=1)}, "speed [m/s]"))
+    if "diag/bodies/kinetic_energy" in fields:
+        k = np.asarray(fields["diag/bodies/kinetic_energy"], np.float64)
+        u = np.asarray(fields.get("diag/bodies/potential_energy", np.full_like(k, np.nan)), np.float64)
+        energy = {"kinetic K": k, "potential U": u, "total E = K + U": k + u}
+        right = _momentum_curves(fields["diag/bodies/momentum"]) if "diag/bodies/momentum" in fields else {}
+        out.append(SystemSeries("bodies", "bodies", energy, right, "momentum [kg m/s]",
+                                dissipation="restitution < 1, friction, contact softness and damping"))
+    for name in states.metadata.get("fluids") or []:
+        key = f"diag/{name}/"
+        if key + "kinetic_energy" not in fields:
+            continue
+        energy = {"kinetic K": np.asarray(fields[key + "kinetic_energy"], np.float64)}
+        get = lambda q: np.asarray(fields[key + q], np.float64)  # noqa: E731
+        if key + "density_error" in fields:
+            series = SystemSeries(name, "sph", energy, {"mass": get("mass")}, "mass [kg]",
+                                  {"density error": 100.0 * get("density_error")}, "density error [%]",
+                                  dissipation="viscosity")
+        elif key + "volume" in fields:
+            series = SystemSeries(name, "liquid", energy, {"volume": get("volume")}, "volume [m^3]",
+                                  dissipation="viscosity and the grid's transfer")
+        else:
+            series = SystemSeries(name, "smoke", energy, {"max |div u|": get("divergence")}, "divergence [1/s]",
+                                  dissipation="viscosity and advection")
+        out.append(series)
+    return [s for s in out if not s.empty]
+
+
+def _change_label(total: np.ndarray) -> str:
+    """' (12.3% dissipated)' or ' (+0.4% gained)' from the first to the last finite value."""
+    finite = total[np.isfinite(total)]
+    if finite.size < 2 or finite[0] == 0:
+        return ""
+    change = 100.0 * (finite[-1] - finite[0]) / abs(finite[0])
+    return f" ({-change:.3g}% dissipated)" if change < 0 else f" (+{change:.3g}% gained)"
+
+
+def plot_systems(times, systems: list[SystemSeries], path: str | os.PathLike = "energy.png", *,
+                 title: str | None = None, dpi: int = 110) -> Path:
+    """One row per system: energies [J] left (the total labelled with the share dissipated), and the
+    system's ``right`` curves right (with ``secondary`` on a second axis). Returns the path."""
+    if not systems:
+        raise ValueError("plot_systems: no system with recorded values to plot")
+    Figure = _pyplot()
+    times = np.asarray(times, dtype=np.float64)
+    rows = len(systems)
+    figure = Figure(figsize=(10.0, 2.7 * rows + 0.7), dpi=dpi, layout="constrained")
+    axes = figure.subplots(rows, 2, sharex=True, squeeze=False)
+    palette = ("#1f77b4", "#ff7f0e", "black", "#2ca02c", "#d62728", "#9467bd")
+    for row, system in enumerate(systems):
+        ax = axes[row, 0]
+        for i, (label, values) in enumerate(system.energy.items()):
+            total = label.startswith("total")
+            if total:
+                label += _change_label(np.asarray(values, np.float64))
+            ax.plot(times, values, label=label, color=palette[i % len(palette)], lw=1.8 if total else 1.3)
+        if not system.energy:
+            ax.text(0.5, 0.5, "massless tracers: no energy", ha="center", va="center", transform=ax.transAxes)
+        ax.set_ylabel("energy [J]")
+        heading = f"{system.name}: energy"
+        if system.dissipation:
+            heading += f" (dissipated by {system.dissipation})"
+        ax.set_title(heading, fontsize="medium", loc="left")
+        ax.grid(True, alpha=0.3)
+        if system.energy:
+            ax.legend(loc="best", fontsize="small")
+        ax = axes[row, 1]
+        for i, (label, values) in enumerate(system.right.items()):
+            ax.plot(times, values, label=label, lw=1.8 if label.startswith("|") else 1.2,
+                    color="black" if label.startswith("|") else palette[(i + 3) % len(palette)])
+        ax.set_ylabel(system.right_unit)
+        ax.set_title(f"{system.name}: {system.right_unit.split(' [')[0]}", fontsize="medium", loc="left")
+        ax.grid(True, alpha=0.3)
+        handles, labels = ax.get_legend_handles_labels()
+        if system.secondary:
+            twin = ax.twinx()
+            for label, values in system.secondary.items():
+                twin.plot(times, values, label=label, color="#d62728", lw=1.0, ls="--")
+            twin.set_ylabel(system.secondary_unit)
+            h2, l2 = twin.get_legend_handles_labels()
+            handles, labels = handles + h2, labels + l2
+        if handles:
+            ax.legend(handles, labels, loc="best", fontsize="small")
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    if title:
+        figure.suptitle(title)
+    path = Path(path)
+    with atomic_path(path) as temp:
+        figure.savefig(temp, format=path.suffix.lstrip(".").lower() or "png")
+    return path

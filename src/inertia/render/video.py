@@ -256,11 +256,11 @@ def render_states(
         raise ValueError(f"render_states: renderer dim {renderer.dim} but the states are {states.dim}-D")
     active_all = states.fields.get("active")
     # Bodies, cloth surfaces and springs of the state file's model, if any.
-    from .drawables import ModelDrawables, frame_options
+    from .drawables import ModelDrawables, frame_options, subject_bounds
 
     drawables = ModelDrawables.from_states(states)
     if drawables is not None:
-        colliders = list(colliders) + drawables.plane_colliders()
+        colliders = list(colliders) + drawables.plane_colliders(subject_bounds(states, drawables))
     # The view and the speed scale come from the whole run, whichever frames are drawn, so a
     # single frame looks as it does in the video.
     if renderer.camera is None:

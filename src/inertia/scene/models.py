@@ -653,9 +653,10 @@ class Render(_Model):
         400, description="2-D grid fluids: tracer streaks drawn over the colour map (0: none)")
     streak_length: Annotated[int, Field(ge=1, le=200)] = Field(
         8, description="2-D grid fluids: frames of history each tracer streak spans")
-    fluid_surface: bool = Field(
-        False, description="SPH fluids: draw the smoothed-particle liquid surface (a shaded mesh in 3-D, needs the "
-                           "'surface' extra; a filled region in 2-D) instead of the particles")
+    fluid_surface: bool | None = Field(
+        None, description="SPH fluids: draw the smoothed-particle liquid surface (a shaded mesh in 3-D, a filled "
+                          "region in 2-D) instead of the particles; default: the surface when the 'surface' extra "
+                          "(scikit-image) is installed, else the particles")
 
 
 # ----------------------------------------------------------------------------------------------

@@ -14,6 +14,14 @@ switch. Orbit, pan and zoom with the mouse (viser's camera controls).
 Colours follow the renderer (`inertia.render.colormaps.particle_colors`): speed on one scale for
 the whole run, or group colours (``metadata["group_colors"]`` honoured).
 
+A recorded run shows every system the video shows: particle groups; SPH and grid-liquid particles
+(``fluid/<name>/x``, coloured by speed, `inertia.render.fluid_particles.with_fluid_particles`, so a
+2-D fluid is seen in its own plane); grid fluids as colour maps on one scale for the run (a 2-D grid
+as an image in its plane, coloured by density or speed; a 3-D grid as a cloud of its cells whose
+density is above 5 % of the run's largest, coloured by density on the bright half of the inferno
+map: the smoke's volume); rigid bodies
+(meshes moved by ``body_q``); the colliders.
+
 Requires viser (``pip install inertia[viewer]``).
 
 Limitations: colliders known only by their signed distance (``SDF``, ``Mesh``,
@@ -121,6 +129,10 @@ class _Source:
 
         if isinstance(source, (str, os.PathLike)):
             source = load_states(source)
+        if isinstance(source, States):
+            from ..render.fluid_particles import with_fluid_particles
+
+            source = with_fluid_particles(source)  # SPH and liquid particles after the groups'
         self.states = source if isinstance(source, States) else None
         self.callback = None if self.states is not None else source
         if self.states is None and not callable(source):
@@ -206,8 +218,12 @@ class Viewer:
 
         # Scene scale, radii, colour scale, camera, from the whole run (or the first frame).
         positions0, velocities0, t0, active0 = self.source.get(0)
+        self._grids = _GridLayers(states) if states is not None else None
         if states is not None:
             lo, hi = scene_bounds(states.positions, active=states.fields.get("active"))
+            if self._grids is not None and self._grids.layers:
+                glo, ghi = self._grids.bounds(self.dim)
+                lo, hi = (glo, ghi) if states.particle_count == 0 else (np.minimum(lo, glo), np.maximum(hi, ghi))
             # The video's speed scale (`inertia run` colours by the same run-wide value).
             self.speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
             self.groups = states.groups()
@@ -430,6 +446,11 @@ class Viewer:
         positions, velocities, t, active = self.source.get(frame)
         if getattr(self, "_body_handles", None):
             self._move_bodies(frame)
+        if self._grids is not None and self._grids.layers:
+            self._grids.show(self.server.scene, frame, self.size)
+        if positions.shape[0] == 0:
+            self._move_colliders(t)
+            return
         points = np.zeros((positions.shape[0], 3), np.float32)
         points[:, : self.dim] = positions
         colors = _rgb8(self._colors(positions, velocities))
@@ -549,6 +570,76 @@ class Viewer:
                 self.server.stop()
             except Exception:  # noqa: BLE001 - already stopped
                 pass
+
+
+class _GridLayers:
+    """The grid fluids of a recorded run as viser layers (see the module docstring)."""
+
+    #: 3-D: cells drawn where the density exceeds this share of the run's largest, at most this many.
+    THRESHOLD, MAX_POINTS = 0.05, 60000
+
+    def __init__(self, states):
+        self.states = states
+        self.layers = []  # (name, quantity, dim, origin (3,), cell size, vmax)
+        self.handles: dict = {}
+        for key, value in states.fields.items():
+            parts = key.split("/")
+            if len(parts) != 3 or parts[0] != "fluid" or parts[2] != "speed" or np.ndim(value) not in (3, 4):
+                continue
+            name = parts[1]
+            if f"fluid/{name}/origin" not in states.model or f"fluid/{name}/cell_size" not in states.model:
+                continue
+            dim = np.ndim(value) - 1
+            quantity = "density" if f"fluid/{name}/density" in states.fields else "speed"
+            data = np.asarray(states.fields[f"fluid/{name}/{quantity}"])
+            sample = data[:: max(1, data.shape[0] // 50)]
+            finite = sample[np.isfinite(sample)]
+            vmax = float(np.percentile(finite, 99.5)) if finite.size else 1.0
+            origin = np.zeros(3)
+            origin[:dim] = np.asarray(states.model[f"fluid/{name}/origin"], np.float64).ravel()[:dim]
+            self.layers.append((name, quantity, dim, origin, float(np.ravel(states.model[f"fluid/{name}/cell_size"])[0]),
+                                vmax if vmax > 0 else 1.0))
+
+    def bounds(self, dim: int) -> tuple[np.ndarray, np.ndarray]:
+        lows, highs = [], []
+        for name, quantity, gdim, origin, h, _ in self.layers:
+            shape = np.asarray(self.states.fields[f"fluid/{name}/{quantity}"].shape[1:], np.float64)
+            lows.append(origin[:dim])
+            highs.append(origin[:dim] + np.pad(shape, (0, 3 - gdim))[:dim] * h)
+        return np.min(lows, axis=0), np.max(highs, axis=0)
+
+    def show(self, scene, frame: int, size: float) -> None:
+        from ..render.colormaps import colormap
+
+        for name, quantity, dim, origin, h, vmax in self.layers:
+            data = np.asarray(self.states.fields[f"fluid/{name}/{quantity}"][frame], np.float64)
+            cmap = "inferno" if quantity == "density" else "viridis"
+            if dim == 2:
+                # an image in the grid's plane: row 0 is the top (largest y)
+                rgb = colormap(cmap, np.flipud(data.T).ravel(), vmin=0.0, vmax=vmax).reshape(data.shape[1], data.shape[0], 3)
+                image = _rgb8(rgb)
+                width, height = data.shape[0] * h, data.shape[1] * h
+                centre = (origin[0] + 0.5 * width, origin[1] + 0.5 * height, -0.002 * size)
+                handle = self.handles.get(name)
+                if handle is None:
+                    self.handles[name] = scene.add_image(f"/fluids/{name}", image, render_width=width,
+                                                         render_height=height, position=centre)
+                else:
+                    handle.image = image
+                continue
+            # 3-D: the cells above the threshold as a point cloud (the volume), coloured by the quantity
+            cells = np.argwhere(data > self.THRESHOLD * vmax)
+            if cells.shape[0] > self.MAX_POINTS:
+                cells = cells[:: -(-cells.shape[0] // self.MAX_POINTS)]
+            points = (origin + (cells + 0.5) * h).astype(np.float32)
+            values = data[tuple(cells.T)] if cells.size else np.zeros(0)
+            # the map's bright half (red to yellow): thin smoke reads as smoke on the page's light background
+            colors = _rgb8(colormap(cmap, values, vmin=-0.6 * vmax, vmax=vmax)) if cells.size else np.zeros((0, 3), np.uint8)
+            handle = self.handles.get(name)
+            if handle is not None:
+                handle.remove()
+            self.handles[name] = scene.add_point_cloud(f"/fluids/{name}", points=points.reshape(-1, 3), colors=colors,
+                                                       point_size=float(h), point_shape="circle", precision="float32")
 
 
 def _matrix_from_quat(q) -> np.ndarray:
