@@ -195,6 +195,24 @@ def test_bounce_apexes_follow_restitution_at_any_step(e, dt):
         assert apex == pytest.approx(e ** (2 * n) * h0, rel=0.02), (n, apexes)
 
 
+def test_head_on_bounce_happens_at_the_time_of_impact():
+    # two equal balls closing at 2 m/s, no gravity, e = 0.5: they touch at t* = d / 2 (inside the second
+    # step) and leave with -+e times their speed, v' = -+0.5 m/s (Newton's law of restitution, equal masses);
+    # afterwards each centre is at x0 + v t* + v' (t - t*) exactly, whatever the step. Bouncing at the start
+    # of the step instead left each ball (1 + e) v (t* - dt) = 12.5 mm off that line.
+    r, d, e = 0.05, 0.05, 0.5
+    b = ModelBuilder(gravity=(0.0, 0.0, 0.0))
+    for x, v in ((-r - d / 2, 1.0), (r + d / 2, -1.0)):
+        body = b.add_body(position=(x, 0.0, 0.0), linear_velocity=(v, 0.0, 0.0))
+        b.add_sphere(body, r, restitution=e, friction=0.0)
+    world = RigidWorld(b.finalize(), restitution_threshold=0.01, enable_sleep=False)
+    world.step(30)
+    t, t_star = 30 * world.dt, d / 2.0
+    np.testing.assert_allclose(world.state.body_qd[:, 3], [-e, e], rtol=1e-12)
+    expected = np.array([-r - d / 2 + t_star - e * (t - t_star), r + d / 2 - t_star + e * (t - t_star)])
+    np.testing.assert_allclose(world.state.body_q[:, 0], expected, rtol=0, atol=1e-12)
+
+
 @pytest.mark.parametrize("gap", [0.02, 0.0], ids=["spaced", "touching"])
 def test_newtons_cradle_conserves_momentum_and_energy(gap):
     # five equal balls in a row, no gravity, e = 1, the first one launched at v0 into the others:
