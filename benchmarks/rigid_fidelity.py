@@ -11,13 +11,16 @@
    and of |L| of a tumbling body (principal moments 0.5, 1.3, 1.6 kg m^2, body-frame w = (1, -2, 0.7)
    rad/s), and the intermediate-axis flip period of the top (1, 2, 3) kg m^2 spun at w = (2e-3, 2, 2e-3)
    rad/s against Landau and Lifshitz's elliptic-function period 27.5308 s (tests/rigid/test_free_body.py).
+3. The price of the implicit gyroscopic step: CPU time of one ``integrate_velocities`` call (serial) over
+   1000 tumbling bodies (min of 7 x 2000 calls, thread time), to compare between two trees.
 
-Run:  PYTHONPATH=src python benchmarks/rigid_fidelity.py [--bounce] [--rotation]
+Run:  PYTHONPATH=src python benchmarks/rigid_fidelity.py [--bounce] [--rotation] [--integrate-cost]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 
 import numpy as np
 
@@ -80,12 +83,37 @@ def flip_period(lb, dt):
     return crossings[2] - crossings[0] if len(crossings) >= 3 else float("nan")
 
 
+def integrate_cost(bodies=1000, calls=2000, repeats=7):
+    """Microseconds of CPU per serial integrate_velocities call over ``bodies`` tumbling bodies."""
+    import time
+
+    from inertia.dynamics import solver as sv
+    integrate = sv.serial_versions()["integrate_velocities"]
+    rng = np.random.default_rng(0)
+    inertia = rng.uniform(0.5, 2.0, (bodies, 3))
+    q = rng.normal(size=(bodies, 4))
+    q /= np.linalg.norm(q, axis=1)[:, None]
+    args = (np.zeros(bodies, np.int32), np.ones(bodies, np.bool_), np.ones(bodies), inertia, 1.0 / inertia,
+            np.zeros(bodies), np.zeros(bodies), np.zeros((bodies, 3)), np.zeros((bodies, 3)),
+            np.array([0.0, 0.0, -G]), np.hstack([np.zeros((bodies, 3)), q]), rng.normal(size=(bodies, 6)) * 1e-3,
+            1.0 / 480.0)
+    integrate(*args)
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.thread_time()
+        for _ in range(calls):
+            integrate(*args)
+        best = min(best, (time.thread_time() - t0) / calls * 1e6)
+    return best
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--bounce", action="store_true")
     ap.add_argument("--rotation", action="store_true")
+    ap.add_argument("--integrate-cost", action="store_true")
     args = ap.parse_args()
-    both = not (args.bounce or args.rotation)
+    both = not (args.bounce or args.rotation or args.integrate_cost)
     if args.bounce or both:
         for dt, label in ((1.0 / 60.0, "dt 1/60 (default)"), (1.0 / 600.0, "dt 1/600")):
             for e in (0.3, 0.5, 0.8, 1.0):
@@ -97,6 +125,8 @@ def main():
         lb, de, dl = free_rotation([1.0, 2.0, 3.0], [2e-3, 2.0, 2e-3])
         print(f"flip body: period {flip_period(lb, 1.0 / 60.0):.4f} s (elliptic 27.5308 s), "
               f"energy {de:+.3e}, |L| {dl:+.3e}")
+    if args.integrate_cost:
+        print(f"integrate_velocities, 1000 bodies, serial: {integrate_cost():.1f} us per call")
 
 
 if __name__ == "__main__":
