@@ -137,8 +137,8 @@ def test_spinning_sphere_stops_under_twisting_friction():
 
 
 def test_bouncing_apex_heights():
-    # restitution e: each apex is e^2 times the previous one, h_n = e^(2n) h0, here read as the highest
-    # sampled position at 1/480 s steps, 4 substeps (test_bounce_apexes_follow_restitution_at_any_step
+    # restitution e: each apex is e^2 times the previous one, h_n = e^(2n) h0, here read as the position
+    # at the first falling sample, 1/480 s steps with 4 substeps (test_bounce_apexes_follow_restitution_at_any_step
     # covers e from 0.3 to 1 at the default step and at 1/600 s)
     e, h0, r = 0.8, 1.0, 0.05
     b = ModelBuilder()
