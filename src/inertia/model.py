@@ -21,8 +21,11 @@ Conventions
 Mass properties of primitives are the closed forms (solid sphere 2/5 m r^2, box m (b^2 + c^2)/12,
 capsule = cylinder + two hemispheres with the hemisphere centroid offset 3r/8, cylinder
 m (3 r^2 + h^2)/12); several shapes combine by the parallel-axis theorem and are diagonalised to
-principal axes. Convex hulls need an explicit ``mass`` and ``inertia`` until the polyhedral
-integration of ``inertia.geometry.mass`` is wired in.
+principal axes. Convex hulls get theirs from the exact polyhedral integration of
+``inertia.geometry.mass`` (Mirtich 1996), like the primitives, from their density. For a solid that is not a
+shape (hemisphere, torus, tube, shell, cone, thin rod), take ``mass`` and ``inertia`` from that module's
+routines and give them to ``add_body``, with the body's position at the solid's centre of mass:
+``p = hemisphere_mass_properties(0.2, 1000.0)``, ``add_body(position=p.com, mass=p.mass, inertia=p.inertia)``.
 """
 
 from __future__ import annotations

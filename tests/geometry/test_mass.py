@@ -1,6 +1,8 @@
 """Tests for inertia.geometry.mass: closed forms against independent slice integration (scipy quad),
 exact polyhedral integration against the unit cube, Tonon's (2005) published tetrahedron and exact rational
-arithmetic, regular polyhedra (Satterly 1958) and Archimedean solids (Perrier 2015), parallel axis, compounds and principal frames."""
+arithmetic, regular polyhedra (Satterly 1958) and Archimedean solids (Perrier 2015), parallel axis, compounds and
+principal frames; the common solids (hemisphere, torus, thin rod, tubes, shells, cone) against the textbook
+table (Hibbeler, Engineering Mechanics: Dynamics), slices and fine revolved polyhedra."""
 
 import math
 from fractions import Fraction
@@ -352,3 +354,208 @@ def test_shape_table_dispatch():
     cube = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
     hull_props = gm.shape_mass_properties(4, [0, 0, 0, 0], 1.0, vertices=cube)
     np.testing.assert_allclose(hull_props.inertia, np.eye(3) / 6, atol=1e-12)
+
+
+# --------------------------------------------------------- common solids: closed forms, slices, polyhedra
+def revolve(profile, n_theta):
+    """Closed outward-wound triangle mesh of the solid swept by the closed polygon ``profile`` [(rho, z), ...]
+    of the half plane rho >= 0 about z (n_theta segments; profile points on the axis become one pole vertex)."""
+    prof = np.asarray(profile, float)
+    theta = 2 * np.pi * np.arange(n_theta) / n_theta
+    verts, index = [], []
+    for rho, z in prof:
+        if rho == 0.0:
+            index.append([len(verts)] * n_theta)
+            verts.append([0.0, 0.0, z])
+        else:
+            index.append(list(range(len(verts), len(verts) + n_theta)))
+            verts.extend([rho * math.cos(t), rho * math.sin(t), z] for t in theta)
+    tris = []
+    for k in range(len(prof)):
+        a_row, b_row = index[k], index[(k + 1) % len(prof)]
+        for j in range(n_theta):
+            j1 = (j + 1) % n_theta
+            for tri in ((a_row[j], b_row[j], b_row[j1]), (a_row[j], b_row[j1], a_row[j1])):
+                if len(set(tri)) == 3:
+                    tris.append(tri)
+    verts, tris = np.array(verts), np.array(tris, np.int64)
+    a, b, c = verts[tris[:, 0]], verts[tris[:, 1]], verts[tris[:, 2]]
+    if np.einsum("ij,ij->i", a, np.cross(b, c)).sum() < 0:      # profile given clockwise: turn the faces
+        tris = tris[:, ::-1].copy()
+    return verts, tris
+
+
+def arc(cx, cz, radius, a0, a1, n):
+    t = np.linspace(a0, a1, n + 1)
+    return np.stack([cx + radius * np.cos(t), cz + radius * np.sin(t)], axis=1)
+
+
+def polyhedral_error(props, profile_of_n, rho):
+    """Relative error of ``props`` against the revolved polyhedron at two resolutions; it must fall about
+    fourfold when the tessellation doubles (second-order convergence of inscribed polygons)."""
+    errs = []
+    for n in (48, 96):
+        poly = gm.mesh_mass_properties(*revolve(profile_of_n(n), 2 * n), rho)
+        scale = np.abs(props.inertia).max()
+        length = math.sqrt(scale / props.mass)
+        errs.append(max(abs(poly.mass / props.mass - 1), np.abs(poly.com - props.com).max() / length,
+                        np.abs(poly.inertia - props.inertia).max() / scale))
+    return errs
+
+
+def assert_converges(errs, tol):
+    assert errs[1] < tol, errs
+    assert errs[0] / errs[1] == pytest.approx(4.0, rel=0.15), errs
+
+
+def test_hemisphere_closed_form_slices_and_polyhedron():
+    # textbook (Hibbeler, Dynamics, inside back cover): centroid 3r/8 from the flat face, I_zz = 2/5 m r^2,
+    # I_perp = 83/320 m r^2 about the centroid
+    r, rho = 0.6, 900.0
+    p = gm.hemisphere_mass_properties(r, rho)
+    assert p.mass == pytest.approx(2 / 3 * math.pi * r ** 3 * rho, rel=1e-15)
+    np.testing.assert_allclose(p.com, [0, 0, 3 * r / 8], rtol=1e-15)
+    np.testing.assert_allclose(np.diag(p.inertia), [83 / 320 * p.mass * r * r] * 2 + [0.4 * p.mass * r * r],
+                               rtol=1e-14)
+    np.testing.assert_allclose(p.inertia_about(), np.eye(3) * 0.4 * p.mass * r * r, rtol=1e-14)
+    m, zc, ixx, izz = revolution_integrals(lambda z: r * r - z * z, 0.0, r, rho)
+    assert (p.mass, p.com[2]) == (pytest.approx(m, rel=1e-12), pytest.approx(zc, rel=1e-12))
+    np.testing.assert_allclose(np.diag(p.inertia), [ixx, ixx, izz], rtol=1e-12)
+    assert_converges(polyhedral_error(p, lambda n: np.vstack([[0, 0], arc(0, 0, r, 0, np.pi / 2, n)]), rho), 2e-3)
+    # a bowl (thick hemispherical shell) is the difference of two hemispheres
+    ri = 0.45
+    bowl = gm.hemisphere_mass_properties(r, rho, inner_radius=ri)
+    inner = gm.hemisphere_mass_properties(ri, rho)
+    assert bowl.mass == pytest.approx(p.mass - inner.mass, rel=1e-14)
+    assert bowl.mass * bowl.com[2] == pytest.approx(p.mass * p.com[2] - inner.mass * inner.com[2], rel=1e-14)
+    np.testing.assert_allclose(bowl.inertia_about(), p.inertia_about() - inner.inertia_about(), rtol=1e-13)
+    bowl_profile = lambda n: np.vstack([arc(0, 0, r, 0, np.pi / 2, n), arc(0, 0, ri, np.pi / 2, 0, n)])  # noqa: E731
+    assert_converges(polyhedral_error(bowl, bowl_profile, rho), 2e-3)
+
+
+def test_torus_closed_form_pappus_and_polyhedron():
+    # I_zz = m (R^2 + 3a^2/4), I_perp = m (R^2/2 + 5a^2/8); volume 2 pi R x pi a^2 (Pappus)
+    big, a, rho = 0.5, 0.15, 1200.0
+    p = gm.torus_mass_properties(big, a, rho)
+    assert p.mass == pytest.approx(2 * math.pi * big * math.pi * a * a * rho, rel=1e-15)
+    np.testing.assert_allclose(np.diag(p.inertia), [p.mass * (big ** 2 / 2 + 5 * a * a / 8)] * 2
+                               + [p.mass * (big ** 2 + 0.75 * a * a)], rtol=1e-15)
+    assert_converges(polyhedral_error(p, lambda n: arc(big, 0, a, 0, 2 * np.pi, n)[:-1], rho), 2e-3)
+    # independently by slices in z: the section at height z is the annulus R -+ sqrt(a^2 - z^2)
+    def ring(f):
+        return quad(lambda z: f(big + math.sqrt(a * a - z * z), big - math.sqrt(a * a - z * z), z), -a, a,
+                    epsabs=0, epsrel=1e-12)[0]
+    izz = ring(lambda o, i, z: rho * math.pi * (o ** 4 - i ** 4) / 2)
+    ixx = ring(lambda o, i, z: rho * math.pi * ((o ** 4 - i ** 4) / 4 + (o * o - i * i) * z * z))
+    np.testing.assert_allclose(np.diag(p.inertia), [ixx, ixx, izz], rtol=1e-9)
+
+
+def test_thin_rod_about_centre_and_end_is_the_limit_of_thin_cylinders():
+    length, lam = 1.2, 3.0
+    rod = gm.thin_rod_mass_properties(length, lam)
+    m = lam * length
+    np.testing.assert_allclose(np.diag(rod.inertia), [m * length ** 2 / 12] * 2 + [0.0], rtol=1e-15)
+    end = gm.thin_rod_mass_properties(length, lam, origin="end")
+    np.testing.assert_allclose(end.com, [0, 0, length / 2])
+    np.testing.assert_allclose(np.diag(end.inertia_about()), [m * length ** 2 / 3] * 2 + [0.0], rtol=1e-15)
+    # a solid cylinder of radius eps and the same mass per length: I_perp - m L^2/12 = m eps^2 / 4
+    for eps in (1e-2, 1e-3):
+        cyl = gm.cylinder_mass_properties(eps, length / 2, lam / (math.pi * eps * eps))
+        assert cyl.inertia[0, 0] - rod.inertia[0, 0] == pytest.approx(m * eps * eps / 4, rel=1e-9)
+
+
+def test_hollow_cylinder_open_and_closed():
+    ro, ri, h, rho = 0.4, 0.3, 0.5, 800.0
+    tube = gm.hollow_cylinder_mass_properties(ro, ri, h, rho)
+    m = 2 * math.pi * (ro * ro - ri * ri) * h * rho
+    assert tube.mass == pytest.approx(m, rel=1e-14)
+    np.testing.assert_allclose(np.diag(tube.inertia), [m * ((ro * ro + ri * ri) / 4 + h * h / 3)] * 2
+                               + [m * (ro * ro + ri * ri) / 2], rtol=1e-14)
+    check_revolution(tube, *(np.subtract(revolution_integrals(lambda z: ro * ro, -h, h, rho),
+                                         revolution_integrals(lambda z: ri * ri, -h, h, rho)) * [1, 0, 1, 1]))
+    assert_converges(polyhedral_error(tube, lambda n: [(ri, -h), (ro, -h), (ro, h), (ri, h)], rho), 2e-3)
+    # closed can, caps as thick as the wall: the solid cylinder minus its cavity, and as a revolved polyhedron
+    can = gm.hollow_cylinder_mass_properties(ro, ri, h, rho, closed=True)
+    t = ro - ri
+    solid, cavity = gm.cylinder_mass_properties(ro, h, rho), gm.cylinder_mass_properties(ri, h - t, rho)
+    assert can.mass == pytest.approx(solid.mass - cavity.mass, rel=1e-14)
+    np.testing.assert_allclose(can.inertia, solid.inertia - cavity.inertia, rtol=1e-14)
+    can_profile = lambda n: [(0, -h), (ro, -h), (ro, h), (0, h), (0, h - t), (ri, h - t), (ri, -h + t),  # noqa: E731
+                             (0, -h + t)]
+    assert_converges(polyhedral_error(can, can_profile, rho), 2e-3)
+    thin_caps = gm.hollow_cylinder_mass_properties(ro, ri, h, rho, closed=True, cap_thickness=0.01)
+    assert tube.mass < thin_caps.mass < can.mass
+
+
+def test_cone_against_revolved_polyhedron():
+    r, height, rho = 0.3, 1.1, 500.0
+    cone = gm.cone_mass_properties(r, height, rho)
+    def profile(n):   # base centre, the slanted side from the rim to the apex
+        side = np.stack([np.linspace(r, 0, n + 1), np.linspace(-height / 4, 3 * height / 4, n + 1)], 1)
+        return np.vstack([[0, -height / 4], side])
+    assert_converges(polyhedral_error(cone, profile, rho), 2e-3)
+
+
+def test_thick_spherical_shell_against_revolved_polyhedron():
+    r, ri, rho = 0.5, 0.4, 300.0
+    shell = gm.sphere_mass_properties(r, rho, inner_radius=ri)
+    def profile(n):   # the outer half circle up, the inner one down
+        return np.vstack([arc(0, 0, r, -np.pi / 2, np.pi / 2, n), arc(0, 0, ri, np.pi / 2, -np.pi / 2, n)])
+    assert_converges(polyhedral_error(shell, profile, rho), 2e-3)
+
+
+def test_cylindrical_shell_is_the_limit_of_thin_tubes():
+    # open: I_zz = m r^2, I_perp = m (r^2/2 + h^2/3); a tube of wall t and density sigma / t tends to it at O(t^2)
+    r, h, sigma = 0.25, 0.4, 2.0
+    shell = gm.cylindrical_shell_mass_properties(r, h, sigma)
+    m = 4 * math.pi * r * h * sigma
+    np.testing.assert_allclose(np.diag(shell.inertia), [m * (r * r / 2 + h * h / 3)] * 2 + [m * r * r],
+                               rtol=1e-15)
+    errors = []
+    for t in (1e-2, 5e-3):
+        tube = gm.hollow_cylinder_mass_properties(r + t / 2, r - t / 2, h, sigma / t)
+        assert tube.mass == pytest.approx(shell.mass, rel=1e-12)
+        errors.append(np.abs(tube.inertia - shell.inertia).max() / shell.inertia.max())
+    assert errors[0] / errors[1] == pytest.approx(4.0, rel=0.02)
+    # closed: plus two end discs; the limit of closed cans with caps of the same thickness
+    closed = gm.cylindrical_shell_mass_properties(r, h, sigma, closed=True)
+    assert closed.mass == pytest.approx(m + 2 * math.pi * r * r * sigma, rel=1e-15)
+    errors = []
+    for t in (1e-3, 5e-4):
+        can = gm.hollow_cylinder_mass_properties(r + t / 2, r - t / 2, h + t / 2, sigma / t, closed=True,
+                                                 cap_thickness=t)
+        errors.append(np.abs(can.inertia - closed.inertia).max() / closed.inertia.max())
+    assert errors[1] < 1e-3 and errors[1] < errors[0], errors
+
+
+def test_common_solids_reject_bad_arguments():
+    with pytest.raises(ValueError, match="inner_radius"):
+        gm.hemisphere_mass_properties(1.0, 1.0, inner_radius=1.0)
+    with pytest.raises(ValueError, match="minor_radius"):
+        gm.torus_mass_properties(0.2, 0.3, 1.0)
+    with pytest.raises(ValueError, match="origin"):
+        gm.thin_rod_mass_properties(1.0, 1.0, origin="middle")
+    with pytest.raises(ValueError, match="inner_radius"):
+        gm.hollow_cylinder_mass_properties(0.3, 0.4, 1.0, 1.0)
+    with pytest.raises(ValueError, match="cap_thickness"):
+        gm.hollow_cylinder_mass_properties(0.4, 0.3, 0.05, 1.0, closed=True)
+    with pytest.raises(ValueError, match="cap_thickness"):
+        gm.hollow_cylinder_mass_properties(0.4, 0.3, 1.0, 1.0, cap_thickness=0.1)
+    with pytest.raises(TypeError, match="closed"):
+        gm.cylindrical_shell_mass_properties(0.4, 1.0, 1.0, closed=1)
+    with pytest.raises(TypeError, match="inner_radius"):
+        gm.hemisphere_mass_properties(1.0, 1.0, inner_radius=True)
+    with pytest.raises(ValueError, match="point"):
+        gm.torus_mass_properties(0.5, 0.1, 1.0).inertia_about([0.0, 1.0])
+
+
+def test_a_body_takes_a_solid_s_mass_properties():
+    # a body built from a hemisphere's mass properties: its user frame at the centroid, principal moments
+    from inertia.model import ModelBuilder
+    p = gm.hemisphere_mass_properties(0.2, 1000.0)
+    b = ModelBuilder()
+    b.add_body(position=p.com, mass=p.mass, inertia=p.inertia)
+    model = b.finalize()
+    assert model.body_mass[0] == pytest.approx(p.mass, rel=1e-15)
+    np.testing.assert_allclose(np.sort(model.body_inertia[0]), np.sort(np.diag(p.inertia)), rtol=1e-14)
+    np.testing.assert_allclose(model.state().body_q[0, :3], p.com)

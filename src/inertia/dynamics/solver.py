@@ -3,6 +3,7 @@
 One step (DESIGN.md "The world step"; each line a kernel here):
 ```
 prepare_contacts()                       # anchors, effective masses, softness, pre-step velocities
+collide()                                # restitution > 0: bounce at the time of impact within the step
 for each of the n substeps (h = dt / n):
     integrate_velocities()               # gravity, applied force/torque, gyroscopic term, damping
     warm_start()                         # apply the accumulated impulses
@@ -27,7 +28,12 @@ inverse of the summed world inverse inertias, projected on the tangent plane (ex
 bodies such as spheres).
 Restitution uses the most negative relative normal velocity seen before the step or before a
 substep's solve while the gap was closed (so the speed gained under gravity within the step counts),
-only where it exceeds the threshold and the point carried an impulse.
+only where it exceeds the threshold and the point carried an impulse. Before that, the collision pass
+(``collide``) bounces the restitution contacts whose gap closes within the step at their time of impact.
+
+Rotation: Euler's equation I dw/dt = tau - w x I w is integrated in the body frame with the gyroscopic
+term implicit (one Newton iteration of the implicit midpoint rule, ``_angular_velocity_step``), so a
+torque-free body keeps its energy and |L| (to O(h^2) per unit time) instead of gaining energy at O(h).
 
 Parallel solve: constraints are greedily coloured in their (sorted) order so no two constraints of a
 colour share a dynamic body (static, kinematic and sleeping bodies are read-only and do not count);
@@ -40,11 +46,18 @@ References
   restitution, speculative contacts, graph colouring).
 - Catto, E. (2005). Iterative dynamics with temporal coherence (sequential impulses, warm starting).
 - Tonge, R. (2012). Solving rigid body contacts (GDC) -- soft constraints and relax passes.
+- Guendelman, E., Bridson, R. and Fedkiw, R. (2003). Nonconvex rigid bodies with stacking (SIGGRAPH),
+  section 5: the collision pass before the contact solve.
+- Catto, E. (2015). Numerical methods (GDC): the implicit gyroscopic step (one Newton iteration, here on
+  the midpoint rule rather than implicit Euler, which dissipates energy at O(h)).
 
 Limitations
 - One iteration per substep (the soft step's design): tall stacks need 4-8 substeps.
 - Effective masses use the inertia at the start of the step (as Box2D v3 does).
-- The gyroscopic term is explicit: very fast-spinning, very elongated bodies may gain energy.
+- The gyroscopic step is one Newton iteration: at |w| h comparable to 1 (a body turning a radian per
+  substep) it is no longer close to the midpoint rule and the energy drifts.
+- The collision pass times an impact from the point's normal motion with constant velocity and linear
+  acceleration (gravity, applied force); torques and the turning of the contact point are left out.
 - Twisting friction (spin about the normal) models a contact patch of radius ``twist_radius``
   (limit friction * twist_radius * normal impulse; without it a box balanced on one corner spins
   forever and keeps its island awake); it is not warm-started across steps.
@@ -116,6 +129,37 @@ class SolverContext(NamedTuple):
                                   # limit per unit normal impulse m (friction * twist_radius)
 
 
+@njit(inline="always")
+def _angular_velocity_step(inertia, w, tau, h):
+    """Body-frame change dw of the angular velocity over a step h of Euler's equation
+    I dw/dt = tau - w x I w (principal moments ``inertia``), implicit in the gyroscopic term: one Newton
+    iteration, from w, of the implicit midpoint rule I (w' - w) = h (tau - w_m x I w_m), w_m = (w + w') / 2:
+    (I + h/2 (skew(w) I - skew(I w))) dw = h (tau - w x I w). The midpoint rule conserves the kinetic energy
+    and |L| of a torque-free body (quadratic invariants); one iteration leaves a drift of O(h^2) per unit
+    time, where the explicit step w' = w + h I^-1 (tau - w x I w) gains energy at O(h) (and Bullet's implicit
+    Euler Jacobian, h instead of h/2, loses it at O(h))."""
+    i0, i1, i2 = inertia
+    iw = (i0 * w[0], i1 * w[1], i2 * w[2])
+    g = cross(w, iw)
+    r0, r1, r2 = h * (tau[0] - g[0]), h * (tau[1] - g[1]), h * (tau[2] - g[2])
+    hh = 0.5 * h
+    # J = diag(I) + h/2 (skew(w) diag(I) - skew(I w)), row-major
+    j01 = hh * (iw[2] - w[2] * i1)
+    j02 = hh * (w[1] * i2 - iw[1])
+    j10 = hh * (w[2] * i0 - iw[2])
+    j12 = hh * (iw[0] - w[0] * i2)
+    j20 = hh * (iw[1] - w[1] * i0)
+    j21 = hh * (w[0] * i1 - iw[0])
+    c00 = i1 * i2 - j12 * j21
+    c01 = j12 * j20 - j10 * i2
+    c02 = j10 * j21 - i1 * j20
+    inv_det = 1.0 / (i0 * c00 + j01 * c01 + j02 * c02)
+    # Cramer's rule with the adjugate of J
+    return ((c00 * r0 + (j02 * j21 - j01 * i2) * r1 + (j01 * j12 - j02 * i1) * r2) * inv_det,
+            (c01 * r0 + (i0 * i2 - j02 * j20) * r1 + (j02 * j10 - i0 * j12) * r2) * inv_det,
+            (c02 * r0 + (j01 * j20 - i0 * j21) * r1 + (i0 * i1 - j01 * j10) * r2) * inv_det)
+
+
 @njit(inline="always")   # called per body per substep: no call overhead
 def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
                             ang_damp, force, torque, gravity, body_q, body_qd, h):
@@ -128,10 +172,7 @@ def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inerti
     q = (body_q[b, 3], body_q[b, 4], body_q[b, 5], body_q[b, 6])
     wb = qrot_inv(q, (qd[0], qd[1], qd[2]))
     tb = qrot_inv(q, (torque[b, 0], torque[b, 1], torque[b, 2]))
-    iw = (body_inertia[b, 0] * wb[0], body_inertia[b, 1] * wb[1], body_inertia[b, 2] * wb[2])
-    gyro = cross(wb, iw)
-    dw = (h * body_inv_inertia[b, 0] * (tb[0] - gyro[0]), h * body_inv_inertia[b, 1] * (tb[1] - gyro[1]),
-          h * body_inv_inertia[b, 2] * (tb[2] - gyro[2]))
+    dw = _angular_velocity_step((body_inertia[b, 0], body_inertia[b, 1], body_inertia[b, 2]), wb, tb, h)
     dww = qrot(q, dw)
     ld = 1.0 / (1.0 + h * lin_damp[b])
     ad = 1.0 / (1.0 + h * ang_damp[b])
@@ -143,7 +184,8 @@ def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inerti
 @njit(cache=True, parallel=True)
 def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia,
                          lin_damp, ang_damp, force, torque, gravity, body_q, body_qd, h):
-    """v += h (g + F/m); w += h I^-1 (tau - w x I w) (body frame); then v /= 1 + h c (damping)."""
+    """v += h (g + F/m); w += dw, I dw = h (tau - w x I w) with the gyroscopic term implicit (body frame,
+    `_angular_velocity_step`); then v /= 1 + h c (damping)."""
     for b in prange(body_q.shape[0]):
         _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
                                 ang_damp, force, torque, gravity, body_q, body_qd, h)
@@ -158,7 +200,12 @@ def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, 
         body_q[b, k] += h * qd[3 + k]
         body_dp[b, k] += h * qd[3 + k]
         body_dtheta[b, k] += h * qd[k]
-    wx, wy, wz = qd[0], qd[1], qd[2]
+    _rotate_body(body_q, b, qd[0], qd[1], qd[2], h)
+
+
+@njit(inline="always")
+def _rotate_body(body_q, b, wx, wy, wz, h):
+    """q <- exp(h w / 2) q: body b turned by the rotation vector h w (exact for constant w), renormalised."""
     speed = math.sqrt(wx * wx + wy * wy + wz * wz)
     half = 0.5 * speed * h
     if half < 1e-4:
@@ -556,10 +603,50 @@ def _restitution_block(items, lo, hi, threshold, qd, inv_mass, inv_inertia, cons
             _apply(qd, bb, 1.0, p, rb, imb, iib)
 
 
+@njit(inline="always")
+def _acceleration(inv_mass, gravity, force, b):
+    """Linear acceleration gravity + F/m of a body the solver moves (0 for static, kinematic, asleep)."""
+    if b < 0 or inv_mass[b] == 0.0:
+        return (0.0, 0.0, 0.0)
+    im = inv_mass[b]
+    return (gravity[0] + im * force[b, 0], gravity[1] + im * force[b, 1], gravity[2] + im * force[b, 2])
+
+
+@njit(inline="always")
+def _impact_time(gap, vn, an, horizon):
+    """First time t in [0, horizon] at which gap + vn t + an t^2 / 2 reaches 0 (0 for a closed gap);
+    -1 when it stays open over the horizon."""
+    if gap <= 0.0:
+        return 0.0
+    disc = vn * vn - 2.0 * an * gap
+    if disc < 0.0:
+        return -1.0
+    den = math.sqrt(disc) - vn          # the smaller root 2 gap / (-vn + sqrt(disc)), free of cancellation
+    if den <= 0.0:
+        return -1.0
+    t = 2.0 * gap / den
+    return t if t <= horizon else -1.0
+
+
+@njit(inline="always")
+def _shift_back(body_q, dp, dtheta, b, dv, dw, t):
+    """Move body b by -t times its velocity change (dv, dw): the pose it has at the start of the step on the
+    trajectory that leaves the impact at time t with the new velocity."""
+    for k in range(3):
+        body_q[b, k] -= t * dv[k]
+        dp[b, k] -= t * dv[k]
+        dtheta[b, k] -= t * dw[k]
+    _rotate_body(body_q, b, -dw[0], -dw[1], -dw[2], t)
+
+
 @njit(cache=True)
-def _collide_block(n_cons, horizon, threshold, iterations, qd, inv_mass, inv_inertia, cons_manifold, contact_body,
-                   contact_point_count, contact_normal, contact_restitution, total_normal_impulse,
-                   relative_velocity, cons_anchor, cons_base_separation, cons_normal_mass):
+def _collide_block(n_cons, dt, h, threshold, iterations, gravity, force, body_q, dp, dtheta, impact_time, qd,
+                   inv_mass, inv_inertia, cons_manifold, contact_body, contact_point_count, contact_normal,
+                   contact_restitution, total_normal_impulse, relative_velocity, cons_anchor, cons_base_separation,
+                   cons_normal_mass):
+    horizon = dt + h
+    for b in range(impact_time.shape[0]):
+        impact_time[b] = 0.0
     passes = 0
     for it in range(iterations):
         applied = False
@@ -572,22 +659,63 @@ def _collide_block(n_cons, horizon, threshold, iterations, qd, inv_mass, inv_ine
             ima, imb = _inv_m(inv_mass, ba), _inv_m(inv_mass, bb)
             iia, iib = _inv_i(inv_inertia, ba), _inv_i(inv_inertia, bb)
             n = (contact_normal[i, 0], contact_normal[i, 1], contact_normal[i, 2])
+            an = dot(sub(_acceleration(inv_mass, gravity, force, bb), _acceleration(inv_mass, gravity, force, ba)), n)
+            # the latest impact either body already took in this pass: a point touches no earlier
+            tau = 0.0
+            if ba >= 0 and ima > 0.0:
+                tau = impact_time[ba]
+            if bb >= 0 and imb > 0.0:
+                tau = max(tau, impact_time[bb])
             for k in range(contact_point_count[i]):
                 ra = (cons_anchor[c, k, 0, 0], cons_anchor[c, k, 0, 1], cons_anchor[c, k, 0, 2])
                 rb = (cons_anchor[c, k, 1, 0], cons_anchor[c, k, 1, 1], cons_anchor[c, k, 1, 2])
                 va, wa = _vel(qd, ba)
                 vb, wb = _vel(qd, bb)
-                vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n)
-                # approaching faster than the threshold, and the gap closes within the horizon
-                if vn >= -threshold or cons_base_separation[c, k] + vn * horizon > 0.0:
+                # the stored velocity is the last substep's (symplectic Euler: half a substep back); the
+                # motion the positions follow has vn + an h / 2 now
+                vn = dot(sub(add(vb, cross(wb, rb)), add(va, cross(wa, ra))), n) + 0.5 * an * h
+                gap = 0.0
+                if total_normal_impulse[i, k] > 0.0:
+                    t = tau                      # bounced already in this pass: touching since then
+                else:
+                    gap = dot(n, sub(_anchor_motion(dp, dtheta, bb, rb), _anchor_motion(dp, dtheta, ba, ra))) \
+                        + cons_base_separation[c, k]
+                    t = _impact_time(gap, vn, an, horizon)
+                    if t < 0.0:
+                        continue
+                    t = max(t, tau)
+                v_impact = vn + an * t
+                # approaching faster than the threshold at the impact
+                if v_impact >= -threshold:
                     continue
-                lam = -(1.0 + e) * cons_normal_mass[c, k] * vn
+                # leave the surface at te with -e v_impact: the normal velocity now becomes -e v_impact - an te.
+                # te = t, and the bodies move back by te times their velocity change. An impact due in the
+                # substep after the step leaves at the step's end instead (up to one substep early), the
+                # bodies moved back so that the point is at the surface then: gap -> e v_impact te + an te^2 / 2
+                te = min(t, dt)
+                dvn = -e * v_impact - an * te - vn
+                if dvn <= 0.0:
+                    continue
+                t_back = te if te == t else (gap - e * v_impact * te - 0.5 * an * te * te) / dvn
+                lam = cons_normal_mass[c, k] * dvn     # -(1 + e) m_n v_impact when te = t
                 total_normal_impulse[i, k] += lam
                 # the bounce is done: the post-step pass must not bounce this point again
                 relative_velocity[i, k] = 0.0
                 p = scale(n, lam)
-                _apply(qd, ba, -1.0, p, ra, ima, iia)
-                _apply(qd, bb, 1.0, p, rb, imb, iib)
+                if ba >= 0 and ima > 0.0:
+                    dva, dwa = scale(p, -ima), scale(mat_vec(iia, cross(ra, p)), -1.0)
+                    _apply(qd, ba, -1.0, p, ra, ima, iia)
+                    _shift_back(body_q, dp, dtheta, ba, dva, dwa, t_back)
+                    impact_time[ba] = max(impact_time[ba], te)
+                if bb >= 0 and imb > 0.0:
+                    dvb, dwb = scale(p, imb), mat_vec(iib, cross(rb, p))
+                    _apply(qd, bb, 1.0, p, rb, imb, iib)
+                    _shift_back(body_q, dp, dtheta, bb, dvb, dwb, t_back)
+                    impact_time[bb] = max(impact_time[bb], te)
+                # the contact's own gap reads as before the shifts (the solver must not push the separating
+                # bodies apart over the virtual overlap); its other points and every other contact see them
+                cons_base_separation[c, k] += dvn * t_back
+                tau = max(tau, te)
                 applied = True
         if not applied:
             break
@@ -595,16 +723,27 @@ def _collide_block(n_cons, horizon, threshold, iterations, qd, inv_mass, inv_ine
     return passes
 
 
-def collide(ctx, n_cons, horizon, threshold, iterations):
-    """Collision pass before the substeps (Guendelman, Bridson and Fedkiw 2003, section 5): every point
-    with restitution e > 0 that approaches faster than ``threshold`` and whose gap closes within the
-    ``horizon`` (the step plus one substep: the last relax pass would otherwise start to stop a
-    speculative contact that closes early in the next step, and the bounce would lose that speed) gets
-    the two-body impulse ``-(1 + e) m_n v_n`` from the current velocities, in constraint order; passes repeat (up to ``iterations``) until no point approaches. A touching chain (Newton's
-    cradle) hands the impact on ball by ball within one step, so momentum is conserved exactly and
-    energy at e = 1 (each single impulse with e <= 1 never adds energy). Serial: a few restitution
-    contacts per step. Returns the number of passes that applied an impulse."""
-    return _collide_block(n_cons, horizon, threshold, iterations, ctx.body_qd, ctx.body_inv_mass,
+def collide(ctx, n_cons, dt, h, threshold, iterations, gravity, force, impact_time):
+    """Collision pass before the substeps (Guendelman, Bridson and Fedkiw 2003, section 5), with each bounce
+    placed at its time of impact.
+
+    Every point with restitution e > 0 whose gap closes within the step ``dt`` plus one substep ``h`` (the
+    last relax pass would otherwise start to stop a speculative contact that closes early in the next step,
+    and the bounce would lose that speed) at a time t, and approaches faster than ``threshold`` then, gets
+    the two-body impulse ``-(1 + e) m_n v_n(t)``. The time and the speed at impact follow the point's motion
+    with the bodies' accelerations (``gravity`` + ``force`` / m, (B, 3) world; ``h`` also turns the stored
+    velocity, half a substep back, into the current one): gap + v_n t + a_n t^2 / 2 = 0. Each body then moves
+    back by t times its velocity change (linear and angular), so from the start of the step on it follows
+    the trajectory that left the impact at t with the new velocity: the rebound has e^2 times the impact's
+    energy and starts at the surface, independent of the step. An impact due after the end of the step
+    leaves the surface at the end of the step instead (no overlap; at most one substep early). A point of a body that
+    already bounced in this pass touches no earlier than that bounce (``impact_time (B,)`` scratch, per
+    body), so a touching chain (Newton's cradle) hands the impact on ball by ball at the right times.
+    Passes repeat (up to ``iterations``) until no point approaches; momentum is conserved exactly, and
+    energy at e = 1. Serial: a few restitution contacts per step. Returns the number of passes that
+    applied an impulse."""
+    return _collide_block(n_cons, dt, h, threshold, iterations, gravity, force, ctx.body_q, ctx.body_dp,
+                          ctx.body_dtheta, impact_time, ctx.body_qd, ctx.body_inv_mass,
                           ctx.body_inv_inertia_world, ctx.cons_manifold, ctx.contact_body, ctx.contact_point_count,
                           ctx.contact_normal, ctx.contact_restitution, ctx.contact_total_normal_impulse,
                           ctx.contact_relative_velocity, ctx.cons_anchor, ctx.cons_base_separation,

@@ -16,6 +16,22 @@ Closed forms (uniform density rho, frame at the centroid, symmetry axis z; I_per
 - cone, base radius r, height H, frame at the centroid H/4 above the base, apex on +z:
   m = pi r^2 H rho / 3, I_zz = 3/10 m r^2, I_perp = 3/20 m r^2 + 3/80 m H^2.
 - ellipsoid, semi-axes (a, b, c): m = 4/3 pi a b c rho, I_xx = m (b^2 + c^2) / 5 (cyclic).
+- hemisphere r (frame at the centre of the flat face, dome on +z): m = 2/3 pi r^3 rho, centroid 3r/8 on z,
+  I_zz = 2/5 m r^2, I_perp = 83/320 m r^2 about the centroid (2/5 m r^2 about the face centre); a thick
+  hemispherical shell r_i..r: centroid 3/8 (r^4 - r_i^4)/(r^3 - r_i^3), 2/5 m (r^5 - r_i^5)/(r^3 - r_i^3)
+  about the face centre.
+- torus, major radius R (centre to tube centre), minor radius a <= R, axis z: m = 2 pi^2 R a^2 rho,
+  I_zz = m (R^2 + 3/4 a^2), I_perp = m (R^2/2 + 5/8 a^2).
+- thin rod of length L, linear density lambda, along z: m = lambda L, I_perp = m L^2/12 about its centre,
+  m L^2/3 about an end, I_zz = 0.
+- hollow cylinder (tube), outer radius R, inner radius r_i, half height h: open (no end caps)
+  m = 2 pi (R^2 - r_i^2) h rho, I_zz = m (R^2 + r_i^2)/2, I_perp = m ((R^2 + r_i^2)/4 + h^2/3); closed: the
+  solid cylinder (R, h) minus the cavity (r_i, h - t) for end caps of thickness t.
+- thin cylindrical shell, radius r, half height h, surface density sigma: the lateral surface
+  m = 4 pi r h sigma, I_zz = m r^2, I_perp = m (r^2/2 + h^2/3); closed adds two discs m_d = pi r^2 sigma at
+  z = +-h (I_zz = m_d r^2/2, I_perp = m_d (r^2/4 + h^2)).
+These are the textbook table entries (Hibbeler, Engineering Mechanics: Dynamics, 14th ed., Appendix
+"Mass moments of inertia of homogeneous solids"; the torus and the shells by the same slice integration).
 
 Polyhedra (closed, outward-wound triangle meshes and convex hulls) are integrated exactly with the
 divergence theorem: the solid is the signed sum of the tetrahedra (o, a, b, c) joining a reference point o
@@ -53,7 +69,9 @@ from inertia._validate import positive_scalar
 __all__ = [
     "MassProperties", "PrincipalFrame", "box_mass_properties", "sphere_mass_properties",
     "thin_spherical_shell_mass_properties", "capsule_mass_properties", "cylinder_mass_properties",
-    "cone_mass_properties", "ellipsoid_mass_properties", "mesh_mass_properties",
+    "cone_mass_properties", "ellipsoid_mass_properties", "hemisphere_mass_properties", "torus_mass_properties",
+    "thin_rod_mass_properties", "hollow_cylinder_mass_properties", "cylindrical_shell_mass_properties",
+    "mesh_mass_properties",
     "convex_hull_mass_properties", "shape_mass_properties", "parallel_axis", "transform_mass_properties",
     "compound_mass_properties", "principal_frame",
 ]
@@ -78,6 +96,13 @@ class MassProperties(NamedTuple):
         """The same shape with its density chosen to give ``mass`` (inertia scales linearly)."""
         mass = positive_scalar(mass, "mass")
         return MassProperties(mass, self.com.copy(), self.inertia * (mass / self.mass))
+
+    def inertia_about(self, point=(0.0, 0.0, 0.0)) -> np.ndarray:
+        """Inertia tensor (3, 3) about ``point`` of F (default F's origin), axes of F (parallel axis)."""
+        p = np.asarray(point, dtype=np.float64).reshape(-1)
+        if p.shape != (3,) or not np.all(np.isfinite(p)):
+            raise ValueError(f"point must be 3 finite numbers (m); got {np.asarray(point).tolist()}")
+        return parallel_axis(self.inertia, self.mass, p - self.com)
 
 
 class PrincipalFrame(NamedTuple):
@@ -186,6 +211,120 @@ def ellipsoid_mass_properties(semi_axes, density: float) -> MassProperties:
     rho = positive_scalar(density, "density")
     m = 4.0 / 3.0 * math.pi * a * b * c * rho
     return _diag(m, m * (b * b + c * c) / 5.0, m * (a * a + c * c) / 5.0, m * (a * a + b * b) / 5.0)
+
+
+def _radius_pair(outer, inner, outer_name: str, inner_name: str):
+    ro = positive_scalar(outer, outer_name)
+    if isinstance(inner, bool) or not isinstance(inner, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{inner_name} must be a number (m); got {type(inner).__name__}")
+    ri = float(inner)
+    if not math.isfinite(ri) or ri < 0.0 or ri >= ro:
+        raise ValueError(f"{inner_name} must satisfy 0 <= {inner_name} < {outer_name} = {ro}; got {inner!r}")
+    return ro, ri
+
+
+def hemisphere_mass_properties(radius: float, density: float, *, inner_radius: float = 0.0) -> MassProperties:
+    """Solid hemisphere of ``radius`` (m), or a thick hemispherical shell (a bowl) when
+    ``0 < inner_radius < radius``; density in kg/m^3.
+
+    Frame F: origin at the centre of the flat face (the sphere's centre), the dome on +z. The centre of mass
+    is (0, 0, 3r/8) for the solid (3/8 (r^4 - r_i^4) / (r^3 - r_i^3) for the shell); the inertia is about
+    it: I_zz = 2/5 m r^2, I_xx = I_yy = 83/320 m r^2 for the solid (``inertia_about()`` gives 2/5 m r^2 about
+    the face centre)."""
+    r, ri = _radius_pair(radius, inner_radius, "radius", "inner_radius")
+    rho = positive_scalar(density, "density")
+    m = 2.0 / 3.0 * math.pi * rho * (r ** 3 - ri ** 3)
+    zc = 3.0 / 8.0 * (r ** 4 - ri ** 4) / (r ** 3 - ri ** 3)
+    # about the sphere's centre each half holds half of the full (shell's) moment, on every axis
+    i_o = 0.4 * m * (r ** 5 - ri ** 5) / (r ** 3 - ri ** 3)
+    perp = i_o - m * zc * zc
+    return MassProperties(m, np.array([0.0, 0.0, zc]), np.diag([perp, perp, i_o]).astype(np.float64))
+
+
+def torus_mass_properties(major_radius: float, minor_radius: float, density: float) -> MassProperties:
+    """Solid torus about local z, centred at the origin: the tube of radius ``minor_radius`` (m) swept
+    round the circle of radius ``major_radius`` (m) in the xy plane; ``minor_radius <= major_radius`` (a
+    larger tube would overlap itself). I_zz = m (R^2 + 3 a^2 / 4), I_xx = I_yy = m (R^2 / 2 + 5 a^2 / 8)."""
+    big = positive_scalar(major_radius, "major_radius")
+    a = positive_scalar(minor_radius, "minor_radius")
+    if a > big:
+        raise ValueError(f"minor_radius must be <= major_radius = {big} (a self-overlapping torus has no "
+                         f"closed form here); got {minor_radius!r}")
+    rho = positive_scalar(density, "density")
+    m = 2.0 * math.pi ** 2 * big * a * a * rho
+    perp = m * (0.5 * big * big + 0.625 * a * a)
+    return _diag(m, perp, perp, m * (big * big + 0.75 * a * a))
+
+
+def thin_rod_mass_properties(length: float, linear_density: float, *, origin: str = "centre") -> MassProperties:
+    """Thin rod (a line mass) of ``length`` (m) and ``linear_density`` (kg/m) along local z.
+
+    ``origin``: "centre" puts F's origin at the rod's midpoint (centre of mass 0); "end" at one end, the rod
+    running to (0, 0, length) (centre of mass (0, 0, L/2)). The inertia is about the centre of mass:
+    I_xx = I_yy = m L^2 / 12; about the end (``inertia_about()`` with origin "end") m L^2 / 3. The moment
+    about the rod's own axis is 0, so a dynamic body needs another part (or a cylinder or capsule of the
+    rod's radius) to have a positive definite inertia."""
+    length_ = positive_scalar(length, "length")
+    lam = positive_scalar(linear_density, "linear_density")
+    if origin not in ("centre", "end"):
+        raise ValueError(f"origin must be 'centre' or 'end'; got {origin!r}")
+    m = lam * length_
+    perp = m * length_ * length_ / 12.0
+    com = np.array([0.0, 0.0, 0.0 if origin == "centre" else 0.5 * length_])
+    return MassProperties(m, com, np.diag([perp, perp, 0.0]).astype(np.float64))
+
+
+def hollow_cylinder_mass_properties(outer_radius: float, inner_radius: float, half_height: float,
+                                    density: float, *, closed: bool = False,
+                                    cap_thickness: float | None = None) -> MassProperties:
+    """Thick-walled tube along local z, centred at the origin: the solid between ``inner_radius`` and
+    ``outer_radius`` (m) over -half_height..half_height; density in kg/m^3.
+
+    ``closed=False`` (default): an open tube, I_zz = m (R^2 + r_i^2) / 2, I_perp = m ((R^2 + r_i^2)/4 + h^2/3).
+    ``closed=True``: a closed can, whose end caps have thickness ``cap_thickness`` (m; default the wall
+    thickness R - r_i, and less than half_height): the solid cylinder minus its cavity."""
+    ro, ri = _radius_pair(outer_radius, inner_radius, "outer_radius", "inner_radius")
+    h = positive_scalar(half_height, "half_height")
+    rho = positive_scalar(density, "density")
+    if not isinstance(closed, (bool, np.bool_)):
+        raise TypeError(f"closed must be True or False; got {closed!r}")
+    if not closed:
+        if cap_thickness is not None:
+            raise ValueError("cap_thickness applies to a closed tube only: pass closed=True")
+        cavity_h = h
+    else:
+        t = ro - ri if cap_thickness is None else positive_scalar(cap_thickness, "cap_thickness")
+        if t >= h:
+            raise ValueError(f"cap_thickness must be < half_height = {h} (the caps would meet); got {t!r}")
+        cavity_h = h - t
+    m_out = 2.0 * math.pi * ro * ro * h * rho
+    m_in = 2.0 * math.pi * ri * ri * cavity_h * rho
+    m = m_out - m_in
+    izz = 0.5 * (m_out * ro * ro - m_in * ri * ri)
+    perp = m_out * (ro * ro / 4.0 + h * h / 3.0) - m_in * (ri * ri / 4.0 + cavity_h * cavity_h / 3.0)
+    return _diag(m, perp, perp, izz)
+
+
+def cylindrical_shell_mass_properties(radius: float, half_height: float, surface_density: float, *,
+                                      closed: bool = False) -> MassProperties:
+    """Infinitely thin cylindrical shell along local z, centred at the origin: the lateral surface of radius
+    ``radius`` over -half_height..half_height (m), surface density in kg/m^2; ``closed=True`` adds the two
+    end discs of the same surface density. Open: I_zz = m r^2, I_perp = m (r^2/2 + h^2/3)."""
+    r = positive_scalar(radius, "radius")
+    h = positive_scalar(half_height, "half_height")
+    sigma = positive_scalar(surface_density, "surface_density")
+    if not isinstance(closed, (bool, np.bool_)):
+        raise TypeError(f"closed must be True or False; got {closed!r}")
+    m_side = 4.0 * math.pi * r * h * sigma
+    izz = m_side * r * r
+    perp = m_side * (0.5 * r * r + h * h / 3.0)
+    m = m_side
+    if closed:
+        m_disc = math.pi * r * r * sigma
+        m += 2.0 * m_disc
+        izz += m_disc * r * r
+        perp += 2.0 * m_disc * (0.25 * r * r + h * h)
+    return _diag(m, perp, perp, izz)
 
 
 # ------------------------------------------------------------------------------------------ polyhedra

@@ -5,7 +5,7 @@ The step reads as the algorithm; each line is a timed stage in ``world.profile``
 broad_phase()      # shape world poses, swept AABBs, sort-and-sweep -> sorted candidate pairs
 narrow_phase()     # manifolds -> Contacts (count, scan), warm-start match against the previous step
 islands()          # wake sleeping islands that are touched, colour the constraints
-collide()          # restitution > 0: bounce the points whose gap closes within the step (iterated)
+collide()          # restitution > 0: bounce the points whose gap closes within the step, at their time of impact
 for each substep:  # solve stage: integrate_velocities, warm_start, solve, integrate_positions, relax
     ...
 restitution()      # inside the solve stage's timer
@@ -34,8 +34,9 @@ substeps here (measured: tests/rigid/test_world.py, the 10-box stack).
 - ``twist_radius`` 0.005 m: twisting friction about the normal, friction * twist_radius * normal
   impulse (MuJoCo's default torsional friction, 0.005 m); 0 turns it off.
 - ``restitution_iterations`` 8: passes of the collision pass before the substeps (Guendelman et al.
-  2003): bodies with restitution whose gap closes within the step bounce there, pass after pass, so a
-  touching chain (Newton's cradle) hands an impact on; 0 leaves only Box2D's post-step restitution.
+  2003): bodies with restitution whose gap closes within the step bounce at their time of impact (the
+  rebound independent of the step), pass after pass, so a touching chain (Newton's cradle) hands an impact
+  on; 0 leaves only Box2D's post-step restitution.
 - Sleep: ``linear_sleep_tolerance`` 0.05 m/s, ``angular_sleep_tolerance`` 2 deg/s (raised per body to
   linear_sleep_tolerance / bounding radius: the farthest point's speed, as Box2D v3),
   ``time_to_sleep`` 0.5 s; ``enable_sleep`` True.
@@ -219,6 +220,7 @@ class RigidWorld:
         self._grow_pairs(max(64, 4 * ns))
         self._body_dp = np.zeros((nb, 3))
         self._body_dtheta = np.zeros((nb, 3))
+        self._body_impact_time = np.zeros(nb)          # the collision pass's scratch
         self._solver_inv_mass = np.zeros(nb)
         self._inv_inertia_world = np.zeros((nb, 9))
         self._body_mask = np.zeros(nb, np.uint64)
@@ -404,10 +406,11 @@ class RigidWorld:
             self._cons_soft, self._cons_twist)
         k.prepare_contacts(ctx, st.body_q, n_cons, c.contact_point, c.contact_separation, h, soft, static_soft,
                            self.twist_radius)
-        if self.restitution_iterations:
-            sv.collide(ctx, n_cons, self.dt + h, self.restitution_threshold, self.restitution_iterations)
-        cs, ci = self._colour_start, self._colour_items
         ctl = self.control
+        if self.restitution_iterations:
+            sv.collide(ctx, n_cons, self.dt, h, self.restitution_threshold, self.restitution_iterations, m.gravity,
+                       ctl.body_force, self._body_impact_time)
+        cs, ci = self._colour_start, self._colour_items
         if not self.parallel:
             sv.substeps_serial(ctx, cs, ci, self.substeps, h, self.push_max_velocity, m.body_type, st.body_awake,
                                m.body_inv_mass, m.body_inertia, m.body_inv_inertia, m.body_linear_damping,
