@@ -679,6 +679,16 @@ class SPHFluid:
         self._body_rot[:] = coupling.quat_to_matrices(q) @ self._body_rot
         self._bodies_moved = True
 
+    def check_rigid(self, rigid) -> None:
+        """The World protocol's construction-time check (``World.add_fluid``): raises ValueError
+        when this fluid cannot couple with ``rigid`` (a RigidWorld with bodies): a 2-D fluid, since
+        rigid bodies are 3-D (make a 2-D scene a thin 3-D fluid, periodic across its depth, or
+        move 2-D boxes and spheres yourself with ``add_body`` / ``set_body_state`` outside a World)."""
+        if rigid is not None and self.dim != 3:
+            raise ValueError("a 2-D SPH fluid cannot join a World with rigid bodies (they are 3-D, and 2-D "
+                             "bodies do not exist yet): make the fluid a thin 3-D slab, periodic across 6 "
+                             "spacings, or use SPHFluid.add_body / set_body_state without a World")
+
     def advance(self, dt, rigid=None) -> int:
         """The World protocol: advance the fluid by ``dt`` [s] in fluid steps no longer than its
         own limit (adaptive or fixed dt), coupled with ``rigid`` (a RigidWorld or None): the bands
@@ -689,6 +699,7 @@ class SPHFluid:
         from . import coupling
         dt = _validate.positive_scalar(dt, "dt")
         if rigid is not None:
+            self.check_rigid(rigid)
             if self._rigid_model is None:
                 self.add_rigid_model(rigid.model, rigid.state.body_q)
                 if self._pending_state is not None:
