@@ -392,6 +392,9 @@ class World:
         if missing:
             raise ValueError(f"fluid {name!r} lacks the methods {missing} (the fluid protocol: advance(dt, rigid), "
                              "save_state(), restore_state(dict), frame_arrays(), static_arrays())")
+        check = getattr(fluid, "check_rigid", None)   # optional: a fluid that cannot couple with the bodies
+        if self.rigid is not None and callable(check):
+            check(self.rigid)
         self.fluids[name] = fluid
         self.profile[f"fluid/{name}"] = 0.0
         return fluid

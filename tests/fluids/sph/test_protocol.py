@@ -88,3 +88,23 @@ def test_advance_covers_the_world_step_exactly():
     assert abs(fluid.time - 0.005) < 1e-15 and abs(fluid.last_dt - 0.005 / 3) < 1e-15
     with pytest.raises(ValueError, match="dt"):
         fluid.advance(-1.0)
+
+
+def test_2d_fluid_with_rigid_bodies_is_refused_when_added_to_a_world():
+    # Rigid bodies are 3-D; a 2-D fluid cannot couple with them through the World. The
+    # combination is refused by World.add_fluid (at construction, not in the first step), naming
+    # the 3-D slab alternative; a 2-D fluid in a world without bodies is accepted.
+    from inertia.world import World
+    x = sample_block((0.0, 0.0), (0.1, 0.1), 0.02)
+    fluid = SPHFluid(x, spacing=0.02, domain=((0, 0), (0.4, 0.4)))
+    b = ModelBuilder(gravity=(0, 0, -9.81))
+    b.add_plane((0, 0, 1), 0.0)
+    body = b.add_body(position=(0.0, 0.0, 0.5))
+    b.add_box(body, half_extents=(0.05, 0.05, 0.05), density=600.0)
+    world = World(dt=1 / 100, model=b.finalize())
+    with pytest.raises(ValueError, match="2-D SPH fluid cannot join a World with rigid bodies.*3-D slab"):
+        world.add_fluid("water", fluid)
+    assert "water" not in world.fluids
+    with pytest.raises(ValueError, match="2-D SPH fluid"):   # the direct protocol call says the same
+        fluid.advance(0.01, world.rigid)
+    World(dt=1 / 100).add_fluid("water", fluid)

@@ -24,8 +24,9 @@ boundary particle's own pressure k_b in the symmetric SPH sum m (k_i + k_b) (``S
 body-force share (Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput.
 Phys. 231; ``kernels.boundary_extrapolated_pressure`` / ``body_boundary_pressure_wrench``), "mirror"
 (the default) k_b = k_i (Akinci et al. 2012) plus the wall's hydrostatic share g . (x_b - x_i) / rho_i
-(``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``; the full offset: its wall-normal
-part alone lost the share in corners and on the slab bodies' periodic faces). The normals n_b are the
+(``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``; the full offset for a particle
+under pressure: its wall-normal part alone lost the share in corners and on the slab bodies' periodic
+faces; a particle without pressure takes only the wall-normal part). The normals n_b are the
 unit gradients of the shapes' signed distances at the sample points (``sample_model``). With k_i alone (the earlier
 form) a uniform pressure pushed particles into every wall, the solver inflated k there, and a held
 submerged box felt 0.87 of rho0 g V; with both, 1.00 (``tests/fluids/sph/test_coupling.py``).

@@ -281,11 +281,11 @@ class SPHFluid:
         speed scale``.
     boundary_pressure : "mirror" (default), "akinci" or "extrapolated": the pressure of the
         boundary particles b in the symmetric pressure term -sum_b psi_b (k_i + k_b) grad W_ib.
-        "mirror": k_b = k_i (pressure mirroring) plus the wall's hydrostatic share
-        rho_i g . (x_b - x_i) once per step (``kernels.boundary_hydrostatic_kick``, Adami et al.
-        2012 pairwise); the DFSPH factor keeps Akinci's diagonal |a + b|^2 (see ``step``).
-        Hydrostatic column over 1-10 s (defaults): floor row 1.012, rows 1.00-1.03 of
-        rho0 g (H - y), floor load 0.976 of the weight (measured 2026-11-27).
+        "mirror": k_b = k_i (pressure mirroring) plus the wall's hydrostatic share once per step
+        (``kernels.boundary_hydrostatic_kick``, Adami et al. 2012 pairwise; a particle without
+        pressure takes only its wall-normal part); the DFSPH factor keeps Akinci's diagonal
+        |a + b|^2 (see ``step``). Hydrostatic column over 1-10 s (defaults): every row below the
+        surface layers within 5 % of rho0 g (H - y), floor load within 5 % of the weight (tested).
         "extrapolated": k_b = p_b / rho0^2 with p_b the Shepard average of the neighbouring fluid
         pressures plus the wall-normal body-force share rho (g . n_b)(n_b . (x_b - x_f)) (Adami,
         Hu & Adams 2012, normal part only), applied with the warm start of each DFSPH solve; the
@@ -296,7 +296,7 @@ class SPHFluid:
         from rest compressed by 12 % in its start transient (before the hydrostatic start).
         "akinci": k_b = 0, a_i = -k_i sum_b psi_b grad W_ib (Akinci et al. 2012, as
         SPlisHSPlasH's DFSPH): a wall carries its load with half the per-unit-pressure push, so
-        the fluid row on a floor holds ~1.7x rho0 g (H - y) (the default until 2026-11-27).
+        the fluid row on a floor holds ~1.7x rho0 g (H - y).
     warm_start_divergence : bool, default False: start the divergence solve from the previous
         step's k (Bender & Koschier 2017; the density solve always is). At rest the two solves
         then share the hydrostatic load, but in the
@@ -679,6 +679,16 @@ class SPHFluid:
         self._body_rot[:] = coupling.quat_to_matrices(q) @ self._body_rot
         self._bodies_moved = True
 
+    def check_rigid(self, rigid) -> None:
+        """The World protocol's construction-time check (``World.add_fluid``): raises ValueError
+        when this fluid cannot couple with ``rigid`` (a RigidWorld with bodies): a 2-D fluid, since
+        rigid bodies are 3-D (make a 2-D scene a thin 3-D fluid, periodic across its depth, or
+        move 2-D boxes and spheres yourself with ``add_body`` / ``set_body_state`` outside a World)."""
+        if rigid is not None and self.dim != 3:
+            raise ValueError("a 2-D SPH fluid cannot join a World with rigid bodies (they are 3-D, and 2-D "
+                             "bodies do not exist yet): make the fluid a thin 3-D slab, periodic across 6 "
+                             "spacings, or use SPHFluid.add_body / set_body_state without a World")
+
     def advance(self, dt, rigid=None) -> int:
         """The World protocol: advance the fluid by ``dt`` [s] in fluid steps no longer than its
         own limit (adaptive or fixed dt), coupled with ``rigid`` (a RigidWorld or None): the bands
@@ -689,6 +699,7 @@ class SPHFluid:
         from . import coupling
         dt = _validate.positive_scalar(dt, "dt")
         if rigid is not None:
+            self.check_rigid(rigid)
             if self._rigid_model is None:
                 self.add_rigid_model(rigid.model, rigid.state.body_q)
                 if self._pending_state is not None:
@@ -1254,7 +1265,7 @@ class SPHFluid:
                                   not self.implicit_viscosity, self.surface_tension, g3)
         self._K.kick(F, n, dt)
         if self._hydrostatic_wall:   # mirrored boundary pressure: the wall's hydrostatic share (Adami et al. 2012)
-            self._K.boundary_hydrostatic_kick(F, nb, B, n, dt, g3, self._k_floor)
+            self._K.boundary_hydrostatic_kick(F, nb, B, self.grid, n, dt, g3, self._b_normal, self._k_floor)
         if self.implicit_viscosity and n:
             self.stats["viscosity_iterations"] = self._solve_viscosity(dt)
         if self.xsph > 0:
@@ -1289,8 +1300,8 @@ class SPHFluid:
             _k.body_wrench(F, nb, B, n, m, self.rest_density, self.h, self._body_x, self.body_force,
                            self.body_torque, self._mirror)
             if self._hydrostatic_wall:   # the wall's hydrostatic share (Adami et al. 2012), mirrored mode only
-                _k.body_hydrostatic_wrench(F, nb, B, n, m, self._body_x, g3, self._k_floor, self.body_force,
-                                           self.body_torque)
+                _k.body_hydrostatic_wrench(F, nb, B, self.grid, n, m, self._body_x, g3, self._b_normal,
+                                           self._k_floor, self.body_force, self.body_torque)
             if self._extrapolated:   # the boundary particles' extrapolated pressure (Adami et al. 2012)
                 _k.body_boundary_pressure_wrench(F, nb, B, self.grid, n, m, self._body_x, self._kb_dens, self._kb_div,
                                                  self._k0_dens, self._k0_div, g3, self._b_normal, self.body_force,

@@ -11,9 +11,9 @@
     outflows = [{ lo = [0.9, 0, 0], hi = [1.0, 0.5, 0.8] }]
 
 Rigid bodies need no key: a world with a rigid model couples them on the first
-``fluid.advance(dt, rigid)`` (every shape row is sampled, ``inertia.fluids.sph.coupling``).
+``fluid.advance(dt, rigid)`` (every shape row is sampled, ``inertia.fluids.sph.coupling``); a 2-D
+fluid in a world with rigid bodies is refused when the world adds it (``SPHFluid.check_rigid``).
 Bad input raises ``ValueError`` naming the key as ``sph.NAME.key`` with the allowed values.
-The lead wires ``SPHTable`` into ``scene/models.py`` and ``build`` into ``scene/builder.py``.
 """
 
 from __future__ import annotations
