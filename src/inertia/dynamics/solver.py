@@ -116,7 +116,7 @@ class SolverContext(NamedTuple):
                                   # limit per unit normal impulse m (friction * twist_radius)
 
 
-@njit(inline="always")   # called per body per substep: no call overhead
+@njit(cache=True)
 def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
                             ang_damp, force, torque, gravity, body_q, body_qd, h):
     if body_type[b] != S.DYNAMIC or not body_awake[b]:
@@ -149,7 +149,7 @@ def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, bod
                                 ang_damp, force, torque, gravity, body_q, body_qd, h)
 
 
-@njit(inline="always")   # called per body per substep: no call overhead
+@njit(cache=True)
 def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
     if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
         return
@@ -216,14 +216,14 @@ def world_inverse_inertia(body_type, body_awake, body_inv_mass, body_inv_inertia
                                    inv_inertia_out)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _vel(qd, b):
     if b < 0:
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
     return (qd[b, 3], qd[b, 4], qd[b, 5]), (qd[b, 0], qd[b, 1], qd[b, 2])
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _inv_i(inv_inertia, b):
     if b < 0:
         return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -231,12 +231,12 @@ def _inv_i(inv_inertia, b):
     return (m[b, 0], m[b, 1], m[b, 2], m[b, 3], m[b, 4], m[b, 5], m[b, 6], m[b, 7], m[b, 8])
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _inv_m(inv_mass, b):
     return 0.0 if b < 0 else inv_mass[b]
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _apply(qd, b, sign, p, r, im, ii):
     """Impulse sign * p at offset r of body b (only dynamic awake bodies have im > 0)."""
     if b < 0 or im == 0.0:
@@ -247,7 +247,7 @@ def _apply(qd, b, sign, p, r, im, ii):
         qd[b, k] += sign * dw[k]
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _apply_angular(qd, b, sign, l, ii):
     if b < 0:
         return
@@ -391,7 +391,7 @@ def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact
             _apply_angular(qd, bb, 1.0, l, iib)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _anchor_motion(dp, dtheta, b, r):
     """Displacement of the anchor at offset r since prepare, linearised in the rotation:
     dp + dtheta x r. It is exact for a rolling sphere (its surface point under the centre does not

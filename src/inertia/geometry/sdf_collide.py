@@ -100,7 +100,7 @@ def sdf_arrays(model) -> SdfArrays:
     return SdfArrays(model.sdf_grid_f, model.sdf_grid_i, model.shape_sdf_start)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def sample_count(ta, vert_count):
     """Number of surface samples of a convex shape of type ``ta`` (``vert_count``: a hull's vertices)."""
     if ta == S.SPHERE:
@@ -116,7 +116,7 @@ def sample_count(ta, vert_count):
     return 0
 
 
-@njit(inline="always")
+@njit(cache=True)
 def sample_point(ta, k, params, geom_vertices, vert_start):
     """Sample ``k`` of a convex shape in its own frame and the radius it carries (module docstring)."""
     if ta == S.SPHERE:
