@@ -294,7 +294,7 @@ def test_box_box_compiles_each_helper_once_from_an_empty_cache(tmp_path):
     """Compile time: from an empty Numba cache, a box-box manifold (face on face: four points) compiles the
     clipper, the point reduction and the point writer once each. A counter or feature code starting as
     the literal 0 is typed Literal[int](0) before Numba widens it, and each helper the call reaches then
-    compiled a second time for the literal (``narrowphase._I0``)."""
+    compiled a second time for the literal (they start as ``np.int64(0)``)."""
     import os
     import subprocess
     import sys

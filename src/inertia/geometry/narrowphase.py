@@ -84,10 +84,10 @@ __all__ = ["narrow_phase", "narrow_phase_closed", "narrow_phase_general", "narro
 
 _inl = njit(cache=True)
 
-# Zero as a plain int64, for counters and feature codes handed to other kernels. A literal 0 types as
-# Literal[int](0) until Numba's inference widens it, and every kernel the call reaches compiles once for
-# the literal too (measured: _box_face_manifold, _reduce_and_emit and _emit twice or three times each).
-_I0 = np.int64(0)
+# Counters and feature codes handed to other kernels start as ``np.int64(0)`` (typed int64), not the
+# literal 0: a literal types as Literal[int](0) (a global int64 constant too), and every kernel the call
+# reaches then compiles once more for the literal (measured: _box_face_manifold, _reduce_and_emit and
+# _emit twice each).
 
 # Rows of the per-run scratch (module docstring, "Scratch"): enough for every clip in this module (a box
 # face: 4 + 2 * 4 points; the general path: a feature of at most _MAX_FEATURE points clipped by at most
@@ -254,7 +254,7 @@ def _sphere_sphere(ca, i, ca_, ra, cb, rb, spec):
     _set_normal(ca, i, n)
     # midway between the two surface points
     p = madd(ca_, n, ra + 0.5 * sep)
-    _emit(ca, i, _I0, p, sep, _I0)
+    _emit(ca, i, np.int64(0), p, sep, np.int64(0))
     return 1
 
 
@@ -265,7 +265,7 @@ def _sphere_plane(ca, i, c, r, pp, pq, spec):
     if sep > spec:
         return 0
     _set_normal(ca, i, scale(n, -1.0))
-    _emit(ca, i, _I0, madd(c, n, -(r + 0.5 * sep)), sep, _I0)
+    _emit(ca, i, np.int64(0), madd(c, n, -(r + 0.5 * sep)), sep, np.int64(0))
     return 1
 
 
@@ -297,7 +297,7 @@ def _sphere_box(ca, i, c, r, pb, qb, h, spec):
     nw = qrot(qb, nl)
     surf_box = add(pb, qrot(qb, cl))
     _set_normal(ca, i, scale(nw, -1.0))                    # A = sphere -> B = box
-    _emit(ca, i, 0, madd(surf_box, nw, 0.5 * sep), sep, feature)
+    _emit(ca, i, np.int64(0), madd(surf_box, nw, 0.5 * sep), sep, feature)
     return 1
 
 
@@ -348,7 +348,7 @@ def _capsule_capsule(ca, i, pa, qa, ra, ha, pb, qb, rb, hb, spec):
         pn = norm(perp)
         if hi - lo > 1e-6 * (ha + hb) and pn > 1e-9:
             n = scale(perp, 1.0 / pn)
-            cnt = _I0
+            cnt = np.int64(0)
             for k in range(2):
                 s = lo if k == 0 else hi
                 p1 = madd(pa, ua, s)
@@ -368,7 +368,7 @@ def _capsule_capsule(ca, i, pa, qa, ra, ha, pb, qb, rb, hb, spec):
 def _capsule_plane(ca, i, pc, qc, r, h, pp, pq, spec):
     u = qrot(qc, (0.0, 0.0, 1.0))
     n = qrot(pq, (0.0, 0.0, 1.0))
-    cnt = _I0
+    cnt = np.int64(0)
     for k in range(2):
         e = madd(pc, u, h if k == 0 else -h)
         sep = dot(sub(e, pp), n) - r
@@ -423,7 +423,7 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
         a = min(a0, min(a1, a2))
         if a < fourth_a:
             fourth, fourth_a = k, a
-    cnt = _I0
+    cnt = np.int64(0)
     for c in range(4):
         k = best if c == 0 else (far if c == 1 else (third if c == 2 else fourth))
         if k < 0:
@@ -438,7 +438,7 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
 def _box_plane(ca, i, pb, qb, h, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = _I0
+    cnt = np.int64(0)
     for v in range(8):
         lv = (h[0] if v & 1 else -h[0], h[1] if v & 2 else -h[1], h[2] if v & 4 else -h[2])
         w = add(pb, qrot(qb, lv))
@@ -461,7 +461,7 @@ def _cylinder_plane(ca, i, pc, qc, r, h, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
     u = qrot(qc, (0.0, 0.0, 1.0))
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = _I0
+    cnt = np.int64(0)
     # rim direction of each cap pointing most into the plane: -n with its axial part removed
     m = madd(scale(n, -1.0), u, dot(n, u))
     mn = norm(m)
@@ -505,7 +505,7 @@ def _hull_plane(ca, i, ph, qh, verts, v0, nv, pp, pq, spec, scr):
         pts, seps, feats = scr.pts, scr.seps, scr.feats
     else:
         pts, seps, feats = np.empty((nv, 3)), np.empty(nv), np.empty(nv, np.int64)
-    cnt = _I0
+    cnt = np.int64(0)
     for k in range(nv):
         v = verts[v0 + k]
         w = add(ph, qrot(qh, (v[0], v[1], v[2])))
@@ -575,7 +575,7 @@ def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, 
         if count == 0:
             return 0
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = _I0
+    cnt = np.int64(0)
     for c in range(count):
         z = poly[c, 2]
         if z <= spec:
@@ -597,7 +597,7 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
     B = (qrot(qb, (1.0, 0.0, 0.0)), qrot(qb, (0.0, 1.0, 0.0)), qrot(qb, (0.0, 0.0, 1.0)))
     d = sub(pb, pa)
     # face axes of A and of B
-    sa, ka = -1e300, _I0
+    sa, ka = -1e300, np.int64(0)
     for k in range(3):
         s = abs(dot(d, A[k])) - (ha[k] + hb[0] * abs(dot(A[k], B[0])) + hb[1] * abs(dot(A[k], B[1]))
                                  + hb[2] * abs(dot(A[k], B[2])))
@@ -605,7 +605,7 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
             return 0
         if s > sa:
             sa, ka = s, k
-    sb, kb = -1e300, _I0
+    sb, kb = -1e300, np.int64(0)
     for k in range(3):
         s = abs(dot(d, B[k])) - (hb[k] + ha[0] * abs(dot(B[k], A[0])) + ha[1] * abs(dot(B[k], A[1]))
                                  + ha[2] * abs(dot(B[k], A[2])))
@@ -653,7 +653,7 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
         if sep > spec:
             return 0
         _set_normal(ca, i, ne)
-        _emit(ca, i, 0, scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
+        _emit(ca, i, np.int64(0), scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
         return 1
     # one call site with runtime arguments: a literal True / False per branch would compile the clipper
     # once per literal (Numba specialises on literal arguments)
@@ -864,7 +864,8 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
         single = abs(dot(ua, ub)) < 1.0 - 0.5 * FEATURE_SIN * FEATURE_SIN
     if single:
         _set_normal(ca, i, n)
-        _emit(ca, i, _I0, (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist, _I0)
+        _emit(ca, i, np.int64(0), (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist,
+              np.int64(0))
         return 1
     # reference feature: a polygon before a segment; of two polygons the one facing the normal better
     ref_is_a = True
@@ -946,7 +947,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
         if count == 0:
             break
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = _I0
+    cnt = np.int64(0)
     for k in range(count):
         x = (poly[k, 0], poly[k, 1], poly[k, 2])
         sep = dot(sub(x, c), nr) - ra - rb
@@ -963,7 +964,8 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
         if dist > spec:
             return 0
         _set_normal(ca, i, n)
-        _emit(ca, i, _I0, (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist, _I0)
+        _emit(ca, i, np.int64(0), (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist,
+              np.int64(0))
         return 1
     _set_normal(ca, i, n_ab)
     return _reduce_and_emit(ca, i, pts, seps, feats, cnt, n_ab)
@@ -1152,7 +1154,7 @@ def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius,
         contact_rolling_friction[i] = max(shape_rolling_friction[sa], shape_rolling_friction[sb])
         contact_is_sensor[i] = shape_is_sensor[sa] or shape_is_sensor[sb]
         ta, tb = shape_type[sa], shape_type[sb]
-        cnt = _I0
+        cnt = np.int64(0)
         if pair_family(ta, tb) == FAMILY_CLOSED:
             spec = _speculative_distance(ba, bb, shape_margin[sa], shape_margin[sb], body_qd, body_bound_radius,
                                          dt)

@@ -177,7 +177,7 @@ def collide_sdf(out, i, ta, sa, sb, shapes, sdf, pose, spec, pts, seps, feats, g
         return 0
     # 2. one normal (the deepest sample's gradient); the others' gaps along it; points midway, world frame
     n = (grads[deepest, 0], grads[deepest, 1], grads[deepest, 2])
-    kept = 0
+    kept = np.int64(0)  # int64 from the start (narrowphase: a literal 0 compiles callees twice)
     for k in range(cnt):
         g = (grads[k, 0], grads[k, 1], grads[k, 2])
         c = dot(g, n)
