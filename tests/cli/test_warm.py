@@ -57,6 +57,24 @@ def test_warmup_covers_the_fused_collision_kernels_of_every_kind_set():
     assert kinds == {pk.PLANE_KINDS, pk.LIGHT_KINDS, pk.ALL_KINDS}
 
 
+def test_warmup_covers_the_closed_form_narrow_phase_of_every_shape_type_set():
+    # A rigid world compiles the closed-form pair routines of its shape types only
+    # (narrowphase.closed_token, three nested sets): the bundled examples meet all three, so
+    # `inertia warmup` leaves no closed-form narrow phase to compile on a later first run.
+    import json
+
+    from inertia.geometry.narrowphase import CLOSED_TYPE_SETS, closed_token
+    from inertia.scene import build, parse_scene
+
+    tokens = set()
+    for name, data in warm._examples():
+        if "bodies" not in data:
+            continue
+        world = build(parse_scene(json.dumps(data), format="json", source=name))
+        tokens.add(world.rigid._closed)
+    assert tokens == {closed_token(sorted(types)) for types in CLOSED_TYPE_SETS}
+
+
 def test_warmup_ends_with_the_render_kernels_of_meshes_and_lines(monkeypatch):
     # bodies, cloth surfaces and spring lines are drawn by kernels the particle examples never
     # reach: warm_all calls inertia.render.warm_kernels once (here replaced by a recorder)

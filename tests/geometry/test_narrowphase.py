@@ -229,6 +229,84 @@ def test_pair_families_route_each_pair_to_one_kernel_and_a_scene_compiles_only_i
     assert scene_families([S.SDF, S.PLANE, S.HEIGHTFIELD]) == (False, True, False)
 
 
+def test_closed_token_compiles_the_pairs_of_the_smallest_nested_type_set():
+    """``closed_token``: a scene compiles the closed-form pairs among the smallest of three nested shape-type
+    sets holding its types (sphere + plane; sphere + box + plane; every closed-form type), so a box pile
+    never compiles the capsule, cylinder or hull routines; types without closed forms (meshes, SDFs) do
+    not widen the set."""
+    from inertia.geometry import shapes as S
+    from inertia.geometry.narrowphase import CLOSED_PAIRS, closed_token
+
+    def kinds(types):
+        return {pair for pair, on in zip(CLOSED_PAIRS, closed_token(types)) if on}
+
+    spheres = {(S.SPHERE, S.SPHERE), (S.SPHERE, S.PLANE)}
+    boxes = spheres | {(S.SPHERE, S.BOX), (S.BOX, S.BOX), (S.BOX, S.PLANE)}
+    assert kinds([S.SPHERE, S.PLANE]) == kinds([S.SPHERE, S.TRIANGLE_MESH, S.PLANE]) == spheres
+    assert kinds([S.BOX, S.PLANE]) == kinds([S.BOX, S.HEIGHTFIELD]) == kinds([S.BOX, S.SPHERE]) == boxes
+    assert kinds([S.BOX, S.CAPSULE]) == kinds([S.CYLINDER]) == set(CLOSED_PAIRS)
+    assert closed_token([S.TRIANGLE_MESH, S.SDF]) == closed_token([S.SPHERE])   # no closed form: the smallest
+
+
+def test_closed_kernel_of_a_smaller_type_set_gives_the_same_bits_as_the_full_one():
+    """A box-sphere-plane scene's manifolds through its own closed kernel (``closed_token``: the capsule,
+    cylinder and hull routines pruned before compiling) equal those of the kernel with every closed form,
+    bit for bit."""
+    from inertia.geometry import narrowphase as N
+
+    b = ModelBuilder()
+    b.add_plane()
+    b.add_box(b.add_body(position=(0.0, 0.0, 0.099), orientation=_rot((1, 1, 0), 0.05)), (0.2, 0.1, 0.1))
+    b.add_box(b.add_body(position=(0.05, 0.02, 0.29)), (0.1, 0.1, 0.1))
+    b.add_sphere(b.add_body(position=(0.6, 0.0, 0.09)), 0.1)
+    b.add_sphere(b.add_body(position=(0.6, 0.0, 0.28)), 0.1)
+    c, m = _manifolds(b)
+    assert N.closed_token(m.shape_type) != N.ALL_CLOSED
+    assert len(c.manifolds()) == 4          # box-plane, box-box, sphere-plane, sphere-sphere
+    st = m.state()
+    ns, dt = m.shape_count, 1.0 / 60.0
+    pose, aabb = np.zeros((ns, 7)), np.zeros((ns, 6))
+    shapes = m.shapes()
+    shape_world_bounds(shapes, m.body_type, m.body_bound_radius, st.body_q, st.body_qd, dt, pose, aabb)
+    pairs, keys = np.zeros((64, 2), np.int32), np.zeros(64, np.int64)
+    n = sort_and_sweep(aabb, shapes, m.body_type, st.body_awake, np.zeros(ns, np.int64), keys, pairs)
+    full = Contacts(64)
+    N.narrow_phase_closed(pairs, keys, n, shapes, pose, st.body_qd, m.body_bound_radius, dt, full.arrays(),
+                          N.new_narrow_work(False).scratch, N.ALL_CLOSED)
+    for name in ("contact_point_count", "contact_normal", "contact_point", "contact_separation",
+                 "contact_feature", "contact_tangent"):
+        np.testing.assert_array_equal(getattr(full, name)[:n], getattr(c, name)[:n], err_msg=name)
+
+
+_BOX_BOX_SIGNATURES = r"""
+import numpy as np
+from inertia.geometry import narrowphase as N
+bank = N.new_scratch_bank(1)
+scr = N.NarrowScratch(*(a[0] for a in bank))
+out = N.ManifoldOut(np.zeros((1, 3)), np.zeros((1, 4, 3)), np.zeros((1, 4)), np.zeros((1, 4), np.int64))
+q, h = (1.0, 0.0, 0.0, 0.0), (0.1, 0.1, 0.1)
+count = N._box_box(out, 0, (0.0, 0.0, 0.0), q, h, (0.05, 0.02, 0.19), q, h, 0.01, scr)
+print(count, [len(k.signatures) for k in (N._box_face_manifold, N._reduce_and_emit, N._emit)])
+"""
+
+
+def test_box_box_compiles_each_helper_once_from_an_empty_cache(tmp_path):
+    """Compile time: from an empty Numba cache, a box-box manifold (face on face: four points) compiles the
+    clipper, the point reduction and the point writer once each. A counter or feature code starting as
+    the literal 0 is typed Literal[int](0) before Numba widens it, and each helper the call reaches then
+    compiled a second time for the literal (they start as ``np.int64(0)``)."""
+    import os
+    import subprocess
+    import sys
+
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    env["PYTHONPATH"] = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "..", "src"))
+    out = subprocess.run([sys.executable, "-c", _BOX_BOX_SIGNATURES], capture_output=True, text=True, env=env,
+                         timeout=900)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["4", "[1,", "1,", "1]"]
+
+
 def test_general_and_mesh_kernels_fill_their_pairs_after_the_closed_form_kernel():
     """A scene with every family: the split kernels give each pair the manifold of its routine (a box on
     a box and a sphere on a plane by closed forms, a capsule across a box by GJK/EPA with its two

@@ -31,7 +31,7 @@ from ..geometry import shapes as S
 __all__ = ["wake_touched", "update_sleep"]
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _find(parent, x):
     root = x
     while parent[root] != root:
@@ -43,7 +43,7 @@ def _find(parent, x):
     return root
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _moving_kinematic(b, body_type, body_qd):
     if b < 0 or body_type[b] != S.KINEMATIC:
         return False

@@ -129,7 +129,7 @@ class SolverContext(NamedTuple):
                                   # limit per unit normal impulse m (friction * twist_radius)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _angular_velocity_step(inertia, w, tau, h):
     """Body-frame change dw of the angular velocity over a step h of Euler's equation
     I dw/dt = tau - w x I w (principal moments ``inertia``), implicit in the gyroscopic term: one Newton
@@ -160,7 +160,7 @@ def _angular_velocity_step(inertia, w, tau, h):
             (c02 * r0 + (j01 * j20 - i0 * j21) * r1 + (i0 * i1 - j01 * j10) * r2) * inv_det)
 
 
-@njit(inline="always")   # called per body per substep: no call overhead
+@njit(cache=True)
 def _integrate_velocity_one(b, body_type, body_awake, body_inv_mass, body_inertia, body_inv_inertia, lin_damp,
                             ang_damp, force, torque, gravity, body_q, body_qd, h):
     if body_type[b] != S.DYNAMIC or not body_awake[b]:
@@ -191,7 +191,7 @@ def integrate_velocities(body_type, body_awake, body_inv_mass, body_inertia, bod
                                 ang_damp, force, torque, gravity, body_q, body_qd, h)
 
 
-@njit(inline="always")   # called per body per substep: no call overhead
+@njit(cache=True)
 def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, body_dtheta, h):
     if body_type[b] == S.STATIC or (body_type[b] == S.DYNAMIC and not body_awake[b]):
         return
@@ -203,7 +203,7 @@ def _integrate_position_one(b, body_type, body_awake, body_q, body_qd, body_dp, 
     _rotate_body(body_q, b, qd[0], qd[1], qd[2], h)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _rotate_body(body_q, b, wx, wy, wz, h):
     """q <- exp(h w / 2) q: body b turned by the rotation vector h w (exact for constant w), renormalised."""
     speed = math.sqrt(wx * wx + wy * wy + wz * wz)
@@ -263,14 +263,14 @@ def world_inverse_inertia(body_type, body_awake, body_inv_mass, body_inv_inertia
                                    inv_inertia_out)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _vel(qd, b):
     if b < 0:
         return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)
     return (qd[b, 3], qd[b, 4], qd[b, 5]), (qd[b, 0], qd[b, 1], qd[b, 2])
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _inv_i(inv_inertia, b):
     if b < 0:
         return (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -278,12 +278,12 @@ def _inv_i(inv_inertia, b):
     return (m[b, 0], m[b, 1], m[b, 2], m[b, 3], m[b, 4], m[b, 5], m[b, 6], m[b, 7], m[b, 8])
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _inv_m(inv_mass, b):
     return 0.0 if b < 0 else inv_mass[b]
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _apply(qd, b, sign, p, r, im, ii):
     """Impulse sign * p at offset r of body b (only dynamic awake bodies have im > 0)."""
     if b < 0 or im == 0.0:
@@ -294,7 +294,7 @@ def _apply(qd, b, sign, p, r, im, ii):
         qd[b, k] += sign * dw[k]
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _apply_angular(qd, b, sign, l, ii):
     if b < 0:
         return
@@ -438,7 +438,7 @@ def _warm_block(items, lo, hi, qd, inv_mass, inv_inertia, cons_manifold, contact
             _apply_angular(qd, bb, 1.0, l, iib)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _anchor_motion(dp, dtheta, b, r):
     """Displacement of the anchor at offset r since prepare, linearised in the rotation:
     dp + dtheta x r. It is exact for a rolling sphere (its surface point under the centre does not
@@ -603,7 +603,7 @@ def _restitution_block(items, lo, hi, threshold, qd, inv_mass, inv_inertia, cons
             _apply(qd, bb, 1.0, p, rb, imb, iib)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _acceleration(inv_mass, gravity, force, b):
     """Linear acceleration gravity + F/m of a body the solver moves (0 for static, kinematic, asleep)."""
     if b < 0 or inv_mass[b] == 0.0:
@@ -612,7 +612,7 @@ def _acceleration(inv_mass, gravity, force, b):
     return (gravity[0] + im * force[b, 0], gravity[1] + im * force[b, 1], gravity[2] + im * force[b, 2])
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _impact_time(gap, vn, an, horizon):
     """First time t in [0, horizon] at which gap + vn t + an t^2 / 2 reaches 0 (0 for a closed gap);
     -1 when it stays open over the horizon."""
@@ -628,7 +628,7 @@ def _impact_time(gap, vn, an, horizon):
     return t if t <= horizon else -1.0
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _shift_back(body_q, dp, dtheta, b, dv, dw, t):
     """Move body b by -t times its velocity change (dv, dw): the pose it has at the start of the step on the
     trajectory that leaves the impact at time t with the new velocity."""

@@ -34,7 +34,7 @@ __all__ = ["shape_world_bounds", "sort_and_sweep", "sort_and_sweep_into"]
 _BIG = 1e30
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _bounds_one(s, geom_vertices, shape_body, shape_local_pose, shape_margin, shape_params, shape_type,
                 shape_vert_count, shape_vert_start, body_type, body_bound_radius, body_q, body_qd, dt, pose_out,
                 aabb_out):
@@ -149,7 +149,7 @@ def shape_world_bounds(shapes, body_type, body_bound_radius, body_q, body_qd, dt
                       body_qd, dt, pose_out, aabb_out)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _may_collide(sa, sb, shape_body, shape_group, shape_mask, body_type, body_awake):
     ba = shape_body[sa]
     bb = shape_body[sb]
@@ -166,7 +166,7 @@ def _may_collide(sa, sb, shape_body, shape_group, shape_mask, body_type, body_aw
     return True
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _less(a, b):
     """NumPy's sort order: NaN after every number."""
     return a < b or (b != b and a == a)
@@ -251,7 +251,7 @@ def sort_and_sweep_into(aabb, shapes, body_type, body_awake, order, keys, pairs_
     # box minima along the axis, stable order (ties by shape index)
     _stable_argsort_into(aabb[:, best_axis], order, tmp, ns)
     cap = pairs_out.shape[0]
-    count = 0
+    count = np.int64(0)  # int64 from the start: a literal 0 would compile _stable_argsort_into twice
     for ii in range(ns):
         i = order[ii]
         hi_i = aabb[i, 3 + best_axis]

@@ -204,13 +204,13 @@ def new_gjk_scratch_bank(runs: int) -> GjkScratch:
                       np.empty((r, _EPA_MAX_FACES)), np.zeros((r, _EPA_MAX_FACES), dtype=np.bool_),
                       np.empty((r, _EPA_MAX_EDGES, 2), dtype=np.int64), np.empty((r, 6, 3)),
                       np.empty((r, 4, 3), dtype=np.int64), np.zeros((r, 11, 3)), np.zeros((r, 4)))
-    one = new_gjk_scratch()
+    one = new_gjk_scratch.py_func()      # plain NumPy: a world's build compiles nothing for the constants
     bank.axes[:] = one.axes
     bank.tri[:] = one.tri
     return bank
 
 
-@njit(inline="always")
+@njit(cache=True)
 def gjk_scratch_row(bank, i):
     """Row ``i`` of a scratch bank (`new_gjk_scratch_bank`) as a `GjkScratch` of views (no allocation)."""
     return GjkScratch(bank.pw[i], bank.pa[i], bank.pb[i], bank.lam[i], bank.bl[i], bank.faces[i], bank.face_n[i],
@@ -596,7 +596,7 @@ def _epa_face(pw, i, j, k, faces, face_n, face_d, f):
     return True
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _set_vertex(pw, pa, pb, i, p1, p2):
     """Polytope vertex i: the support points p1 on A and p2 on B, and p1 - p2 on A - B."""
     for k in range(3):

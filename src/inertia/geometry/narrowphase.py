@@ -41,7 +41,12 @@ Kernels and compilation: pairs fall in families (``pair_family``): closed forms,
 and the closed-form manifolds; ``narrow_phase_general``, ``narrow_phase_mesh`` and ``narrow_phase_sdf``
 then fill their own pairs' manifolds. A world calls the last three only when its shape types can form
 such pairs (``scene_families``), so a scene of boxes, spheres and planes never compiles GJK/EPA, the
-triangle or the SDF routines (the largest part of the narrow phase's cold compile). Each run of pairs
+triangle or the SDF routines (the largest part of the narrow phase's cold compile). Within the closed
+forms, ``narrow_phase_closed`` compiles the pair routines of the scene's shape types only (its ``closed``
+argument, ``closed_token``: sphere and plane pairs; sphere, box and plane pairs; or every closed form), so
+a pile of boxes never compiles the capsule, cylinder and hull routines. The helpers are ordinary compiled
+functions, not forced inline (``inline="always"`` re-types a helper's body at every call site: the solver
+and narrow phase compiled about twice as long with it, and LLVM inlines the small ones anyway). Each run of pairs
 unpacks the bundles into locals once and hands the pair routines a four-array ``ManifoldOut``, not the
 whole contact buffer (passing and reading members of a large bundle per pair cost half the stage's
 time). ``narrow_phase`` runs the four in that order.
@@ -65,7 +70,8 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 from . import shapes as S
 from . import convex as CV
@@ -73,9 +79,15 @@ from .bvh import STACK_SIZE
 from ._tup import add, cross, dot, madd, norm, normalize, orthonormal_basis, qrot, qrot_inv, scale, sub
 
 __all__ = ["narrow_phase", "narrow_phase_closed", "narrow_phase_general", "narrow_phase_mesh", "scene_families",
+           "closed_token", "CLOSED_PAIRS",
            "match_warm_start", "NarrowWork", "new_narrow_work", "fit_narrow_work", "scene_mesh_rows"]
 
-_inl = njit(inline="always")
+_inl = njit(cache=True)
+
+# Counters and feature codes handed to other kernels start as ``np.int64(0)`` (typed int64), not the
+# literal 0: a literal types as Literal[int](0) (a global int64 constant too), and every kernel the call
+# reaches then compiles once more for the literal (measured: _box_face_manifold, _reduce_and_emit and
+# _emit twice each).
 
 # Rows of the per-run scratch (module docstring, "Scratch"): enough for every clip in this module (a box
 # face: 4 + 2 * 4 points; the general path: a feature of at most _MAX_FEATURE points clipped by at most
@@ -242,7 +254,7 @@ def _sphere_sphere(ca, i, ca_, ra, cb, rb, spec):
     _set_normal(ca, i, n)
     # midway between the two surface points
     p = madd(ca_, n, ra + 0.5 * sep)
-    _emit(ca, i, 0, p, sep, 0)
+    _emit(ca, i, np.int64(0), p, sep, np.int64(0))
     return 1
 
 
@@ -253,7 +265,7 @@ def _sphere_plane(ca, i, c, r, pp, pq, spec):
     if sep > spec:
         return 0
     _set_normal(ca, i, scale(n, -1.0))
-    _emit(ca, i, 0, madd(c, n, -(r + 0.5 * sep)), sep, 0)
+    _emit(ca, i, np.int64(0), madd(c, n, -(r + 0.5 * sep)), sep, np.int64(0))
     return 1
 
 
@@ -285,7 +297,7 @@ def _sphere_box(ca, i, c, r, pb, qb, h, spec):
     nw = qrot(qb, nl)
     surf_box = add(pb, qrot(qb, cl))
     _set_normal(ca, i, scale(nw, -1.0))                    # A = sphere -> B = box
-    _emit(ca, i, 0, madd(surf_box, nw, 0.5 * sep), sep, feature)
+    _emit(ca, i, np.int64(0), madd(surf_box, nw, 0.5 * sep), sep, feature)
     return 1
 
 
@@ -336,7 +348,7 @@ def _capsule_capsule(ca, i, pa, qa, ra, ha, pb, qb, rb, hb, spec):
         pn = norm(perp)
         if hi - lo > 1e-6 * (ha + hb) and pn > 1e-9:
             n = scale(perp, 1.0 / pn)
-            cnt = 0
+            cnt = np.int64(0)
             for k in range(2):
                 s = lo if k == 0 else hi
                 p1 = madd(pa, ua, s)
@@ -356,7 +368,7 @@ def _capsule_capsule(ca, i, pa, qa, ra, ha, pb, qb, rb, hb, spec):
 def _capsule_plane(ca, i, pc, qc, r, h, pp, pq, spec):
     u = qrot(qc, (0.0, 0.0, 1.0))
     n = qrot(pq, (0.0, 0.0, 1.0))
-    cnt = 0
+    cnt = np.int64(0)
     for k in range(2):
         e = madd(pc, u, h if k == 0 else -h)
         sep = dot(sub(e, pp), n) - r
@@ -411,7 +423,7 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
         a = min(a0, min(a1, a2))
         if a < fourth_a:
             fourth, fourth_a = k, a
-    cnt = 0
+    cnt = np.int64(0)
     for c in range(4):
         k = best if c == 0 else (far if c == 1 else (third if c == 2 else fourth))
         if k < 0:
@@ -426,7 +438,7 @@ def _reduce_and_emit(ca, i, pts, seps, feats, n_in, normal):
 def _box_plane(ca, i, pb, qb, h, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = 0
+    cnt = np.int64(0)
     for v in range(8):
         lv = (h[0] if v & 1 else -h[0], h[1] if v & 2 else -h[1], h[2] if v & 4 else -h[2])
         w = add(pb, qrot(qb, lv))
@@ -449,7 +461,7 @@ def _cylinder_plane(ca, i, pc, qc, r, h, pp, pq, spec, scr):
     n = qrot(pq, (0.0, 0.0, 1.0))
     u = qrot(qc, (0.0, 0.0, 1.0))
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = 0
+    cnt = np.int64(0)
     # rim direction of each cap pointing most into the plane: -n with its axial part removed
     m = madd(scale(n, -1.0), u, dot(n, u))
     mn = norm(m)
@@ -493,7 +505,7 @@ def _hull_plane(ca, i, ph, qh, verts, v0, nv, pp, pq, spec, scr):
         pts, seps, feats = scr.pts, scr.seps, scr.feats
     else:
         pts, seps, feats = np.empty((nv, 3)), np.empty(nv), np.empty(nv, np.int64)
-    cnt = 0
+    cnt = np.int64(0)
     for k in range(nv):
         v = verts[v0 + k]
         w = add(ph, qrot(qh, (v[0], v[1], v[2])))
@@ -563,7 +575,7 @@ def _box_face_manifold(ca, i, ref_p, ref_ax, ref_h, k, n, inc_p, inc_ax, inc_h, 
         if count == 0:
             return 0
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = 0
+    cnt = np.int64(0)
     for c in range(count):
         z = poly[c, 2]
         if z <= spec:
@@ -585,7 +597,7 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
     B = (qrot(qb, (1.0, 0.0, 0.0)), qrot(qb, (0.0, 1.0, 0.0)), qrot(qb, (0.0, 0.0, 1.0)))
     d = sub(pb, pa)
     # face axes of A and of B
-    sa, ka = -1e300, 0
+    sa, ka = -1e300, np.int64(0)
     for k in range(3):
         s = abs(dot(d, A[k])) - (ha[k] + hb[0] * abs(dot(A[k], B[0])) + hb[1] * abs(dot(A[k], B[1]))
                                  + hb[2] * abs(dot(A[k], B[2])))
@@ -593,7 +605,7 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
             return 0
         if s > sa:
             sa, ka = s, k
-    sb, kb = -1e300, 0
+    sb, kb = -1e300, np.int64(0)
     for k in range(3):
         s = abs(dot(d, B[k])) - (hb[k] + ha[0] * abs(dot(B[k], A[0])) + ha[1] * abs(dot(B[k], A[1]))
                                  + ha[2] * abs(dot(B[k], A[2])))
@@ -641,7 +653,7 @@ def _box_box(ca, i, pa, qa, ha, pb, qb, hb, spec, scr):
         if sep > spec:
             return 0
         _set_normal(ca, i, ne)
-        _emit(ca, i, 0, scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
+        _emit(ca, i, np.int64(0), scale(add(p1, p2), 0.5), sep, (1 << 20) + ie * 3 + je)
         return 1
     # one call site with runtime arguments: a literal True / False per branch would compile the clipper
     # once per literal (Numba specialises on literal arguments)
@@ -852,7 +864,8 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
         single = abs(dot(ua, ub)) < 1.0 - 0.5 * FEATURE_SIN * FEATURE_SIN
     if single:
         _set_normal(ca, i, n)
-        _emit(ca, i, 0, (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist, 0)
+        _emit(ca, i, np.int64(0), (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist,
+              np.int64(0))
         return 1
     # reference feature: a polygon before a segment; of two polygons the one facing the normal better
     ref_is_a = True
@@ -934,7 +947,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
         if count == 0:
             break
     pts, seps, feats = scr.pts, scr.seps, scr.feats
-    cnt = 0
+    cnt = np.int64(0)
     for k in range(count):
         x = (poly[k, 0], poly[k, 1], poly[k, 2])
         sep = dot(sub(x, c), nr) - ra - rb
@@ -951,7 +964,8 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
         if dist > spec:
             return 0
         _set_normal(ca, i, n)
-        _emit(ca, i, 0, (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist, 0)
+        _emit(ca, i, np.int64(0), (0.5 * (wa[0] + wb[0]), 0.5 * (wa[1] + wb[1]), 0.5 * (wa[2] + wb[2])), dist,
+              np.int64(0))
         return 1
     _set_normal(ca, i, n_ab)
     return _reduce_and_emit(ca, i, pts, seps, feats, cnt, n_ab)
@@ -963,7 +977,7 @@ def _convex_general(ca, i, ta, tb, sa, sb, shapes, pose, spec, scr, gscr):
 FAMILY_CLOSED, FAMILY_GENERAL, FAMILY_MESH, FAMILY_NONE, FAMILY_SDF = 0, 1, 2, 3, 4
 
 
-@njit(inline="always")
+@njit(cache=True)
 def pair_family(ta, tb):
     """Family of the canonical pair (ta <= tb) of shape types."""
     if tb == S.TRIANGLE_MESH or tb == S.HEIGHTFIELD:
@@ -992,43 +1006,87 @@ def scene_families(shape_type) -> tuple[bool, bool, bool]:
     return FAMILY_GENERAL in fams, FAMILY_MESH in fams, FAMILY_SDF in fams
 
 
+#: The closed-form pair kinds (canonical: ta <= tb), in the order of a ``closed_token``'s entries.
+CLOSED_PAIRS = ((S.SPHERE, S.SPHERE), (S.SPHERE, S.BOX), (S.SPHERE, S.CAPSULE), (S.SPHERE, S.PLANE),
+                (S.BOX, S.BOX), (S.BOX, S.PLANE), (S.CAPSULE, S.CAPSULE), (S.CAPSULE, S.PLANE),
+                (S.CYLINDER, S.PLANE), (S.CONVEX_HULL, S.PLANE))
+#: The shape-type sets a closed-form kernel is compiled for: the smallest that holds a scene's types.
+#: Nested, not one per combination, so that a process meeting many scenes (a test suite, a sweep)
+#: compiles the closed-form kernels at most three times.
+CLOSED_TYPE_SETS = (frozenset((S.SPHERE, S.PLANE)), frozenset((S.SPHERE, S.BOX, S.PLANE)),
+                    frozenset((S.SPHERE, S.BOX, S.CAPSULE, S.CYLINDER, S.CONVEX_HULL, S.PLANE)))
+
+
+def closed_token(shape_type) -> tuple:
+    """The ``closed`` argument of ``narrow_phase_closed`` for a scene's shape types: one entry per
+    ``CLOSED_PAIRS`` kind, True when compiled in, None when not. Compiled in are the pairs among the
+    smallest ``CLOSED_TYPE_SETS`` entry holding every type present (a scene of boxes and planes compiles
+    the sphere, box and plane pairs; one of spheres and planes only the sphere-sphere and sphere-plane
+    pairs), so the capsule, cylinder and hull routines compile only for scenes that have those shapes."""
+    present = {int(t) for t in np.asarray(shape_type).ravel()} & CLOSED_TYPE_SETS[-1]
+    kept = next(s for s in CLOSED_TYPE_SETS if present <= s)
+    return tuple(True if ta in kept and tb in kept else None for ta, tb in CLOSED_PAIRS)
+
+
+#: Every closed-form pair compiled in (the token of a scene with every shape type).
+ALL_CLOSED = tuple(True for _ in CLOSED_PAIRS)
+
+
+def collide_closed_in(closed, out, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+    """The manifold of a closed-form pair (``pair_family`` FAMILY_CLOSED) of the kinds compiled in
+    (``closed``, a ``closed_token``); 0 for any other pair. Numba only."""
+    raise NotImplementedError("collide_closed_in runs inside Numba kernels only")
+
+
+@overload(collide_closed_in, jit_options={"cache": True})
+def _collide_closed_in(closed, out, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+    if not isinstance(closed, types.BaseTuple) or len(closed.types) != len(CLOSED_PAIRS):
+        raise TypeError(f"closed must be a tuple of {len(CLOSED_PAIRS)} entries (True or None); see closed_token")
+    (sphere_sphere, sphere_box, sphere_capsule, sphere_plane, box_box, box_plane, capsule_capsule, capsule_plane,
+     cylinder_plane, hull_plane) = (not isinstance(t, (types.NoneType, types.Omitted)) for t in closed.types)
+
+    # the kinds left out are pruned before typing (constant conditions): their routines never compile
+    def impl(closed, out, i, ta, tb, sa, sb, shapes, pose, spec, scr):
+        pa, qa = _pose(pose, sa)
+        pb, qb = _pose(pose, sb)
+        A = shapes.shape_params[sa]
+        B = shapes.shape_params[sb]
+        if sphere_sphere:
+            if ta == S.SPHERE and tb == S.SPHERE:
+                return _sphere_sphere(out, i, pa, A[0], pb, B[0], spec)
+        if sphere_box:
+            if ta == S.SPHERE and tb == S.BOX:
+                return _sphere_box(out, i, pa, A[0], pb, qb, (B[0], B[1], B[2]), spec)
+        if sphere_capsule:
+            if ta == S.SPHERE and tb == S.CAPSULE:
+                return _sphere_capsule(out, i, pa, A[0], pb, qb, B[0], B[1], spec)
+        if sphere_plane:
+            if ta == S.SPHERE and tb == S.PLANE:
+                return _sphere_plane(out, i, pa, A[0], pb, qb, spec)
+        if box_box:
+            if ta == S.BOX and tb == S.BOX:
+                return _box_box(out, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec, scr)
+        if box_plane:
+            if ta == S.BOX and tb == S.PLANE:
+                return _box_plane(out, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec, scr)
+        if capsule_capsule:
+            if ta == S.CAPSULE and tb == S.CAPSULE:
+                return _capsule_capsule(out, i, pa, qa, A[0], A[1], pb, qb, B[0], B[1], spec)
+        if capsule_plane:
+            if ta == S.CAPSULE and tb == S.PLANE:
+                return _capsule_plane(out, i, pa, qa, A[0], A[1], pb, qb, spec)
+        if cylinder_plane:
+            if ta == S.CYLINDER and tb == S.PLANE:
+                return _cylinder_plane(out, i, pa, qa, A[0], A[1], pb, qb, spec, scr)
+        if hull_plane:
+            if ta == S.CONVEX_HULL and tb == S.PLANE:
+                return _hull_plane(out, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
+                                   shapes.shape_vert_count[sa], pb, qb, spec, scr)
+        return 0
+    return impl
+
+
 @njit(cache=True)
-def _collide_closed(out, i, ta, tb, sa, sb, shapes, pose, spec, scr):
-    """The closed-form pairs (``pair_family`` FAMILY_CLOSED); 0 for any other pair."""
-    pa, qa = _pose(pose, sa)
-    pb, qb = _pose(pose, sb)
-    A = shapes.shape_params[sa]
-    B = shapes.shape_params[sb]
-    if ta == S.SPHERE:
-        if tb == S.SPHERE:
-            return _sphere_sphere(out, i, pa, A[0], pb, B[0], spec)
-        if tb == S.BOX:
-            return _sphere_box(out, i, pa, A[0], pb, qb, (B[0], B[1], B[2]), spec)
-        if tb == S.CAPSULE:
-            return _sphere_capsule(out, i, pa, A[0], pb, qb, B[0], B[1], spec)
-        if tb == S.PLANE:
-            return _sphere_plane(out, i, pa, A[0], pb, qb, spec)
-    elif ta == S.BOX:
-        if tb == S.BOX:
-            return _box_box(out, i, pa, qa, (A[0], A[1], A[2]), pb, qb, (B[0], B[1], B[2]), spec, scr)
-        if tb == S.PLANE:
-            return _box_plane(out, i, pa, qa, (A[0], A[1], A[2]), pb, qb, spec, scr)
-    elif ta == S.CAPSULE:
-        if tb == S.CAPSULE:
-            return _capsule_capsule(out, i, pa, qa, A[0], A[1], pb, qb, B[0], B[1], spec)
-        if tb == S.PLANE:
-            return _capsule_plane(out, i, pa, qa, A[0], A[1], pb, qb, spec)
-    elif ta == S.CYLINDER:
-        if tb == S.PLANE:
-            return _cylinder_plane(out, i, pa, qa, A[0], A[1], pb, qb, spec, scr)
-    elif ta == S.CONVEX_HULL:
-        if tb == S.PLANE:
-            return _hull_plane(out, i, pa, qa, shapes.geom_vertices, shapes.shape_vert_start[sa],
-                               shapes.shape_vert_count[sa], pb, qb, spec, scr)
-    return 0
-
-
-@njit(inline="always")
 def _body_speed(b, body_qd, radius):
     if b < 0:
         return (0.0, 0.0, 0.0), 0.0
@@ -1037,7 +1095,7 @@ def _body_speed(b, body_qd, radius):
     return (qd[3], qd[4], qd[5]), w * radius[b]
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _speculative_distance(ba, bb, margin_a, margin_b, body_qd, body_bound_radius, dt):
     """What the pair can close within the step, plus the larger margin."""
     va, wa = _body_speed(ba, body_qd, body_bound_radius)
@@ -1045,7 +1103,7 @@ def _speculative_distance(ba, bb, margin_a, margin_b, body_qd, body_bound_radius
     return max(margin_a, margin_b) + dt * (norm(sub(vb, va)) + wa + wb)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _tangents(i, contact_normal, contact_tangent):
     n = (contact_normal[i, 0], contact_normal[i, 1], contact_normal[i, 2])
     t1, t2 = orthonormal_basis(n)
@@ -1064,7 +1122,7 @@ class ManifoldOut(NamedTuple):
 
 
 @njit(cache=True)
-def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, run):
+def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, run, closed):
     """Every pair of ``lo:hi``: materials, keys, zeroed impulses, and the manifold of the closed-form
     pairs (the other families' kernels fill theirs afterwards), clipping in row ``run`` of the scratch
     bank. The bundles' arrays are unpacked once into locals: reading a NamedTuple member inside the loop
@@ -1096,11 +1154,11 @@ def _narrow_range(lo, hi, pairs, keys, shapes, pose, body_qd, body_bound_radius,
         contact_rolling_friction[i] = max(shape_rolling_friction[sa], shape_rolling_friction[sb])
         contact_is_sensor[i] = shape_is_sensor[sa] or shape_is_sensor[sb]
         ta, tb = shape_type[sa], shape_type[sb]
-        cnt = 0
+        cnt = np.int64(0)
         if pair_family(ta, tb) == FAMILY_CLOSED:
             spec = _speculative_distance(ba, bb, shape_margin[sa], shape_margin[sb], body_qd, body_bound_radius,
                                          dt)
-            cnt = _collide_closed(out, i, ta, tb, sa, sb, shapes, pose, spec, scr)
+            cnt = collide_closed_in(closed, out, i, ta, tb, sa, sb, shapes, pose, spec, scr)
         contact_point_count[i] = cnt
         _tangents(i, contact_normal, contact_tangent)
         for m in range(3):
@@ -1157,13 +1215,14 @@ def _narrow_range_mesh(lo, hi, pairs, shapes, pose, body_qd, body_bound_radius, 
 
 
 @njit(cache=True, parallel=True)
-def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank):
+def narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, bank, closed):
     """Every candidate pair's row, and the manifolds of the closed-form pairs (runs in parallel; run
-    ``ch`` clips in row ``ch`` of ``bank``, a `NarrowWork`'s ``scratch``)."""
+    ``ch`` clips in row ``ch`` of ``bank``, a `NarrowWork`'s ``scratch``). ``closed``: the pair kinds
+    compiled in, ``closed_token(shape_type)`` of the scene (pairs of kinds left out get no points)."""
     nch = min(npairs, _RUNS)
     for ch in prange(nch):
         _narrow_range(npairs * ch // nch, npairs * (ch + 1) // nch, pairs, keys, shapes, pose, body_qd,
-                      body_bound_radius, dt, ca, bank, ch)
+                      body_bound_radius, dt, ca, bank, ch, closed)
 
 
 @njit(cache=True, parallel=True)
@@ -1203,7 +1262,8 @@ def narrow_phase(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, 
     elif (mesh or with_sdf) and work.mesh.cand.shape[0] < _RUNS:
         raise ValueError(f"work must have a mesh bank of {_RUNS} runs for a scene with mesh or SDF pairs "
                          "(new_narrow_work(general, mesh_rows=scene_mesh_rows(shape_type, shape_vert_count)))")
-    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch)
+    narrow_phase_closed(pairs, keys, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch,
+                        closed_token(shapes.shape_type))
     if general:
         narrow_phase_general(pairs, npairs, shapes, pose, body_qd, body_bound_radius, dt, ca, work.scratch,
                              work.gjk)

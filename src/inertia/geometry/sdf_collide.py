@@ -100,7 +100,7 @@ def sdf_arrays(model) -> SdfArrays:
     return SdfArrays(model.sdf_grid_f, model.sdf_grid_i, model.shape_sdf_start)
 
 
-@njit(inline="always")
+@njit(cache=True)
 def sample_count(ta, vert_count):
     """Number of surface samples of a convex shape of type ``ta`` (``vert_count``: a hull's vertices)."""
     if ta == S.SPHERE:
@@ -116,7 +116,7 @@ def sample_count(ta, vert_count):
     return 0
 
 
-@njit(inline="always")
+@njit(cache=True)
 def sample_point(ta, k, params, geom_vertices, vert_start):
     """Sample ``k`` of a convex shape in its own frame and the radius it carries (module docstring)."""
     if ta == S.SPHERE:
@@ -177,7 +177,7 @@ def collide_sdf(out, i, ta, sa, sb, shapes, sdf, pose, spec, pts, seps, feats, g
         return 0
     # 2. one normal (the deepest sample's gradient); the others' gaps along it; points midway, world frame
     n = (grads[deepest, 0], grads[deepest, 1], grads[deepest, 2])
-    kept = 0
+    kept = np.int64(0)  # int64 from the start (narrowphase: a literal 0 compiles callees twice)
     for k in range(cnt):
         g = (grads[k, 0], grads[k, 1], grads[k, 2])
         c = dot(g, n)

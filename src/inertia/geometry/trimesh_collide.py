@@ -381,7 +381,7 @@ def collide_triangles(ca, i, ta, sa, sb, shapes, pose, spec, scr):
         x1, y1, z1 = max(x1, w[0]), max(y1, w[1]), max(z1, w[2])
     cand, n = _gather(shapes, sb, (x0 - spec, y0 - spec, z0 - spec), (x1 + spec, y1 + spec, z1 + spec), scr.cand,
                       scr.stack, scr.need)
-    cnt = 0
+    cnt = np.int64(0)  # int64 from the start (narrowphase: a literal 0 compiles callees twice)
     deepest = np.inf
     normal = (0.0, 0.0, -1.0)
     for v in range(nv):

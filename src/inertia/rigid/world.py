@@ -99,9 +99,9 @@ from ..dynamics.contacts import Contacts
 from ..errors import SimulationDiverged
 from ..geometry import shapes as S
 from ..geometry.broadphase import shape_world_bounds, sort_and_sweep_into
-from ..geometry.narrowphase import (compact_active, fit_narrow_work, match_warm_start, narrow_phase_closed,
-                                    narrow_phase_general, narrow_phase_mesh, new_narrow_work, scene_families,
-                                    scene_mesh_rows)
+from ..geometry.narrowphase import (closed_token, compact_active, fit_narrow_work, match_warm_start,
+                                    narrow_phase_closed, narrow_phase_general, narrow_phase_mesh, new_narrow_work,
+                                    scene_families, scene_mesh_rows)
 from ..geometry.sdf_collide import narrow_phase_sdf, sdf_arrays
 from ..geometry.toi import time_of_impact_batch
 from ..model import Control, Model, State
@@ -209,6 +209,7 @@ class RigidWorld:
         nb, ns = m.body_count, m.shape_count
         self._shapes = m.shapes()
         self._families = scene_families(m.shape_type)      # (general convex, mesh, SDF pairs) possible
+        self._closed = closed_token(m.shape_type)          # the closed-form pair kinds compiled in
         self._sdf = sdf_arrays(m)
         self._warn_unbaked_sdf()
         self._shape_pose = np.zeros((ns, 7))
@@ -325,7 +326,7 @@ class RigidWorld:
         # speculative=False: only the shapes' margins (dt = 0 closes nothing), as a test of the TOI sweep
         dt = self.dt if self.speculative else 0.0
         self._k.narrow_phase_closed(self._pairs, self._keys, npairs, self._shapes, self._shape_pose, st.body_qd,
-                                    m.body_bound_radius, dt, ca, self._narrow_work.scratch)
+                                    m.body_bound_radius, dt, ca, self._narrow_work.scratch, self._closed)
         # the other families' kernels only when the scene's shape types can pair that way: a box-and-sphere
         # scene never compiles GJK/EPA or the triangle routines
         if self._families[0]:
@@ -633,7 +634,7 @@ def _mark_fast(body_type, bullet, min_half_extent, bound_radius, body_q0, body_q
     return count
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _sweeps_against(b, other, fast, bullet, body_type):
     """Body b's sweep covers the other body: a bullet against everything, another fast body only
     against static and kinematic bodies (Box2D v3's rule: between two moving non-bullets the speculative
