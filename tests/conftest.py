@@ -129,3 +129,27 @@ def thread_counts():
 
     yield counts
     numba.set_num_threads(before)
+
+
+# ----------------------------------------------------------------------------- resume twins
+def _resumed_twin(make, step, before, after):
+    """Checkpoint and resume, the way every saveable system is tested: ``a = make()`` steps ``before``
+    times, saves its state, and steps ``after`` more; ``b = make()`` restores that state and steps the same
+    ``after`` times. Returns (a, b), which must agree bit for bit (``step(system)`` takes one step)."""
+    a = make()
+    for _ in range(before):
+        step(a)
+    state = a.save_state()
+    for _ in range(after):
+        step(a)
+    b = make()
+    b.restore_state(state)
+    for _ in range(after):
+        step(b)
+    return a, b
+
+
+@pytest.fixture
+def resumed_twin():
+    """``a, b = resumed_twin(make, step, before, after)``: see `_resumed_twin`."""
+    return _resumed_twin

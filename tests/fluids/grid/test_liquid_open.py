@@ -117,21 +117,12 @@ def test_periodic_axis_needs_an_even_cell_count_and_no_viscosity():
         LiquidFluid((8, 8), 1 / 8, viscosity=0.01, boundaries={"x-": "periodic", "x+": "periodic"})
 
 
-def test_open_channel_resumes_bit_for_bit():
+def test_open_channel_resumes_bit_for_bit(resumed_twin):
     # the inflow's row phase and the particle counters are part of the saved state
     def make():
         return LiquidFluid((16, 8), 1 / 16, boundaries={"x-": Inflow(velocity=(0.7, 0.0)),
                                                         "x+": "outflow"})
-    f = make()
-    for _ in range(20):
-        f.step(0.02)
-    state = f.save_state()
-    for _ in range(30):
-        f.step(0.02)
-    g = make()
-    g.restore_state(state)
-    for _ in range(30):
-        g.step(0.02)
+    f, g = resumed_twin(make, lambda s: s.step(0.02), 20, 30)
     assert f.particles_drained > 0
     assert np.array_equal(f.x, g.x) and np.array_equal(f.v, g.v)
     assert (f.particles_emitted, f.particles_drained) == (g.particles_emitted, g.particles_drained)
