@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["write_outputs", "render_frames", "plot_energy", "OUTPUT_NAMES", "renderer_for"]
+__all__ = ["write_outputs", "render_frames", "framed_renderer", "plot_energy", "OUTPUT_NAMES", "renderer_for"]
 
 #: File names inside the output directory.
 OUTPUT_NAMES = {
@@ -29,8 +29,14 @@ OUTPUT_NAMES = {
 }
 
 
-def renderer_for(states, render: dict | None, colliders=()):
-    """A `Renderer` set up from a scene's [render] table and framed on the whole run."""
+#: Pixels between a legend and the frame's top and side edges.
+_LEGEND_MARGIN_PX = 12
+
+
+def renderer_for(states, render: dict | None, colliders=(), reserve_top: float = 0.0):
+    """A `Renderer` set up from a scene's [render] table and framed on the run's subject: the
+    particles and the moving bodies (followed when they travel far, ``follow = "auto"``) and the
+    static shapes; ``reserve_top``: share of the frame height kept free at the top (a legend)."""
     from inertia.render.camera import Camera
     from inertia.render.renderer import Renderer
 
@@ -49,19 +55,36 @@ def renderer_for(states, render: dict | None, colliders=()):
     speed_max = run_speed_max(states.velocities) if states.velocities is not None else None
     renderer = Renderer(width, height, dim=dim, color_by=render.get("color_by", "auto"),
                         theme=render.get("theme", "dark"), speed_max=speed_max,
-                        orbit=float(camera.get("orbit") or 0.0), follow=bool(camera.get("follow", False)), **options)
+                        orbit=float(camera.get("orbit") or 0.0),
+                        follow="auto" if camera.get("follow") is None else bool(camera["follow"]),
+                        reserve_top=reserve_top if dim == 3 else 0.0, **options)
     active = states.fields.get("active")
     draw = colliders if render.get("draw_colliders", True) else ()
     from inertia.render.drawables import ModelDrawables
 
     drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
-    extra = None if drawables is None else drawables.bounds_points(states.fields.get("body_q"))
+    body_q = states.fields.get("body_q")
+    positions = states.positions
+    if drawables is None:
+        moving, extra = None, None
+    elif dim == 3 and body_q is not None and len(body_q) == states.frame_count:
+        # the moving bodies' boxes per frame join the particles as the subject (a camera may
+        # follow them); the static shapes are the scenery, framed with the whole run
+        moving, extra = drawables.moving_bounds(body_q)
+    else:
+        moving, extra = None, drawables.bounds_points(body_q)
+    if moving is not None:
+        positions = np.concatenate([np.asarray(positions, np.float64).reshape(states.frame_count, -1, 3), moving], axis=1)
+        if active is not None:
+            active = np.asarray(active, dtype=bool)
+            shape = (states.frame_count, moving.shape[1]) if active.ndim == 2 else (moving.shape[1],)
+            active = np.concatenate([active, np.ones(shape, bool)], axis=-1)
     floor = None if drawables is None else drawables.heightfield_floor()
     if floor is not None and render.get("ground", "auto") == "auto":
         renderer.ground = floor  # the terrain rests on the ground grid instead of floating above it
     # bodies are never outliers: frame all of them (the particle-only robust trim cut a pile's top)
-    robust = 0.0 if extra is not None and states.particle_count == 0 else 0.001
-    renderer.fit(states.positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
+    robust = 0.0 if drawables is not None and drawables.local_vertices is not None and states.particle_count == 0 else 0.001
+    renderer.fit(positions, radius=states.radius(), colliders=draw, active=active, extra_points=extra,
                  times=states.times, robust=robust)
     cam = renderer.camera
     if dim == 2 and camera.get("height") is not None:
@@ -97,36 +120,72 @@ def _group_colors(states, renderer):
     return palette[groups]
 
 
+def framed_renderer(states, render: dict | None = None, colliders=()):
+    """(`Renderer` framed on the run, legend image (h, w, 4) or None) for `render_frames`: where a
+    legend is drawn in the top-left corner of a 3-D picture, the subject is framed below it."""
+    from inertia.render.drawables import ModelDrawables
+    from inertia.render.fluid_particles import fluid_legend, grid_scales
+
+    renderer = renderer_for(states, render, colliders)
+    scales = grid_scales(states)
+    drawables = ModelDrawables.from_states(states)
+    legend = _legend(states, renderer, render)
+    legend = fluid_legend(states, renderer, render) if legend is None else legend
+    hidden = None if drawables is None else drawables.hidden(states.particle_count)
+    shown = states.particle_count - (0 if hidden is None else int(np.count_nonzero(hidden)))
+    legend = _quantity_legend(states, renderer, render, scales, shown) if legend is None else legend
+    if legend is not None and renderer.dim == 3 and _under_legend(states, renderer, drawables, legend.shape):
+        reserve = min((_LEGEND_MARGIN_PX + legend.shape[0] + 4) / renderer.height, _MAX_RESERVE)
+        renderer = renderer_for(states, render, colliders, reserve_top=reserve)
+    return renderer, legend
+
+
+#: Largest share of a 3-D picture's height kept free above the subject for a legend.
+_MAX_RESERVE = 0.15
+
+
+def _under_legend(states, renderer, drawables, shape) -> bool:
+    """True when some of the run's subject (particles, shapes; 12 frames) is drawn under the
+    top-left legend of ``shape`` (h, w, ...) with the renderer's framing."""
+    picks = np.unique(np.linspace(0, states.frame_count - 1, min(states.frame_count, 12)).astype(int))
+    extra = None if drawables is None else drawables.bounds_points(states.fields.get("body_q"))
+    x1, y1 = _LEGEND_MARGIN_PX + shape[1], _LEGEND_MARGIN_PX + shape[0]
+    for f in picks:
+        pts = np.asarray(states.positions[f], np.float64).reshape(-1, 3)
+        if extra is not None:
+            pts = np.concatenate([pts, extra])
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        px, py, depth = renderer.camera_at(float(states.times[f])).project(pts, renderer.width, renderer.height)
+        if np.any((depth > 0) & (px < x1) & (py < y1)):
+            return True
+    return False
+
+
 def render_frames(states, render: dict | None = None, colliders=(), frames=None):
     """Yield (frame index, (H, W, 3) uint8 image) for the frames of a run."""
     from inertia.render.drawables import ModelDrawables, frame_options, subject_bounds
-    from inertia.render.fluid_particles import (LiquidSurfaces, fluid_legend, frame_grids, frame_volumes, grid_scales,
+    from inertia.render.fluid_particles import (LiquidSurfaces, frame_grids, frame_volumes, grid_scales,
                                                 grid_streaks, grid_fluids, paint_grids, paint_volumes, smoke_styles,
                                                 sph_surface_wanted, with_fluid_particles)
 
     states = with_fluid_particles(states)  # SPH fluids' particles after the groups' (coloured by speed)
-    renderer = renderer_for(states, render, colliders)
+    renderer, legend = framed_renderer(states, render, colliders)
+    scales = grid_scales(states)  # 2-D grids: one colour scale for the run, tracer streaks ([render] streaks)
+    drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     frame_grids(renderer, states)  # 2-D grid fluids: framed when there is no particle, painted below
     frame_volumes(renderer, states, colliders, render)  # 3-D smoke: framed on its grid box, ray-marched below
     smoke = smoke_styles(states)
-    scales = grid_scales(states)  # 2-D grids: one colour scale for the run, tracer streaks ([render] streaks)
     streaks = grid_streaks(states, render)
     # particle liquids drawn as their surfaces (mesh in 3-D, filled in 2-D); SPH too unless [render]
     # fluid_surface = false (by default wherever scikit-image, the surface extra, is installed)
     liquids = LiquidSurfaces(states, sph=sph_surface_wanted(render))
     draw = colliders if (render or {}).get("draw_colliders", True) else ()
     draw = list(draw) + attractor_markers(states)  # where the attractors pull (wind)
-    drawables = ModelDrawables.from_states(states)  # bodies, cloth, springs (render helper)
     if drawables is not None:
         draw = list(draw) + drawables.plane_colliders(subject_bounds(states, drawables))
     colors = _group_colors(states, renderer)
     groups = states.groups()
     radius = states.radius()
-    legend = _legend(states, renderer, render)
-    legend = fluid_legend(states, renderer, render) if legend is None else legend
-    hidden = None if drawables is None else drawables.hidden(states.particle_count)
-    shown = states.particle_count - (0 if hidden is None else int(np.count_nonzero(hidden)))
-    legend = _quantity_legend(states, renderer, render, scales, shown) if legend is None else legend
     indices = range(states.frame_count) if frames is None else frames
     grids = bool(grid_fluids(states)) and renderer.dim == 2
     axes = _axes_layer(renderer, render) if grids else None  # 2-D fluid maps carry a scale in metres
@@ -147,7 +206,8 @@ def render_frames(states, render: dict | None = None, colliders=(), frames=None)
         if legend is not None:
             from inertia.render.legend import overlay
 
-            overlay(image, legend, corner="right" if axes is not None else "left")  # clear of the y axis
+            overlay(image, legend, margin=_LEGEND_MARGIN_PX,
+                    corner="right" if axes is not None else "left")  # clear of the y axis
         yield f, image
 
 

@@ -161,6 +161,7 @@ class Camera:
         margin: float = 1.1,
         iterations: int = 4,
         pad: float = 0.0,
+        reserve_top: float = 0.0,
     ) -> "Camera":
         """Frame a 3-D point cloud (M, 3) tightly: every point in view with ``margin``, and the
         cloud's picture centred in the frame.
@@ -173,7 +174,12 @@ class Camera:
         radius, so spheres at the edge stay whole). Starting from the points' mean, each
         iteration takes the least such d, then moves c sideways by the centre of the points'
         screen box (times d) so the picture is centred; the last d is recomputed for the moved c.
+        ``reserve_top``: the share of the frame height kept free at the top (for a legend drawn
+        there), 0 default, in [0, 0.5): the window the points are fitted into runs from
+        y = -tan_v to y = (1 - 2 reserve_top) tan_v, and the points are centred in it.
         """
+        if not 0.0 <= reserve_top < 0.5:
+            raise ValueError(f"Camera.fit_points: reserve_top must be in [0, 0.5), got {reserve_top!r}")
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         pts = pts[np.all(np.isfinite(pts), axis=1)]
         if pts.shape[0] == 0:
@@ -183,6 +189,8 @@ class Camera:
         right, cam_up, forward = probe.basis()
         tan_v = math.tan(math.radians(fov_y) / 2.0) / margin
         tan_h = tan_v * aspect
+        tan_top = tan_v * (1.0 - 2.0 * reserve_top)  # the window's top edge (tan_v below it: bottom)
+        window_y = -reserve_top * tan_v  # the window's centre, below the screen centre
         lo, hi = pts.min(axis=0), pts.max(axis=0)
         size = max(float(np.linalg.norm(hi - lo)), 1e-6)
         target = 0.5 * (lo + hi)
@@ -190,7 +198,8 @@ class Camera:
         for k in range(iterations + 1):
             rel = pts - target
             x, y, z = rel @ right, rel @ cam_up, rel @ forward
-            distance = float(np.max(np.maximum((np.abs(x) + pad) / tan_h, (np.abs(y) + pad) / tan_v) - z))
+            distance = float(np.max(np.maximum(np.maximum((np.abs(x) + pad) / tan_h, (pad - y) / tan_v),
+                                               (y + pad) / tan_top) - z))
             distance = max(distance, 0.05 * size)
             if k == iterations:
                 break
@@ -198,7 +207,7 @@ class Camera:
             sx_lo, sx_hi = (x - pad) / depth, (x + pad) / depth
             sy_lo, sy_hi = (y - pad) / depth, (y + pad) / depth
             target = target + distance * (0.5 * (sx_lo.min() + sx_hi.max()) * right
-                                          + 0.5 * (sy_lo.min() + sy_hi.max()) * cam_up)
+                                          + (0.5 * (sy_lo.min() + sy_hi.max()) - window_y) * cam_up)
         return cls.orbit(target, distance, azimuth=azimuth, elevation=elevation, up=up, fov_y=fov_y)
 
     @classmethod
@@ -253,6 +262,23 @@ class Camera:
         return np.concatenate(
             [self.position, right, up, forward, [self.focal_px(height), width / 2.0, height / 2.0, ortho]]
         ).astype(np.float64)
+
+    def screen_fill(self, points, width: int, height: int, pad: float = 0.0) -> float:
+        """The share of the ``width`` x ``height`` picture covered by the screen bounding box of
+        world ``points`` (M, 2 or 3), each grown by ``pad`` world units, clipped to the frame; in
+        [0, 1], 0 when no point is in front of the camera. A measure of how well a framing fills
+        the picture with its subject (1: the subject's box is the whole frame)."""
+        px, py, depth = self.project(np.asarray(points, dtype=np.float64).reshape(-1, np.shape(points)[-1]),
+                                     width, height)
+        keep = np.isfinite(px) & np.isfinite(py) & ((depth > 0) | (self.projection == "orthographic"))
+        if not np.any(keep):
+            return 0.0
+        grow = self.focal_px(height) * pad / (1.0 if self.projection == "orthographic" else depth[keep])
+        x0 = float(np.clip(np.min(px[keep] - grow), 0.0, width))
+        x1 = float(np.clip(np.max(px[keep] + grow), 0.0, width))
+        y0 = float(np.clip(np.min(py[keep] - grow), 0.0, height))
+        y1 = float(np.clip(np.max(py[keep] + grow), 0.0, height))
+        return (x1 - x0) * (y1 - y0) / float(width * height)
 
     def project(self, points, width: int, height: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Pixel coordinates (px, py) and depth of world points (M, 2 or 3)."""

@@ -285,6 +285,31 @@ class ModelDrawables:
         picks = np.unique(np.linspace(0, len(frames) - 1, min(len(frames), 12)).astype(int))
         return np.concatenate([self._shape_box_corners(self.body_vertices(frames[f])[0]) for f in picks])
 
+    def moving_bounds(self, body_q_frames) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """The shapes' reach split for framing: (per-frame corners of the moving shapes' world
+        bounding boxes (F, 2 S_moving, 3) for ``body_q_frames (F, B, 7)``, corners of the static
+        shapes' boxes (2 S_static, 3)); an entry is None when there is no such shape. The moving
+        part is the subject a camera may follow; the static part (a ramp, a terrain) is framed
+        with the whole run."""
+        if self.local_vertices is None:
+            return None, None
+        moving = self.shape_body[self.vertex_shape] >= 0
+        rest = self.body_vertices(None)[0]
+        still = self._shape_box_corners_of(rest, ~moving)
+        if not np.any(moving) or body_q_frames is None or len(body_q_frames) == 0:
+            return None, still
+        frames = np.asarray(body_q_frames, np.float64)
+        return np.stack([self._shape_box_corners_of(self.body_vertices(q)[0], moving) for q in frames]), still
+
+    def _shape_box_corners_of(self, vertices: np.ndarray, keep: np.ndarray) -> np.ndarray | None:
+        """`_shape_box_corners` of the shapes whose vertices ``keep`` (a per-vertex mask) selects."""
+        if not np.any(keep):
+            return None
+        shape = self.vertex_shape[keep]
+        starts = np.flatnonzero(np.r_[True, shape[1:] != shape[:-1]])
+        picked = vertices[keep]
+        return np.concatenate([np.minimum.reduceat(picked, starts, axis=0), np.maximum.reduceat(picked, starts, axis=0)])
+
     def _shape_box_corners(self, vertices: np.ndarray) -> np.ndarray:
         """The two extreme corners of each shape's world bounding box (2 S', 3): every shape's reach,
         however many vertices it has (a subsample of the vertices missed the top of a pile)."""

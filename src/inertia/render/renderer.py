@@ -151,8 +151,16 @@ class Renderer:
     follow : False default; True frames the particles near each moment of the run (key
         cameras every ~0.5 s, framed on a window of frames, interpolated by ``t``), so a
         travelling cloud stays large in the picture. Needs `fit` with (F, N, 3) positions and
-        ``times``.
+        ``times``. "auto": follow only when the subject travels, i.e. when framed on the whole
+        run its typical window of frames fills less than `FOLLOW_FILL` of the picture (marbles
+        rolling away from their ramp); a subject that stays in place keeps a still camera.
+    reserve_top : share of the frame height the automatic 3-D framing keeps free at the top for
+        a legend drawn there (0 default, 0-0.2 sensible; see `Camera.fit_points`).
     """
+
+    #: follow="auto" follows when the median window of frames fills less than this share of
+    #: the picture framed on the whole run (0.12: a subject in a corner of a large travel).
+    FOLLOW_FILL = 0.12
 
     def __init__(
         self,
@@ -177,7 +185,8 @@ class Renderer:
         min_radius_px: float = 1.0,
         band: int = 16,
         orbit: float = 0.0,
-        follow: bool = False,
+        follow: bool | str = False,
+        reserve_top: float = 0.0,
     ):
         if dim not in (2, 3):
             raise ValueError(f"Renderer: dim must be 2 or 3, got {dim!r}")
@@ -211,8 +220,16 @@ class Renderer:
             raise ValueError(f"Renderer: orbit must be degrees in [-360, 360], got {orbit!r}")
         #: Degrees the automatic camera turns about the up axis over the run (3-D; 0: still).
         self.orbit = float(orbit)
-        #: Follow the particles over the run (3-D): the framing moves with them (see `fit`).
-        self.follow = bool(follow)
+        if not (isinstance(follow, bool) or follow == "auto"):
+            raise ValueError(f"Renderer: follow must be True, False or 'auto', got {follow!r}")
+        #: Follow the particles over the run (3-D): the framing moves with them (see `fit`);
+        #: "auto" decides in `fit` (then reads True or False).
+        self.follow = follow
+        if not (isinstance(reserve_top, (int, float)) and not isinstance(reserve_top, bool)
+                and 0.0 <= reserve_top < 0.5):
+            raise ValueError(f"Renderer: reserve_top must be a number in [0, 0.5), got {reserve_top!r}")
+        #: Share of the frame height kept free at the top by the automatic 3-D framing (a legend).
+        self.reserve_top = float(reserve_top)
         self._orbit_keys = None
         #: Unit world direction towards the key light (None: chosen from the first camera).
         self.light_direction = None
@@ -252,7 +269,9 @@ class Renderer:
             extra_points=None, times=None) -> Camera:
         """Frame the camera on ``positions`` ((N, D), or (F, N, D) for a whole run) and colliders.
 
-        ``extra_points (M, D)``: more world points to keep in view (mesh vertices over the run).
+        ``extra_points (M, D)``: more world points to keep in view (mesh vertices over the run);
+        a following camera frames them only in its whole-run view, not in its keys (they are the
+        still scenery, the positions are the subject).
         ``times (F,)``: the run's frame times; with ``orbit`` set, the camera is framed at
         several angles of the orbit and `frame` interpolates between them by ``t``.
         Sets and returns ``self.camera``; also fixes the grid spacing and default radius.
@@ -261,7 +280,10 @@ class Renderer:
         bounds = self.bounds
         self._orbit_keys = None
         positions = np.asarray(positions)
-        follow = self.follow and positions.ndim == 3 and times is not None and len(times) == positions.shape[0]
+        timed = positions.ndim == 3 and times is not None and len(times) == positions.shape[0]
+        if self.follow == "auto":
+            self.follow = bool(timed and self.dim == 3 and self._subject_travels(camera, positions, times, active, radius))
+        follow = self.follow and timed
         if (self.orbit or follow) and self.dim == 3 and times is not None and len(times) > 1:
             # Key cameras every <= 15 degrees of the orbit (and, following, every ~0.5 s of the
             # run, each framed on the frames within a window around its time), interpolated by
@@ -283,7 +305,7 @@ class Renderer:
                     near = np.abs(times - tk) <= half_window
                     pos_k = positions[near]
                     act_k = None if act is None else (act[near] if act.ndim == 2 else act)
-                cam = self._fit(pos_k, radius, colliders, t, act_k, robust, extra_points)
+                cam = self._fit(pos_k, radius, colliders, t, act_k, robust, None if follow else extra_points)
                 keys.append([cam.target, float(np.linalg.norm(cam.position - cam.target))])
             # A key's distance is the largest of its neighbours' (the scene never leaves the
             # view between keys, and the zoom changes smoothly).
@@ -295,6 +317,35 @@ class Renderer:
             self._orbit_keys = (t0, t1, [tuple(k) for k in keys], camera)
         self.bounds = bounds
         return camera
+
+    @staticmethod
+    def _windows(times: np.ndarray, count: int) -> list[np.ndarray]:
+        """Masks of the frames near each of ``count`` key times spread over the run (the
+        following camera's windows: half a second, or more when the keys are sparser)."""
+        t0, t1 = float(np.min(times)), float(np.max(times))
+        half_window = max(0.5, 0.75 * (t1 - t0) / (count - 1))
+        return [np.abs(times - (t0 + (t1 - t0) * k / (count - 1))) <= half_window for k in range(count)]
+
+    def _subject_travels(self, camera: Camera, positions: np.ndarray, times, active, radius) -> bool:
+        """True when the run's subject, framed on the whole run by ``camera``, fills less than
+        `FOLLOW_FILL` of the picture in its median window of frames (the windows of `fit`'s
+        following keys): the subject travels far compared with its own size."""
+        times = np.asarray(times, dtype=np.float64)
+        if len(times) < 2 or positions.shape[1] == 0:
+            return False
+        count = max(2, min(24, int(math.ceil((float(np.ptp(times))) / 0.5)) + 1))
+        act = None if active is None else np.asarray(active, dtype=bool)
+        pad = float(np.nanmax(np.asarray(radius, dtype=np.float64))) if radius is not None and np.size(radius) else 0.0
+        fills = []
+        for near in self._windows(times, count):
+            pts = positions[near]
+            if act is not None:
+                pts = pts[act[near]] if act.ndim == 2 else pts[:, act[: pts.shape[1]]]
+            pts = np.asarray(pts, dtype=np.float64).reshape(-1, 3)
+            pts = pts[np.all(np.isfinite(pts), axis=1)]
+            if pts.shape[0]:
+                fills.append(camera.screen_fill(pts[:: max(1, pts.shape[0] // 20_000)], self.width, self.height, pad))
+        return bool(fills) and float(np.median(fills)) < self.FOLLOW_FILL
 
     def camera_at(self, t: float) -> Camera:
         """The camera at time ``t``: ``self.camera``, or on the orbit when one was fitted."""
@@ -354,7 +405,7 @@ class Renderer:
             if box is not None or np.any(inside):
                 self.camera = Camera.fit_points(
                     np.vstack(corners), aspect=aspect, up=self.up, azimuth=self.azimuth,
-                    elevation=self.elevation, fov_y=self.fov_y, pad=pad,
+                    elevation=self.elevation, fov_y=self.fov_y, pad=pad, reserve_top=self.reserve_top,
                 )
                 self._background_key = None
                 return self.camera

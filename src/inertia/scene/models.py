@@ -637,7 +637,8 @@ class Camera(_Model):
     height: PositiveFloat | None = Field(None, description="2-D: world units visible vertically")
     orbit: Annotated[float, Field(ge=-360, le=360)] | None = Field(
         None, description="3-D: degrees the framed camera turns about the up axis over the run (0: still)")
-    follow: bool | None = Field(None, description="3-D: the framing follows the particles over the run")
+    follow: bool | None = Field(None, description="3-D: the framing follows the particles and moving bodies over "
+                                "the run (unset: only when they travel far from where they start)")
 
 
 class Render(_Model):
