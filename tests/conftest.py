@@ -4,6 +4,8 @@ import sys
 import tracemalloc
 from types import SimpleNamespace
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -153,3 +155,17 @@ def _resumed_twin(make, step, before, after):
 def resumed_twin():
     """``a, b = resumed_twin(make, step, before, after)``: see `_resumed_twin`."""
     return _resumed_twin
+
+
+# ----------------------------------------------------------------------------- the fast set
+# ``pytest -m "not slow"`` leaves out the tests listed in tests/slow.txt (the ones that took more than a
+# few seconds on the 2-core reference machine, measured; tests/slow_list.py regenerates the list) as well
+# as those marked ``@pytest.mark.slow`` in their files.
+_SLOW_TESTS = frozenset(line for line in Path(__file__).with_name("slow.txt").read_text().splitlines()
+                        if line and not line.startswith("#"))
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.nodeid in _SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)
