@@ -6,7 +6,7 @@ import tracemalloc
 import pytest
 
 from inertia.scene import SceneError, build, parse_scene
-from inertia.scene.resources import estimate_resources
+from inertia.scene.resources import SECONDS_PER_SPH_PARTICLE_STEP, estimate_resources
 
 HUGE_CHAIN = """
 format_version = 1
@@ -123,7 +123,13 @@ fluid = [{ box = [[0, 0], [0.2, 0.4]] }]
     est = estimate_resources(parse_scene(text).model)
     assert abs(est.particles - 2000 * 4000) <= 6000      # (0.2 / 1e-4) x (0.4 / 1e-4) lattice points
     assert est.memory > 8e6 * 1000 and est.largest_key == "sph.water.spacing"
-    assert est.seconds >= 400 * 8e6 * 5e-8           # steps x particles x the per-particle lower bound
+    # the fluid's own steps: a CFL step of cfl spacings at the speed the 0.4 m column reaches falling its
+    # height, sqrt(2 g H) = 2.80 m/s: dt = 0.4 x 1e-4 / 2.80 = 1.43e-5 s, 350 fluid steps per 5 ms world step
+    fluid_steps = 400 * 0.005 / (0.4 * 1e-4 / (2 * 9.81 * 0.4) ** 0.5)
+    assert est.seconds == pytest.approx(fluid_steps * 8e6 * SECONDS_PER_SPH_PARTICLE_STEP, rel=0.01)
+    assert est.run_time_problem() is not None                       # days: refused without --force
+    coarser = estimate_resources(parse_scene(text.replace("1e-4", "2e-4")).model)
+    assert est.seconds / coarser.seconds == pytest.approx(8.0, rel=0.01)    # 4x the particles, 2x the steps
 
 
 def test_grid_cells_cost_memory_and_run_time_and_negative_sizes_are_refused():
