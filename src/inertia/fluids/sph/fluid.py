@@ -140,6 +140,10 @@ ESCAPE_SHARE = 0.25
 ESCAPE_MIN = 8
 # weight of k_i in the boundary term (see SPHFluid)
 BOUNDARY_PRESSURE = {"extrapolated": 1.0, "akinci": 1.0, "mirror": 2.0}  # weight of k_i in the boundary term (see SPHFluid)
+# the default boundary pressure of each method (``SPHFluid(boundary_pressure=None)``): WCSPH's Tait pressure
+# is the state equation of a density that already counts the wall's particles, and mirrored (2 k_i) its
+# noise throws spray up the walls (see the SPHFluid docstring)
+DEFAULT_BOUNDARY_PRESSURE = {"dfsph": "mirror", "wcsph": "akinci"}
 
 
 def _lattice(lo, hi, spacing, origin=None):
@@ -279,8 +283,15 @@ class SPHFluid:
         the flow's speed scale max(max_speed, sqrt(2 |g| domain height), initial speeds,
         spacing / dt_max). Also raised: an adaptive step below 1e-3 of ``cfl spacing /
         speed scale``.
-    boundary_pressure : "mirror" (default), "akinci" or "extrapolated": the pressure of the
+    boundary_pressure : "mirror", "akinci" or "extrapolated"; default None: "mirror" for DFSPH,
+        "akinci" for WCSPH. The pressure of the
         boundary particles b in the symmetric pressure term -sum_b psi_b (k_i + k_b) grad W_ib.
+        WCSPH defaults to Akinci's single term: its Tait pressure is the state equation of a
+        density that already counts the wall's particles, and the mirror (2 k_i) answers the
+        noise of that stiff pressure twice; in the inviscid 2-D dam break (a = 0.2 m, dx = a / 20)
+        it threw spray up the wall the column stood against and the residual height stood 0.17-0.5
+        of 2a above Martin & Moyce's from T ~ 3 (runs at cfl 0.4, 0.2 and 0.1 alike), where Akinci's
+        term stays within 0.05 (tested).
         "mirror": k_b = k_i (pressure mirroring) plus the wall's hydrostatic share once per step
         (``kernels.boundary_hydrostatic_kick``, Adami et al. 2012 pairwise; a particle without
         pressure takes only its wall-normal part); the DFSPH factor keeps Akinci's diagonal
@@ -309,7 +320,7 @@ class SPHFluid:
                  viscosity=0.0, xsph=0.0, surface_tension=0.0, periodic=None, density_tolerance=1e-3,
                  divergence_tolerance=1e-3, max_iterations=100, max_speed=None, dt=None, cfl=0.4,
                  dt_max=0.005, capacity=None, divergence_solve=True, implicit_viscosity=False,
-                 local_density_tolerance=None, runaway_speed=None, boundary_pressure="mirror",
+                 local_density_tolerance=None, runaway_speed=None, boundary_pressure=None,
                  warm_start_divergence=False):
         x0 = _validate.as_points(positions, "positions")
         n, dim = x0.shape
@@ -402,6 +413,8 @@ class SPHFluid:
             _validate.positive_scalar(runaway_speed, "runaway_speed")
         self.min_dt = 1e-3 * self.cfl * self.spacing / self.speed_scale
         self._dt_ref = self.cfl * self.spacing / self.speed_scale
+        if boundary_pressure is None:   # per method: see the docstring
+            boundary_pressure = DEFAULT_BOUNDARY_PRESSURE[method]
         if boundary_pressure not in BOUNDARY_PRESSURE:
             raise ValueError(f"boundary_pressure must be one of {sorted(BOUNDARY_PRESSURE)}; got {boundary_pressure!r}")
         self.boundary_pressure = boundary_pressure
