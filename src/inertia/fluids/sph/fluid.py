@@ -82,7 +82,7 @@ Limitations
 - The DFSPH error is the mean over all particles (as in the paper): below the surface layers
   the compression is ~1.7x the tolerance (measured, hydrostatic column); the largest one is
   bounded separately (``local_density_tolerance``, default 10x).
-- Boundary pressure: the default "mirror" (k_b = k_i plus the wall's hydrostatic share, pairwise,
+- Boundary pressure: DFSPH's default "mirror" (k_b = k_i plus the wall's hydrostatic share, pairwise,
   without the wall's acceleration) holds the floor row at rho0 g (H - y); Akinci's single term
   leaves it at ~1.7x; "extrapolated" (Adami et al. 2012's wall pressure, wall-normal body force
   only) compresses the start of a tall column more (see ``boundary_pressure``). Band et al. 2018's
