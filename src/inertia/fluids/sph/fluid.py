@@ -91,7 +91,9 @@ Limitations
   one support of a free surface alternate by a few % (time average).
 - DFSPH: a block given without velocities starts with its hydrostatic pressure
   (``hydrostatic_pressure``, the warm start of the first constant-density solve; the solve removes
-  what a block not at rest, e.g. in free fall, does not need); with velocities, from zero.
+  what a block not at rest, e.g. in free fall, does not need); with velocities, from zero. Only
+  the body force across the periodic axes enters it (along a periodic axis the fluid accelerates
+  freely; a flow driven only along one starts from zero).
 - Body coupling is explicit (the body integrates the force of the step it was posed for).
 - Bodies are sampled as bands one support thick: fluid that gets deeper into a moving body's
   sphere, box, capsule, cylinder or convex hull is pushed out through the nearest face after the
@@ -472,9 +474,14 @@ class SPHFluid:
         elif method == "dfsph" and gmag > 0 and n:
             # a block at rest starts with its hydrostatic pressure as the warm start of the first
             # constant-density solve (from zero, the first solves of a 20-row column needed up to ~140
-            # iterations, 1-3 with it; a 200-row column was compressed by 8-10 % in its first steps)
-            self._F.k_dens[:n] = hydrostatic_pressure(x0, self.gravity, self.spacing, self.rest_density) / \
-                self.rest_density ** 2
+            # iterations, 1-3 with it; a 200-row column was compressed by 8-10 % in its first steps).
+            # Only the body force across the periodic axes has a hydrostatic balance: along a periodic
+            # axis the fluid accelerates freely (a pressure ramp along it jumps at the seam: in a
+            # channel driven along its periodic axis that jump threw the fluid across the channel)
+            g_static = np.where(self.periodic, 0.0, self.gravity)
+            if np.any(g_static != 0.0):
+                self._F.k_dens[:n] = hydrostatic_pressure(x0, g_static, self.spacing, self.rest_density) / \
+                    self.rest_density ** 2
         self._id = np.full(cap, -1, np.int64)
         self._id[:n] = np.arange(n)
         self._next_id = n
