@@ -291,9 +291,9 @@ class SPHFluid:
         WCSPH defaults to Akinci's single term: its Tait pressure is the state equation of a
         density that already counts the wall's particles, and the mirror (2 k_i) answers the
         noise of that stiff pressure twice; in the inviscid 2-D dam break (a = 0.2 m, dx = a / 20)
-        it threw spray up the wall the column stood against and the residual height stood 0.17-0.5
-        of 2a above Martin & Moyce's from T ~ 3 (runs at cfl 0.4, 0.2 and 0.1 alike), where Akinci's
-        term stays within 0.05 (tested).
+        it threw spray up the wall the column stood against and the residual height stood 0.1-1.2
+        of 2a above Martin & Moyce's at T = 3.1-4.8 (runs at cfl 0.4, 0.2 and 0.1 alike), where
+        Akinci's term stays within 0.05 (tested).
         "mirror": k_b = k_i (pressure mirroring) plus the wall's hydrostatic share once per step
         (``kernels.boundary_hydrostatic_kick``, Adami et al. 2012 pairwise; a particle without
         pressure takes only its wall-normal part); the DFSPH factor keeps Akinci's diagonal
