@@ -472,6 +472,44 @@ def test_dam_break_surge_front_and_residual_height_against_martin_and_moyce():
     assert np.all(np.abs(sim_h - H) < 0.05), sim_h - H
 
 
+def test_wcsph_dam_break_residual_height_against_martin_and_moyce():
+    # The coarse dam break of the test above (a = 0.2 m, 20 x 40 particles, inviscid, slip walls)
+    # in WCSPH with its default boundary pressure (Akinci et al. 2012's single term): the top of
+    # the water within two spacings of the wall the column stood against, in units of 2a, within
+    # 0.05 of Martin & Moyce's residual height at every published point T <= 4.83 (two particle
+    # spacings, as above), and no particle leaves the tank. Measured: within 0.047 (T = 4.83).
+    # With the mirrored wall pressure (k_b = k_i, the WCSPH default before) the Tait pressure's
+    # noise, answered twice by the wall, threw spray up that wall: 0.17 at T = 3.12 and 0.38 at
+    # T = 3.83 above the experiment, and particles left the tank over its top.
+    a, dx = 0.2, 0.01
+    length, height = 5 * a, 4 * a
+    fluid = SPHFluid(sample_block((0.0, 0.0), (a, 2 * a), dx), spacing=dx, domain=((0.0, 0.0), (length, height)),
+                     method="wcsph")
+    assert fluid.boundary_pressure == "akinci"
+    for point, normal in (((0.0, 0.0), (0.0, 1.0)), ((0.0, 0.0), (1.0, 0.0)), ((length, 0.0), (-1.0, 0.0))):
+        fluid.add_boundary(ia.colliders.Plane(point=point, normal=normal), slip=True)
+    scale = np.sqrt(2 * G / a)
+    T_h, H = MARTIN_MOYCE_HEIGHT[:, 0], MARTIN_MOYCE_HEIGHT[:, 1]
+    history = []
+    while fluid.time * scale < T_h[-1] + 0.05:
+        fluid.step()
+        x = fluid.x
+        at_wall = x[:, 0] < 2 * dx
+        history.append((fluid.time * scale, (x[at_wall, 1].max() + dx / 2) / (2 * a)))
+    assert fluid.particle_count == 800  # none escaped
+    history = np.array(history)
+    sim_h = np.interp(T_h, history[:, 0], history[:, 1])
+    assert np.all(np.abs(sim_h - H) < 0.05), sim_h - H
+
+
+def test_default_boundary_pressure_per_method():
+    x = sample_block((0.0, 0.0), (0.1, 0.1), 0.02)
+    assert SPHFluid(x, spacing=0.02, domain=((0.0, 0.0), (1.0, 1.0))).boundary_pressure == "mirror"
+    assert SPHFluid(x, spacing=0.02, domain=((0.0, 0.0), (1.0, 1.0)), method="wcsph").boundary_pressure == "akinci"
+    fluid = SPHFluid(x, spacing=0.02, domain=((0.0, 0.0), (1.0, 1.0)), method="wcsph", boundary_pressure="mirror")
+    assert fluid.boundary_pressure == "mirror"
+
+
 # ------------------------------------------------------------------------------ Poiseuille
 def test_poiseuille_flow_profile_periodic_channel_implicit_viscosity():
     # Plane Poiseuille flow: channel 0 < y < L, periodic in x, body force f along x, no-slip
@@ -680,7 +718,7 @@ def test_fluid_in_a_thick_body_core_is_pushed_out_through_the_nearest_face():
 
 # ------------------------------------------------------------------------------ walls create no momentum
 @pytest.mark.parametrize("method,mode", [("dfsph", "mirror"), ("wcsph", "mirror"), ("dfsph", "akinci"),
-                                         ("dfsph", "extrapolated")])
+                                         ("wcsph", "akinci"), ("dfsph", "extrapolated")])
 def test_droplet_falling_along_a_slip_wall_is_not_braked(method, mode):
     # Free fall: a 5 x 5 droplet released at rest beside a vertical slip wall (no floor) has no
     # pressure and nothing along the wall acts on it, so its mean velocity is -g t (momentum: the
@@ -719,4 +757,46 @@ def test_wcsph_channel_driven_by_a_body_force_gains_no_momentum_from_its_walls(m
     while fluid.time < t_end - 1e-12:
         fluid.step(at_most=t_end - fluid.time)
         assert fluid.v[:, 0].mean() <= force * fluid.time * (1 + 1e-9), (fluid.time, fluid.v[:, 0].mean())
+    assert fluid.particle_count == 240
+
+
+def test_dfsph_channel_driven_by_a_body_force_stays_parallel_to_its_walls():
+    # The same channel in DFSPH with Akinci's boundary pressure, started at rest, to t = 1 s: the
+    # flow accelerates freely along the periodic axis, mean u <= F t (1 + 1e-9) and |v_y| < 2 % of
+    # F t at every step (Newton's second law). Measured: |v_y| <= 0.44 % of F t. Before the
+    # hydrostatic start (the warm start of the first density solve) left out the periodic axes,
+    # the block started with a pressure ramp along the channel that jumped at the seam: |v_y|
+    # reached 6.2 % of F t and the mean velocity 1.0035 F t. (The mirror mode is a known issue:
+    # docs/fluids-sph.md.)
+    dx, width, period, force, t_end = 0.01, 0.2, 0.12, 1.0, 1.0
+    fluid = SPHFluid(sample_block((0.0, 0.0), (period, width), dx), spacing=dx, domain=((0.0, 0.0), (period, width)),
+                     periodic=(True, False), gravity=(force, 0.0), boundary_pressure="akinci", max_speed=force * t_end)
+    assert np.all(fluid._F.k_dens == 0.0)   # no hydrostatic start along the periodic axis
+    fluid.add_boundary(ia.colliders.Plane(point=(0.0, 0.0), normal=(0.0, 1.0)), slip=True)
+    fluid.add_boundary(ia.colliders.Plane(point=(0.0, width), normal=(0.0, -1.0)), slip=True)
+    while fluid.time < t_end - 1e-12:
+        fluid.step(at_most=t_end - fluid.time)
+        ft = force * fluid.time
+        assert fluid.v[:, 0].mean() <= ft * (1 + 1e-9), (fluid.time, fluid.v[:, 0].mean())
+        assert np.abs(fluid.v[:, 1]).max() < 0.02 * ft, (fluid.time, np.abs(fluid.v[:, 1]).max())
+    assert fluid.particle_count == 240
+
+
+def test_wcsph_channel_driven_by_a_body_force_stays_parallel_to_its_walls():
+    # The channel above with WCSPH's default boundary pressure (Akinci's single term) to t = 1 s:
+    # the walls push only along their normal and nothing pushes across the channel, so the flow
+    # accelerates freely along it: mean u <= F t (1 + 1e-9) and |v_y| < 2 % of F t at every step
+    # (Newton's second law for the free acceleration of the whole channel). The lattice start is
+    # uncompressed and stays so (measured: |v_y| = 0, mean u = F t). With the mirrored wall pressure
+    # (the WCSPH default before) the run diverged at t = 0.56 s.
+    dx, width, period, force, t_end = 0.01, 0.2, 0.12, 1.0, 1.0
+    fluid = SPHFluid(sample_block((0.0, 0.0), (period, width), dx), spacing=dx, domain=((0.0, 0.0), (period, width)),
+                     periodic=(True, False), gravity=(force, 0.0), method="wcsph", max_speed=force * t_end)
+    fluid.add_boundary(ia.colliders.Plane(point=(0.0, 0.0), normal=(0.0, 1.0)), slip=True)
+    fluid.add_boundary(ia.colliders.Plane(point=(0.0, width), normal=(0.0, -1.0)), slip=True)
+    while fluid.time < t_end - 1e-12:
+        fluid.step(at_most=t_end - fluid.time)
+        ft = force * fluid.time
+        assert fluid.v[:, 0].mean() <= ft * (1 + 1e-9), (fluid.time, fluid.v[:, 0].mean())
+        assert np.abs(fluid.v[:, 1]).max() < 0.02 * ft, (fluid.time, np.abs(fluid.v[:, 1]).max())
     assert fluid.particle_count == 240

@@ -23,7 +23,8 @@ boundary particle's own pressure k_b in the symmetric SPH sum m (k_i + k_b) (``S
 ...)``): "extrapolated" the Shepard average of the fluid pressures plus the wall-normal
 body-force share (Adami, Hu & Adams 2012, "A generalized wall boundary condition for SPH", J. Comput.
 Phys. 231; ``kernels.boundary_extrapolated_pressure`` / ``body_boundary_pressure_wrench``), "mirror"
-(the default) k_b = k_i (Akinci et al. 2012) plus the wall's hydrostatic share g . (x_b - x_i) / rho_i
+(the DFSPH default; WCSPH defaults to "akinci") k_b = k_i (Akinci et al. 2012) plus the wall's
+hydrostatic share g . (x_b - x_i) / rho_i
 (``kernels.boundary_hydrostatic_kick`` / ``body_hydrostatic_wrench``; the full offset for a particle
 under pressure: its wall-normal part alone lost the share in corners and on the slab bodies' periodic
 faces; a particle without pressure takes only the wall-normal part). The normals n_b are the
