@@ -34,13 +34,17 @@ class SimulationDiverged(RuntimeError):
 
 
 def check_substep_runaway(kind: str, substeps: int, done: float, frame_dt: float, speed: float, *,
-                          step: int, time: float) -> None:
+                          step: int, time: float, dt: float | None = None) -> None:
     """Raise `SimulationDiverged` once a CFL-limited ``advance`` has taken more than
-    `MAX_SUBSTEPS_PER_ADVANCE` substeps: the flow's speed (``speed``, m/s) grew so fast that its
-    stable step shrinks faster than time advances, so the run would never end."""
-    if substeps <= MAX_SUBSTEPS_PER_ADVANCE:
+    `MAX_SUBSTEPS_PER_ADVANCE` substeps, or, given the substep ``dt`` about to be taken, as soon as the
+    flow at its current speed would need more than ten times that many to finish the step: the flow's
+    speed (``speed``, m/s) grew so fast that its stable step shrinks faster than time advances, so the
+    run would never end (a 1e12 m/s inflow is caught before its first substep instead of after 2000)."""
+    needed = substeps if dt is None or dt <= 0.0 else substeps + (frame_dt - done) / dt
+    if substeps <= MAX_SUBSTEPS_PER_ADVANCE and needed <= 10 * MAX_SUBSTEPS_PER_ADVANCE:
         return
     raise SimulationDiverged(
         f"{kind} step {step} (t = {time:.6g} s): {substeps} CFL substeps covered only {done:.3g} of the "
-        f"{frame_dt:g} s step (max speed {speed:.3g} m/s); likely cause: a body acceleration, source or "
-        "inflow too strong for the grid, or a velocity blow-up", step=step, time=time, indices=[])
+        f"{frame_dt:g} s step (max speed {speed:.3g} m/s; at that speed the step needs {needed:.3g} substeps); "
+        "likely cause: a body acceleration, source or inflow too strong for the grid, or a velocity blow-up",
+        step=step, time=time, indices=[])

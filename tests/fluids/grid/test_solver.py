@@ -440,3 +440,12 @@ def test_lid_driven_cavity_re1000_matches_ghia_at_steady_state():
     assert np.max(np.abs(v - GHIA_V_RE1000)) < 0.10
     # the primary vortex is stronger than at Re = 400: u minimum below -0.29 (Ghia -0.38289)
     assert u.min() < -0.29
+
+
+def test_a_runaway_inflow_is_declared_diverged_before_its_first_substep():
+    # at 1e12 m/s through 1/8 m cells a 0.1 s step needs ~1e14 CFL substeps: the step is refused at once
+    # (SimulationDiverged naming the count and the likely cause) instead of after 2000 substeps
+    fluid = GridFluid((8, 8), 1 / 8, boundaries={"x-": Inflow(velocity=(1e12, 0.0)), "x+": Outflow()})
+    with pytest.raises(SimulationDiverged, match=r"0 CFL substeps.*inflow too strong"):
+        fluid.advance(0.1)
+    assert fluid.time == 0.0

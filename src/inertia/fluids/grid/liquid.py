@@ -130,7 +130,7 @@ from numba import njit, prange
 
 from ..._jit import parallel_kernel
 from ..._validate import as_vector, positive_scalar
-from ...errors import MAX_SUBSTEPS_PER_ADVANCE, SimulationDiverged, check_substep_runaway
+from ...errors import SimulationDiverged, check_substep_runaway
 from . import kernels as K
 from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Wall, parse_boundaries, side_velocity
@@ -1876,12 +1876,11 @@ class LiquidFluid:
         n = 0
         while done < frame_dt * (1 - 1e-12):
             dt = min(self.stable_dt(), frame_dt - done)
+            check_substep_runaway("liquid", n, done, frame_dt, self.cfl * self.cell_size / dt,
+                                  step=self.step_index, time=self.time, dt=dt)
             self.step(dt)
             done += dt
             n += 1
-            if n > MAX_SUBSTEPS_PER_ADVANCE:
-                check_substep_runaway("liquid", n, done, frame_dt, self.cfl * self.cell_size / dt,
-                                      step=self.step_index, time=self.time)
         return n
 
     def _predict_gravity(self, dt, sign):

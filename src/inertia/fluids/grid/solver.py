@@ -88,7 +88,7 @@ import math
 import numpy as np
 
 from ..._validate import as_vector, positive_scalar
-from ...errors import MAX_SUBSTEPS_PER_ADVANCE, SimulationDiverged, check_substep_runaway
+from ...errors import SimulationDiverged, check_substep_runaway
 from . import kernels as K
 from . import viscosity as V
 from .boundaries import Inflow, Outflow, Periodic, Pressure, Wall, parse_boundaries, side_velocity
@@ -1031,12 +1031,11 @@ class GridFluid:
             remaining = frame_dt - done - dt
             if 0 < remaining < 0.1 * dt:  # avoid a sliver of a last substep
                 dt = 0.5 * (frame_dt - done)
+            check_substep_runaway("grid fluid", n, done, frame_dt, self.max_speed(), step=self.step_index,
+                                  time=self.time, dt=dt)
             self.step(dt)
             done += dt
             n += 1
-            if n > MAX_SUBSTEPS_PER_ADVANCE:
-                check_substep_runaway("grid fluid", n, done, frame_dt, self.max_speed(), step=self.step_index,
-                                      time=self.time)
         return n
 
     # ------------------------------------------------------------------------ rigid coupling
