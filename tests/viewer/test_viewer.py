@@ -182,40 +182,13 @@ def test_headless_chromium_shows_the_fluids(kind):
 
 @pytest.mark.skipif(None in _chromium(), reason="needs Chromium and ChromeDriver (apt-get install chromium chromium-driver)")
 def test_headless_chromium_shows_the_particles_and_steps():
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
-    from selenium.webdriver.common.by import By
+    By = pytest.importorskip("selenium.webdriver.common.by").By
 
-    from inertia.render import read_png
-
-    browser, driver_path = _chromium()
     viewer = view(_run(), port=0, block=False, autoplay=False, color_by="uniform", color=(1.0, 0.0, 1.0))
-    options = webdriver.ChromeOptions()
-    options.binary_location = browser
-    profile = tempfile.mkdtemp(prefix="inertia-chromium-")
-    for flag in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--window-size=1200,800",
-                 f"--user-data-dir={profile}"):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(driver_path), options=options)
+    driver = profile = None
     try:
-        driver.set_page_load_timeout(60)
-        driver.get(viewer.url)
         # Wait until the WebGL canvas shows magenta particles (software GL: give it time).
-        shot = tempfile.mktemp(suffix=".png")
-        magenta = 0
-        deadline = time.monotonic() + 90
-        while time.monotonic() < deadline:
-            time.sleep(2.0)
-            try:
-                driver.save_screenshot(shot)
-            except Exception:  # noqa: BLE001 - the renderer may be busy; try again
-                continue
-            pixels = read_png(shot)[..., :3].astype(int)
-            magenta = int(((pixels[..., 0] > 120) & (pixels[..., 2] > 120) & (pixels[..., 1] < 90)).sum())
-            if magenta > 2000:
-                break
+        driver, profile, magenta = _chromium_screenshots(viewer, _magenta, 2000)
         assert magenta > 2000, f"the screenshot shows no particles ({magenta} magenta pixels)"
         # The Step button advances the frame shown in the panel.
         step = driver.find_element(By.XPATH, "//button[normalize-space()='Step']")
@@ -226,9 +199,11 @@ def test_headless_chromium_shows_the_particles_and_steps():
         assert "frame 1 / 5" in driver.page_source
         assert viewer.frame == 1
     finally:
-        driver.quit()
+        if driver is not None:
+            driver.quit()
         viewer.close()
-        shutil.rmtree(profile, ignore_errors=True)
+        if profile is not None:
+            shutil.rmtree(profile, ignore_errors=True)
 
 
 def test_rigid_bodies_are_meshes_moved_by_body_q():
