@@ -198,7 +198,8 @@ def main():
     ap.add_argument("--shapes", nargs="+", default=["box", "sphere"])
     ap.add_argument("--engines", nargs="+", default=["inertia", "pybullet", "mujoco"])
     ap.add_argument("--substeps", type=int, default=8)
-    ap.add_argument("--stack-seconds", type=float, default=10.0)
+    ap.add_argument("--stack-seconds", type=float, default=10.0,
+                    help="simulated seconds of the 10-box stack, > 1 (the first second settles it, the rest is timed)")
     ap.add_argument("--damping-ratio", type=float, default=10.0,
                     help="the piles' contact_damping_ratio (5 with --substeps 4: the real-time pile profile)")
     ap.add_argument("--parallel", choices=["auto", "yes", "no"], default="no",
@@ -206,6 +207,8 @@ def main():
                          "every parallel launch waits for a time slice)")
     ap.add_argument("--pyramid", action="store_true", help="also run the 20-base pyramid for 30 s")
     a = ap.parse_args()
+    if not a.stack_seconds > 1.0:
+        ap.error(f"--stack-seconds must be more than 1 (the first second settles the stack); got {a.stack_seconds}")
     import numba
     print(f"numba threads {numba.config.NUMBA_NUM_THREADS}, cpu count {os.cpu_count()}")
     results = {}
