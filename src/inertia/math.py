@@ -371,7 +371,9 @@ def transform_mul(a, b):
     out[0] += a[0]
     out[1] += a[1]
     out[2] += a[2]
-    out[3:7] = quat_mul(a[3:7], b[3:7])
+    q = quat_mul(a[3:7], b[3:7])
+    for k in range(4):      # element by element: a slice assignment compiles Numba's broadcasting checks
+        out[3 + k] = q[k]
     return out
 
 
