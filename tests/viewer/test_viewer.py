@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 import tempfile
 import time
@@ -116,9 +117,11 @@ def test_fluids_are_shown():
         viewer.close()
 
 
-def _chromium_screenshots(viewer, count_pixels, needed: int, seconds: float = 90.0):
-    """Open the viewer in headless Chromium; return (driver, profile, pixels) once a screenshot has
-    ``needed`` pixels that ``count_pixels(rgb)`` counts (or the deadline passed)."""
+@contextlib.contextmanager
+def _in_chromium(viewer, count_pixels, needed: int, seconds: float = 90.0):
+    """Open the viewer in headless Chromium; yield (driver, pixels) once a screenshot has ``needed``
+    pixels that ``count_pixels(rgb)`` counts (or the deadline passed); then close the browser, the
+    viewer and the browser's profile folder."""
     webdriver = pytest.importorskip("selenium.webdriver")
     from selenium.webdriver.chrome.service import Service
 
@@ -133,22 +136,29 @@ def _chromium_screenshots(viewer, count_pixels, needed: int, seconds: float = 90
                  "--enable-unsafe-swiftshader", "--use-angle=swiftshader", "--window-size=1200,800",
                  f"--user-data-dir={profile}"):
         options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(driver_path), options=options)
-    driver.set_page_load_timeout(60)
-    driver.get(viewer.url)
-    shot = tempfile.mktemp(suffix=".png")
-    found = 0
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        time.sleep(2.0)
-        try:
-            driver.save_screenshot(shot)
-        except Exception:  # noqa: BLE001 - the renderer may be busy; try again
-            continue
-        found = count_pixels(read_png(shot)[..., :3].astype(int))
-        if found > needed:
-            break
-    return driver, profile, found
+    driver = None
+    try:
+        driver = webdriver.Chrome(service=Service(driver_path), options=options)
+        driver.set_page_load_timeout(60)
+        driver.get(viewer.url)
+        shot = tempfile.mktemp(suffix=".png")
+        found = 0
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            time.sleep(2.0)
+            try:
+                driver.save_screenshot(shot)
+            except Exception:  # noqa: BLE001 - the renderer may be busy; try again
+                continue
+            found = count_pixels(read_png(shot)[..., :3].astype(int))
+            if found > needed:
+                break
+        yield driver, found
+    finally:
+        if driver is not None:
+            driver.quit()
+        viewer.close()
+        shutil.rmtree(profile, ignore_errors=True)
 
 
 def _magenta(p):
@@ -168,16 +178,8 @@ def test_headless_chromium_shows_the_fluids(kind):
     else:
         viewer = view(_smoke_run(), port=0, block=False, autoplay=False)
         count = _warm
-    driver = profile = None
-    try:
-        driver, profile, found = _chromium_screenshots(viewer, count, 2000)
+    with _in_chromium(viewer, count, 2000) as (driver, found):
         assert found > 2000, f"the screenshot shows no {kind} ({found} pixels)"
-    finally:
-        if driver is not None:
-            driver.quit()
-        viewer.close()
-        if profile is not None:
-            shutil.rmtree(profile, ignore_errors=True)
 
 
 @pytest.mark.skipif(None in _chromium(), reason="needs Chromium and ChromeDriver (apt-get install chromium chromium-driver)")
@@ -185,10 +187,8 @@ def test_headless_chromium_shows_the_particles_and_steps():
     By = pytest.importorskip("selenium.webdriver.common.by").By
 
     viewer = view(_run(), port=0, block=False, autoplay=False, color_by="uniform", color=(1.0, 0.0, 1.0))
-    driver = profile = None
-    try:
-        # Wait until the WebGL canvas shows magenta particles (software GL: give it time).
-        driver, profile, magenta = _chromium_screenshots(viewer, _magenta, 2000)
+    # Wait until the WebGL canvas shows magenta particles (software GL: give it time).
+    with _in_chromium(viewer, _magenta, 2000) as (driver, magenta):
         assert magenta > 2000, f"the screenshot shows no particles ({magenta} magenta pixels)"
         # The Step button advances the frame shown in the panel.
         step = driver.find_element(By.XPATH, "//button[normalize-space()='Step']")
@@ -198,12 +198,6 @@ def test_headless_chromium_shows_the_particles_and_steps():
             time.sleep(0.5)
         assert "frame 1 / 5" in driver.page_source
         assert viewer.frame == 1
-    finally:
-        if driver is not None:
-            driver.quit()
-        viewer.close()
-        if profile is not None:
-            shutil.rmtree(profile, ignore_errors=True)
 
 
 def test_rigid_bodies_are_meshes_moved_by_body_q():
