@@ -1376,9 +1376,7 @@ class LiquidFluid:
         v = np.zeros_like(x)
         if velocity is not None:
             v[:, :d] = as_vector(velocity, "velocity", d)
-        self.x = np.ascontiguousarray(np.concatenate([self.x, x]))
-        self.v = np.ascontiguousarray(np.concatenate([self.v, v]))
-        self.c = np.ascontiguousarray(np.concatenate([self.c, np.zeros((x.shape[0], 3, 3))]))
+        self._append_particles(x, v, np.zeros((x.shape[0], 3, 3)))
         np.clip(self.x, self._lo, self._hi, out=self.x)
         n0 = self.x.shape[0]
         self._drop_particles_in_solids(self.x.shape[0] - pts.shape[0])
@@ -1395,10 +1393,7 @@ class LiquidFluid:
         for o in obst:
             inside |= np.asarray(o.signed_distance(pts, self.time)) < 0
         if inside.any():
-            keep = np.concatenate([np.ones(first, dtype=np.bool_), ~inside])
-            self.x = np.ascontiguousarray(self.x[keep])
-            self.v = np.ascontiguousarray(self.v[keep])
-            self.c = np.ascontiguousarray(self.c[keep])
+            self._keep_particles(np.concatenate([np.ones(first, dtype=np.bool_), ~inside]))
 
     # ------------------------------------------------------------------------ solids
     def _all_obstacles(self):
@@ -1645,6 +1640,18 @@ class LiquidFluid:
             self._side_normal[a, sd] = v[a]
         return sides
 
+    def _append_particles(self, xn, vn, cn):
+        """Append particles (positions, velocities, APIC affine matrices) after the last one."""
+        self.x = np.ascontiguousarray(np.concatenate([self.x, xn]))
+        self.v = np.ascontiguousarray(np.concatenate([self.v, vn]))
+        self.c = np.ascontiguousarray(np.concatenate([self.c, cn]))
+
+    def _keep_particles(self, keep):
+        """Keep the particles where ``keep`` (N,) is True, in order."""
+        self.x = np.ascontiguousarray(self.x[keep])
+        self.v = np.ascontiguousarray(self.v[keep])
+        self.c = np.ascontiguousarray(self.c[keep])
+
     def _emit(self, dt):
         """Inflow stage (after advection): each inflow side emits rows of particles on the h/2
         lattice of `add_block`, a row each time the liquid has entered h/2 deep (the side's
@@ -1674,9 +1681,7 @@ class LiquidFluid:
         xn = np.concatenate([r[0] for r in rows])
         vn = np.concatenate([r[1] for r in rows])
         n = xn.shape[0]
-        self.x = np.ascontiguousarray(np.concatenate([self.x, xn]))
-        self.v = np.ascontiguousarray(np.concatenate([self.v, vn]))
-        self.c = np.ascontiguousarray(np.concatenate([self.c, np.zeros((n, 3, 3))]))
+        self._append_particles(xn, vn, np.zeros((n, 3, 3)))
         self.particles_emitted += int(n)
 
     def _drain(self):
@@ -1688,9 +1693,7 @@ class LiquidFluid:
         if kept == self.x.shape[0]:
             return
         self.particles_drained += self.x.shape[0] - kept
-        self.x = np.ascontiguousarray(self.x[keep])
-        self.v = np.ascontiguousarray(self.v[keep])
-        self.c = np.ascontiguousarray(self.c[keep])
+        self._keep_particles(keep)
 
     def _volume_displacement(self):
         """Volume stage (Kugelstadt, Longva, Thuerey and Bender 2019, the position-based density
@@ -1739,9 +1742,7 @@ class LiquidFluid:
         if n_remove:
             keep = np.empty(self.x.shape[0], dtype=np.bool_)
             mark_overfull(self.x, self.origin, h, self.dim, OVERFULL * ppc, self._count, keep)
-            self.x = np.ascontiguousarray(self.x[keep])
-            self.v = np.ascontiguousarray(self.v[keep])
-            self.c = np.ascontiguousarray(self.c[keep])
+            self._keep_particles(keep)
             self.particles_removed += int(n_remove)
         if n_add:
             xn = np.zeros((n_add, 3))
@@ -1751,9 +1752,7 @@ class LiquidFluid:
             m = 0 if self.method == "apic" else 2    # (FLIP: new particles take the grid's velocity)
             grid_to_particles(xn, vn, cn, self.vel, self.vel_old, self.origin, h, self.dim, m,
                               self.flip_ratio, self._periodic)
-            self.x = np.ascontiguousarray(np.concatenate([self.x, xn]))
-            self.v = np.ascontiguousarray(np.concatenate([self.v, vn]))
-            self.c = np.ascontiguousarray(np.concatenate([self.c, cn]))
+            self._append_particles(xn, vn, cn)
             self.particles_seeded += int(n_add)
 
     def _diffuse(self, dt):
