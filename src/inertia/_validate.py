@@ -92,3 +92,18 @@ def index_array(value, name: str, count: int, *, columns: int | None = None) -> 
         raise ValueError(f"{name} indices must lie in [0, {count - 1}] (the particle count is {count}); "
                          f"got out-of-range values {np.unique(bad)[:10].tolist()}")
     return np.ascontiguousarray(arr, dtype=np.int64)
+
+
+def npy_header(handle) -> tuple[tuple[int, ...], np.dtype, int]:
+    """(shape, dtype, bytes of array data the header promises) of the ``.npy`` stream open in binary
+    ``handle``, read from its header alone (nothing the size of the array is allocated), leaving the
+    handle at the start of the data. Raises what numpy raises for a damaged header (ValueError, OSError,
+    EOFError)."""
+    import math
+
+    version = np.lib.format.read_magic(handle)
+    if version == (1, 0):
+        shape, _, dtype = np.lib.format.read_array_header_1_0(handle)
+    else:
+        shape, _, dtype = np.lib.format.read_array_header_2_0(handle)
+    return shape, dtype, math.prod(shape) * dtype.itemsize

@@ -65,6 +65,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from .._validate import npy_header
 from .atomic import atomic_write, write_text_atomic
 from .manifest import library_versions
 
@@ -109,12 +110,9 @@ def npz_member_problem(zip_file) -> str | None:
         name = member.filename.removesuffix(".npy")
         try:
             with zip_file.open(member) as handle:
-                version = np.lib.format.read_magic(handle)
-                shape, _, dtype = (np.lib.format.read_array_header_1_0(handle) if version == (1, 0)
-                                   else np.lib.format.read_array_header_2_0(handle))
+                shape, dtype, promised = npy_header(handle)
         except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
             return f"array {name!r} is damaged ({type(exc).__name__}: {exc})"
-        promised = math.prod(shape) * dtype.itemsize
         if promised > member.file_size:
             return (f"array {name!r} is damaged: its header says shape {shape} of {dtype} ({promised:,} bytes) but "
                     f"the archive holds {member.file_size:,} bytes")

@@ -287,8 +287,7 @@ def read_npy_file(file, path: str, fail, *, ndim: int | None = None, max_bytes: 
     ``.npy`` suffix, a numeric dtype, ``ndim`` dimensions, and the bytes the header promises against
     the file's size (a header that lies about its shape) and against ``max_bytes`` (default: the
     memory available); values must be finite. ``fail(key_path, message)`` reports every problem."""
-    import math
-
+    from .._validate import npy_header
     from .resources import _human_bytes, available_memory
 
     file = Path(file)
@@ -296,9 +295,7 @@ def read_npy_file(file, path: str, fail, *, ndim: int | None = None, max_bytes: 
         fail(path, f"{file}: expected a .npy file (got {file.suffix or 'no suffix'!r})")
     try:
         with open(file, "rb") as handle:
-            version = np.lib.format.read_magic(handle)
-            shape, fortran, dtype = (np.lib.format.read_array_header_1_0(handle) if version == (1, 0)
-                                     else np.lib.format.read_array_header_2_0(handle))
+            shape, dtype, promised = npy_header(handle)
             offset = handle.tell()
         size = file.stat().st_size
     except Exception as exc:  # noqa: BLE001 - any unreadable header is an input error
@@ -307,7 +304,6 @@ def read_npy_file(file, path: str, fail, *, ndim: int | None = None, max_bytes: 
         fail(path, f"{file}: holds {dtype} values; a numeric array is needed")
     if ndim is not None and len(shape) != ndim:
         fail(path, f"{file}: holds a {len(shape)}-D array of shape {shape}; a {ndim}-D array is needed")
-    promised = math.prod(shape) * dtype.itemsize
     if promised > size - offset:
         fail(path, f"{file}: its header says shape {shape} of {dtype} ({promised:,} bytes) but the file holds "
                    f"{size - offset:,} bytes of data (damaged or not written by numpy)")
